@@ -1,0 +1,176 @@
+"""The registry of analyses that `jaxloco sweep` can run.
+
+An *analysis* is a batched, jittable function from parameter values to metrics, plus
+the description of its parameters (name, unit, range, default) and metrics. The sweep
+layer only talks to this interface; robots register their analyses here.
+
+Contract of `Analysis.make_batch_fn(fixed)`:
+  * `fixed` maps every parameter that is *not* swept to a plain Python value (already
+    validated with `Param.check`).
+  * It returns `fn(swept, keys)` where `swept` maps each swept parameter name to an
+    array of shape (B,) and `keys` is a (B, 2) uint32 array of PRNG keys (one per row,
+    from the row's seed). `fn` is pure and jit-compatible; the caller jits it.
+  * `fn` returns a dict with one (B,) array per metric in `Analysis.metrics` plus
+    `"status"`: an int array indexing `Analysis.statuses` (0 means "ok").
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+ParamKind = Literal["float", "int", "bool", "str"]
+
+
+class SpecError(ValueError):
+    """A user input (spec, parameter value, file) is wrong; the message is one line."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """One input of an analysis.
+
+    lo/hi bound the value (inclusive unless lo_open/hi_open). `sweepable=False` marks a
+    parameter that changes array shapes or compiled structure: it may be set in a spec's
+    fixed section but not swept.
+    """
+
+    name: str
+    default: Any
+    doc: str
+    unit: str = ""
+    kind: ParamKind = "float"
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    choices: tuple[Any, ...] | None = None
+    sweepable: bool = True
+
+    def range_text(self) -> str:
+        if self.choices is not None:
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        if self.lo is None and self.hi is None:
+            return "any"
+        left = "(" if self.lo_open else "["
+        right = ")" if self.hi_open else "]"
+        lo = "-inf" if self.lo is None else f"{self.lo:g}"
+        hi = "inf" if self.hi is None else f"{self.hi:g}"
+        return f"{left}{lo}, {hi}{right}"
+
+    def check(self, value: Any, where: str | None = None) -> Any:
+        """Return `value` coerced to this parameter's kind, or raise SpecError (one line)."""
+        label = where or self.name
+        if self.kind == "bool":
+            if not isinstance(value, bool):
+                raise SpecError(f"{label}: expected true or false, got {value!r}")
+            return value
+        if self.kind == "str":
+            if not isinstance(value, str):
+                raise SpecError(f"{label}: expected a string, got {value!r}")
+            out: Any = value
+        elif self.kind == "int":
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise SpecError(f"{label}: expected an integer, got {value!r}")
+            out = int(value)
+        else:
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise SpecError(f"{label}: expected a number, got {value!r}")
+            out = float(value)
+            if not math.isfinite(out):
+                raise SpecError(f"{label}: expected a finite number, got {value!r}")
+        if self.choices is not None and out not in self.choices:
+            raise SpecError(f"{label}: {out!r} is not {self.range_text()}")
+        if self.kind in ("int", "float"):
+            bad_lo = self.lo is not None and (out <= self.lo if self.lo_open else out < self.lo)
+            bad_hi = self.hi is not None and (out >= self.hi if self.hi_open else out > self.hi)
+            if bad_lo or bad_hi:
+                unit = f" {self.unit}" if self.unit else ""
+                raise SpecError(f"{label}: {out:g}{unit} is outside {self.range_text()}")
+        return out
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One output column of an analysis (per parameter set)."""
+
+    name: str
+    doc: str
+    unit: str = ""
+    kind: Literal["float", "int", "bool"] = "float"
+
+
+SummaryFn = Callable[[Any], "Summary"]
+
+
+@dataclass(frozen=True)
+class Summary:
+    """A short human table: a title, column names and rows of already formatted cells."""
+
+    title: str
+    columns: tuple[str, ...]
+    rows: tuple[tuple[str, ...], ...]
+    notes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Analysis:
+    name: str
+    doc: str
+    params: tuple[Param, ...]
+    metrics: tuple[Metric, ...]
+    make_batch_fn: Callable[[Mapping[str, Any]], Callable[..., dict[str, Any]]]
+    statuses: tuple[str, ...] = ("ok",)
+    summarize: SummaryFn | None = None  # pyarrow.Table -> Summary
+    x64: bool = True  # run in float64 (the CLI configures JAX accordingly)
+    _by_name: dict[str, Param] = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        names = [p.name for p in self.params]
+        if len(set(names)) != len(names):
+            raise ValueError(f"analysis {self.name}: duplicate parameter names")
+        if not self.statuses or self.statuses[0] != "ok":
+            raise ValueError(f"analysis {self.name}: statuses[0] must be 'ok'")
+        self._by_name.update({p.name: p for p in self.params})
+
+    def param(self, name: str, where: str | None = None) -> Param:
+        try:
+            return self._by_name[name]
+        except KeyError:
+            known = ", ".join(sorted(self._by_name))
+            raise SpecError(f"{where or name}: unknown parameter '{name}' for analysis '{self.name}' (known: {known})") from None
+
+    def defaults(self) -> dict[str, Any]:
+        return {p.name: p.default for p in self.params}
+
+
+# name -> "module:attribute" (imported lazily) or an Analysis registered at run time.
+_BUILTIN: dict[str, str] = {
+    "leggrope.slope_cycle": "jaxloco.robots.leggrope.analysis:SLOPE_CYCLE",
+}
+_REGISTERED: dict[str, Analysis] = {}
+
+
+def register(analysis: Analysis) -> Analysis:
+    """Add an analysis (e.g. from a plugin or a test); returns it."""
+    _REGISTERED[analysis.name] = analysis
+    return analysis
+
+
+def names() -> list[str]:
+    return sorted(set(_BUILTIN) | set(_REGISTERED))
+
+
+def get(name: str) -> Analysis:
+    """The analysis called `name`; SpecError naming the known ones if there is none."""
+    if name in _REGISTERED:
+        return _REGISTERED[name]
+    if name in _BUILTIN:
+        module, attr = _BUILTIN[name].split(":")
+        analysis = getattr(importlib.import_module(module), attr)
+        _REGISTERED[name] = analysis
+        return analysis
+    raise SpecError(f"unknown analysis '{name}' (known: {', '.join(names())})")

@@ -1,0 +1,62 @@
+"""Process-level JAX settings that an application (CLI, tests, notebooks) opts into.
+
+Nothing in the kernels calls this: precision and caching are chosen by the caller,
+once, before the first computation. `configure()` is idempotent.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+ENV_CACHE_DIR = "JAXLOCO_CACHE_DIR"
+
+
+def default_cache_dir() -> Path:
+    """Where JAX's persistent compilation cache lives (outside any repository).
+
+    `$JAXLOCO_CACHE_DIR`, else `$XDG_CACHE_HOME/jaxloco/jax`, else `~/.cache/jaxloco/jax`.
+    """
+    env = os.environ.get(ENV_CACHE_DIR)
+    if env:
+        return Path(env).expanduser()
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    base = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
+    return base / "jaxloco" / "jax"
+
+
+@dataclass(frozen=True)
+class RuntimeSettings:
+    x64: bool
+    cache_dir: Path | None
+
+
+def configure(*, x64: bool = True, cache_dir: str | Path | None | bool = True) -> RuntimeSettings:
+    """Set float64 on/off and the persistent compilation cache.
+
+    cache_dir: True -> `default_cache_dir()`; False/None -> leave the cache off;
+    a path -> use it. Compiled programs of any compile time are cached.
+    """
+    import jax
+
+    jax.config.update("jax_enable_x64", bool(x64))
+    path: Path | None = None
+    if cache_dir is True:
+        path = default_cache_dir()
+    elif cache_dir:
+        path = Path(cache_dir).expanduser()
+    if path is not None:
+        path.mkdir(parents=True, exist_ok=True)
+        jax.config.update("jax_compilation_cache_dir", str(path))
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+        jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    return RuntimeSettings(x64=bool(x64), cache_dir=path)
+
+
+def current_settings() -> RuntimeSettings:
+    """What JAX is set to now (float64 flag, compilation cache directory or None)."""
+    import jax
+
+    cache = jax.config.read("jax_compilation_cache_dir")
+    return RuntimeSettings(x64=bool(jax.config.read("jax_enable_x64")), cache_dir=Path(cache) if cache else None)
