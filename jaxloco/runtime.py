@@ -32,15 +32,26 @@ class RuntimeSettings:
     cache_dir: Path | None
 
 
-def configure(*, x64: bool = True, cache_dir: str | Path | None | bool = True) -> RuntimeSettings:
-    """Set float64 on/off and the persistent compilation cache.
+def configure(
+    *, x64: bool = True, cache_dir: str | Path | None | bool = True, cpu_devices: int | None = None
+) -> RuntimeSettings:
+    """Set float64 on/off, the persistent compilation cache and the number of host CPU
+    devices.
 
     cache_dir: True -> `default_cache_dir()`; False/None -> leave the cache off;
     a path -> use it. Compiled programs of any compile time are cached.
+    cpu_devices: how many JAX CPU devices to expose (default: `$JAXLOCO_CPU_DEVICES` or
+    the number of cores), so that a batch sharded over them runs on every core. It only
+    takes effect before JAX's backend starts (the first computation); later it is left.
     """
     import jax
 
     jax.config.update("jax_enable_x64", bool(x64))
+    n = cpu_devices or int(os.environ.get("JAXLOCO_CPU_DEVICES", 0)) or (os.cpu_count() or 1)
+    try:
+        jax.config.update("jax_num_cpu_devices", int(n))
+    except RuntimeError:  # backend already initialized: keep what it has
+        pass
     path: Path | None = None
     if cache_dir is True:
         path = default_cache_dir()
@@ -58,5 +69,5 @@ def current_settings() -> RuntimeSettings:
     """What JAX is set to now (float64 flag, compilation cache directory or None)."""
     import jax
 
-    cache = jax.config.read("jax_compilation_cache_dir")
-    return RuntimeSettings(x64=bool(jax.config.read("jax_enable_x64")), cache_dir=Path(cache) if cache else None)
+    cache = jax.config.jax_compilation_cache_dir
+    return RuntimeSettings(x64=bool(jax.config.jax_enable_x64), cache_dir=Path(cache) if cache else None)

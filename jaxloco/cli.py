@@ -1,0 +1,157 @@
+"""The `jaxloco` command line: sweep, summary, analyses, describe, info.
+
+User errors print one line, `error: ...`, on stderr and exit with code 2; an interrupted
+sweep exits with 130. JAX is imported only by the commands that need it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from jaxloco.analysis import SpecError
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_show_locals=False,
+    help="JAX-differentiable, batched analysis of legged robots.",
+)
+
+EXIT_USER_ERROR = 2
+EXIT_INTERRUPTED = 130
+
+
+def _fail(message: str, code: int = EXIT_USER_ERROR) -> typer.Exit:
+    typer.echo(f"error: {' '.join(message.split())}", err=True)
+    return typer.Exit(code)
+
+
+@contextlib.contextmanager
+def _user_errors() -> Iterator[None]:
+    try:
+        yield
+    except SpecError as exc:
+        raise _fail(str(exc)) from None
+    except OSError as exc:
+        raise _fail(str(exc), code=1) from None
+
+
+def _stdout():
+    from rich.console import Console
+
+    return Console()
+
+
+@app.command()
+def sweep(
+    spec: Annotated[Path, typer.Argument(help="the sweep spec (TOML)", show_default=False)],
+    resume: Annotated[
+        bool, typer.Option("--resume", help="continue an interrupted sweep in its output directory")
+    ] = False,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="delete the output directory's sweep files and start again")
+    ] = False,
+    out: Annotated[Path | None, typer.Option("--out", help="output directory (overrides the spec)")] = None,
+    csv: Annotated[bool, typer.Option("--csv", help="also write table.csv")] = False,
+    chunk_size: Annotated[
+        int | None, typer.Option("--chunk-size", help="rows per compiled batch (overrides the spec)")
+    ] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+) -> None:
+    """Run a parameter sweep and write its table (Parquet, optionally CSV)."""
+    from jaxloco.sweep import SweepInterrupted, load_spec, run
+    from jaxloco.sweep.display import print_summary
+
+    with _user_errors():
+        loaded = load_spec(spec).with_options(output=out, chunk_size=chunk_size, csv=True if csv else None)
+        try:
+            result = run(loaded, resume=resume, overwrite=overwrite, progress=not quiet)
+        except SweepInterrupted as exc:
+            typer.echo(str(exc), err=True)
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+        except KeyboardInterrupt:
+            typer.echo("interrupted", err=True)
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+    for warning in result.warnings:
+        typer.echo(f"warning: {warning}", err=True)
+    if result.summary is not None:
+        print_summary(result.summary, _stdout())
+    else:
+        typer.echo(f"warning: the summary failed: {result.summary_error}", err=True)
+    typer.echo(f"wrote {result.table_path} ({result.table.num_rows} rows)")
+    for path in result.written[1:]:
+        typer.echo(f"wrote {path}")
+
+
+@app.command()
+def summary(table: Annotated[Path, typer.Argument(help="a sweep's table.parquet", show_default=False)]) -> None:
+    """Print the summary of an existing sweep table."""
+    from jaxloco.sweep.display import print_summary
+    from jaxloco.sweep.summary import read_table, summarize
+
+    with _user_errors():
+        data, analysis = read_table(table)
+    print_summary(summarize(data, analysis), _stdout())
+
+
+@app.command()
+def analyses() -> None:
+    """List the analyses that a sweep can run."""
+    from jaxloco import analysis as registry
+    from jaxloco.sweep.display import analyses_table, first_line
+
+    rows = []
+    for name in registry.names():
+        try:
+            doc = first_line(registry.get(name).doc)
+        except Exception as exc:  # a broken plugin must not hide the others
+            doc = f"(cannot load: {type(exc).__name__}: {exc})"
+        rows.append((name, doc))
+    _stdout().print(analyses_table(rows))
+
+
+@app.command()
+def describe(
+    name: Annotated[str, typer.Argument(help="an analysis name (see `jaxloco analyses`)", show_default=False)],
+) -> None:
+    """Show an analysis' parameters (defaults, units, ranges), metrics and statuses."""
+    from rich.text import Text
+
+    from jaxloco import analysis as registry
+    from jaxloco.sweep.display import describe_tables
+
+    with _user_errors():
+        analysis = registry.get(name)
+    console = _stdout()
+    console.print(Text(f"{analysis.name}: {analysis.doc.strip()}"))
+    for table in describe_tables(analysis):
+        console.print(table)
+
+
+@app.command()
+def info() -> None:
+    """Versions of jaxloco and its JAX/MuJoCo stack, JAX devices, precision and cache."""
+    from rich.table import Table
+    from rich.text import Text
+
+    from jaxloco import info as environment_info
+
+    table = Table(show_header=False, box=None)
+    table.add_column(style="bold", no_wrap=True)
+    table.add_column()
+    for label, value in environment_info.environment():
+        table.add_row(Text(label), Text(value))
+    _stdout().print(table)
+
+
+def main() -> None:
+    app()
+
+
+if __name__ == "__main__":
+    main()

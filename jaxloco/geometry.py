@@ -1,0 +1,335 @@
+"""Geometry kernels: rotations, homogeneous transforms, Denavit-Hartenberg links, planes,
+lines and masked fixed-size convex polygons. Pure JAX; jit, vmap and grad work; the
+dtype of the inputs (float32 or float64) is kept.
+
+Conventions: SI units, radians, right-handed frames. Rotation matrices are *active*
+(they rotate vectors: v_A = R_AB v_B maps coordinates in frame B to frame A). A frame
+transform that the papers write as a passive rotation is the transpose, e.g. OCTOPUS
+Eq. 12 is `rot_y(A_P).T` and Eq. 13 is `rot_x(A_R).T`.
+
+Polygons are fixed-size: `points` of shape (N, 2) with a boolean `mask` (N,) saying
+which rows are real. Nothing depends on the order of the masked points; functions that
+return a polygon return its vertices counter-clockwise, compacted to the front, with a
+validity mask.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+Array = jax.Array
+
+
+# --------------------------------------------------------------------------- rotations
+def rot_x(angle: Array) -> Array:
+    """Active rotation about x by `angle` (rad), shape (3, 3)."""
+    c, s = jnp.cos(angle), jnp.sin(angle)
+    o, z = jnp.ones_like(c), jnp.zeros_like(c)
+    return jnp.stack([jnp.stack([o, z, z]), jnp.stack([z, c, -s]), jnp.stack([z, s, c])])
+
+
+def rot_y(angle: Array) -> Array:
+    """Active rotation about y by `angle` (rad), shape (3, 3)."""
+    c, s = jnp.cos(angle), jnp.sin(angle)
+    o, z = jnp.ones_like(c), jnp.zeros_like(c)
+    return jnp.stack([jnp.stack([c, z, s]), jnp.stack([z, o, z]), jnp.stack([-s, z, c])])
+
+
+def rot_z(angle: Array) -> Array:
+    """Active rotation about z by `angle` (rad), shape (3, 3)."""
+    c, s = jnp.cos(angle), jnp.sin(angle)
+    o, z = jnp.ones_like(c), jnp.zeros_like(c)
+    return jnp.stack([jnp.stack([c, -s, z]), jnp.stack([s, c, z]), jnp.stack([z, z, o])])
+
+
+def rpy_to_matrix(roll: Array, pitch: Array, yaw: Array) -> Array:
+    """R = Rz(yaw) Ry(pitch) Rx(roll): body-to-world rotation of a body with the given
+    roll, pitch, yaw (Z-Y-X Tait-Bryan, as an IMU reports them)."""
+    return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
+
+
+def matrix_to_rpy(R: Array) -> Array:
+    """Inverse of `rpy_to_matrix` for |pitch| < pi/2: returns [roll, pitch, yaw]."""
+    roll = jnp.arctan2(R[2, 1], R[2, 2])
+    pitch = jnp.arcsin(jnp.clip(-R[2, 0], -1.0, 1.0))
+    yaw = jnp.arctan2(R[1, 0], R[0, 0])
+    return jnp.stack([roll, pitch, yaw])
+
+
+def skew(v: Array) -> Array:
+    """Cross-product matrix: skew(a) @ b == cross(a, b)."""
+    z = jnp.zeros_like(v[0])
+    return jnp.stack(
+        [jnp.stack([z, -v[2], v[1]]), jnp.stack([v[2], z, -v[0]]), jnp.stack([-v[1], v[0], z])]
+    )
+
+
+# ------------------------------------------------------------ homogeneous transforms
+def make_transform(R: Array, p: Array) -> Array:
+    """4x4 homogeneous transform from rotation R (3, 3) and translation p (3,)."""
+    top = jnp.concatenate([R, p[:, None]], axis=1)
+    bottom = jnp.concatenate([jnp.zeros(3, R.dtype), jnp.ones(1, R.dtype)])[None, :]
+    return jnp.concatenate([top, bottom], axis=0)
+
+
+def transform_point(T: Array, p: Array) -> Array:
+    """Apply a 4x4 transform to a point (3,)."""
+    return T[:3, :3] @ p + T[:3, 3]
+
+
+def invert_transform(T: Array) -> Array:
+    """Inverse of a rigid 4x4 transform."""
+    R, p = T[:3, :3], T[:3, 3]
+    return make_transform(R.T, -R.T @ p)
+
+
+def dh_transform(theta: Array, d: Array, a: Array, alpha: Array) -> Array:
+    """Standard Denavit-Hartenberg link transform Rz(theta) Tz(d) Tx(a) Rx(alpha)."""
+    ct, st = jnp.cos(theta), jnp.sin(theta)
+    ca, sa = jnp.cos(alpha), jnp.sin(alpha)
+    z, o = jnp.zeros_like(ct), jnp.ones_like(ct)
+    d, a = d * o, a * o
+    return jnp.stack(
+        [
+            jnp.stack([ct, -st * ca, st * sa, a * ct]),
+            jnp.stack([st, ct * ca, -ct * sa, a * st]),
+            jnp.stack([z, sa * o, ca * o, d]),
+            jnp.stack([z, z, z, o]),
+        ]
+    )
+
+
+def dh_chain(theta: Array, d: Array, a: Array, alpha: Array, base: Array | None = None) -> Array:
+    """Frames of a serial D-H chain: (n+1, 4, 4), frame 0 = `base` (identity if None),
+    frame k = base @ A_1 ... A_k. All parameter arrays have shape (n,)."""
+    theta = jnp.asarray(theta)
+    n = theta.shape[0]
+    d, a, alpha = (jnp.broadcast_to(jnp.asarray(v, theta.dtype), (n,)) for v in (d, a, alpha))
+    T = jnp.eye(4, dtype=theta.dtype) if base is None else base
+    frames = [T]
+    for k in range(n):  # n is static and small: unrolled
+        T = T @ dh_transform(theta[k], d[k], a[k], alpha[k])
+        frames.append(T)
+    return jnp.stack(frames)
+
+
+# ------------------------------------------------------------------- planes and lines
+def project_to_plane(p: Array, normal: Array, offset: Array) -> Array:
+    """Orthogonal projection of point p (3,) onto the plane {x : n.x = offset} (n unit)."""
+    return p - (jnp.dot(normal, p) - offset) * normal
+
+
+def cross2(a: Array, b: Array) -> Array:
+    """z-component of the cross product of 2D vectors (..., 2)."""
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def signed_distance_to_line(p: Array, a: Array, b: Array) -> Array:
+    """Signed distance from 2D point p to the line through a -> b; positive on the left."""
+    e = b - a
+    return cross2(e, p - a) / jnp.linalg.norm(e)
+
+
+def point_segment_distance(p: Array, a: Array, b: Array) -> Array:
+    """Euclidean distance from p to the segment [a, b] (any dimension; a == b allowed)."""
+    e = b - a
+    ee = jnp.dot(e, e)
+    t = jnp.clip(jnp.dot(p - a, e) / jnp.where(ee > 0, ee, 1.0), 0.0, 1.0)
+    diff = p - (a + t * e)
+    return _safe_norm(diff)
+
+
+def _safe_norm(v: Array) -> Array:
+    """|v| with a finite (zero) gradient at v = 0."""
+    sq = jnp.sum(v * v, axis=-1)
+    ok = sq > 0
+    return jnp.where(ok, jnp.sqrt(jnp.where(ok, sq, 1.0)), 0.0)
+
+
+def fit_plane(points: Array, mask: Array | None = None) -> tuple[Array, Array]:
+    """Least-squares plane z = c0 + c1 x + c2 y through masked 3D points (N, 3).
+
+    This is TITAN XI's "virtual contact plane" (least squares on the z positions of the
+    feet). Returns (unit normal n with n_z > 0, offset) such that the plane is
+    {x : n.x = offset}. Needs at least 3 non-collinear masked points.
+    """
+    w = jnp.ones(points.shape[0], points.dtype) if mask is None else mask.astype(points.dtype)
+    X = jnp.stack([jnp.ones_like(points[:, 0]), points[:, 0], points[:, 1]], axis=1)
+    XtW = X.T * w
+    c = jnp.linalg.solve(XtW @ X, XtW @ points[:, 2])
+    raw = jnp.stack([-c[1], -c[2], jnp.ones_like(c[0])])
+    scale = jnp.linalg.norm(raw)
+    return raw / scale, c[0] / scale
+
+
+def contact_frame(normal: Array, fallback_x: Array | None = None) -> Array:
+    """Rotation (3, 3) whose columns are the axes of a contact frame Sigma_S in the world:
+    z = unit surface normal, x = direction of steepest ascent of the contact plane (the
+    "gradient" axis of the leg-grope paper), y = z x x. On a level plane the gradient is
+    undefined and `fallback_x` (default world x) projected onto the plane is used."""
+    n = normal / jnp.linalg.norm(normal)
+    up = jnp.array([0.0, 0.0, 1.0], n.dtype)
+    g = up - jnp.dot(up, n) * n
+    fb = jnp.array([1.0, 0.0, 0.0], n.dtype) if fallback_x is None else fallback_x
+    fb = fb - jnp.dot(fb, n) * n
+    gn = jnp.dot(g, g)
+    level = gn < 1e-12
+    x = jnp.where(level, fb, g)
+    x = x / _safe_norm(x)
+    y = jnp.cross(n, x)
+    return jnp.stack([x, y, n], axis=1)
+
+
+# ---------------------------------------------------------- masked fixed-size polygons
+def _tolerance(points: Array, mask: Array) -> Array:
+    """Distance tolerance scaled to the extent of the masked points and the dtype."""
+    extent = jnp.max(jnp.where(mask[:, None], jnp.abs(points), 0.0))
+    return 1e3 * jnp.finfo(points.dtype).eps * (1.0 + extent)
+
+
+def unique_mask(points: Array, mask: Array) -> Array:
+    """`mask` with repeated points (within tolerance) dropped, keeping the first copy."""
+    tol = _tolerance(points, mask)
+    n = points.shape[0]
+    d = jnp.max(jnp.abs(points[:, None, :] - points[None, :, :]), axis=-1)
+    earlier = jnp.tril(jnp.ones((n, n), bool), k=-1)  # earlier[i, j]: j < i
+    dup = jnp.any(earlier & (d <= tol) & mask[None, :], axis=1)
+    return mask & ~dup
+
+
+def hull_edges(points: Array, mask: Array) -> Array:
+    """Edges of the convex hull of the masked 2D points, as an (N, N) boolean matrix:
+    E[i, j] is true when the directed segment p_i -> p_j is a maximal edge of the hull
+    traversed counter-clockwise (every masked point lies left of or on its line, and the
+    collinear ones lie between p_i and p_j). Order of the points does not matter.
+
+    Degenerate sets: all points collinear -> both directions of the extreme segment;
+    one point (or none) -> no edges. Gradients flow through the point coordinates of
+    the selected edges; the selection itself is piecewise constant."""
+    mask = unique_mask(points, mask)
+    tol = jax.lax.stop_gradient(_tolerance(points, mask))
+    p = jax.lax.stop_gradient(points)
+    e = p[None, :, :] - p[:, None, :]  # e[i, j] = p_j - p_i
+    elen = jnp.linalg.norm(e, axis=-1)
+    safe_len = jnp.where(elen > 0, elen, 1.0)
+    rel = p[None, :, :] - p[:, None, :]  # rel[i, k] = p_k - p_i
+    # dist[i, j, k]: signed distance of p_k from the line i -> j (left positive)
+    dist = cross2(e[:, :, None, :], rel[:, None, :, :]) / safe_len[:, :, None]
+    t = jnp.sum(e[:, :, None, :] * rel[:, None, :, :], axis=-1) / (safe_len**2)[:, :, None]
+    left = dist >= -tol
+    on_line = jnp.abs(dist) <= tol
+    inside_segment = (t >= -tol / safe_len[:, :, None]) & (t <= 1.0 + tol / safe_len[:, :, None])
+    ok_k = ~mask[None, None, :] | (left & (~on_line | inside_segment))
+    pair = mask[:, None] & mask[None, :] & (elen > tol)
+    return pair & jnp.all(ok_k, axis=-1)
+
+
+def _edges_signed_distance(q: Array, points: Array, mask: Array, E: Array) -> Array:
+    """Signed distance of q to the boundary of the hull given by edge matrix E."""
+    a = points[:, None, :]
+    b = points[None, :, :]
+    seg = jax.vmap(jax.vmap(point_segment_distance, (None, 0, 0)), (None, 0, 0))(
+        q, jnp.broadcast_to(a, E.shape + (2,)), jnp.broadcast_to(b, E.shape + (2,))
+    )
+    big = jnp.asarray(jnp.finfo(points.dtype).max, points.dtype)
+    d = jnp.min(jnp.where(E, seg, big))
+    side = cross2(b - a, q[None, None, :] - a)
+    # a segment (collinear points: < 3 hull vertices) has no inside, even on its line
+    inside = jnp.all(jnp.where(E, side >= 0, True)) & (jnp.sum(jnp.any(E, axis=1)) >= 3)
+    has_edges = jnp.any(E)
+    # a single point: distance to it, never inside
+    m = unique_mask(points, mask)
+    single = jnp.sum(m) == 1
+    d_point = _safe_norm(q - points[jnp.argmax(m)])
+    return jnp.where(
+        has_edges, jnp.where(inside, d, -d), jnp.where(single, -d_point, -jnp.inf)
+    )
+
+
+def hull_signed_distance(q: Array, points: Array, mask: Array) -> Array:
+    """Signed distance from 2D point q to the boundary of the convex hull of the masked
+    points: positive inside, negative outside (minus the distance to the hull). A
+    segment or a single point gives <= 0; no points gives -inf."""
+    return _edges_signed_distance(q, points, mask, hull_edges(points, mask))
+
+
+def convex_hull(points: Array, mask: Array) -> tuple[Array, Array]:
+    """Convex hull of masked 2D points (N, 2): (vertices (N, 2), valid (N,)). Valid
+    vertices come first, counter-clockwise; the rest repeat the first vertex."""
+    E = hull_edges(points, mask)
+    m = unique_mask(points, mask)
+    is_vertex = jnp.any(E, axis=1) | (m & (jnp.sum(m) == 1))
+    n_v = jnp.sum(is_vertex)
+    w = is_vertex.astype(points.dtype)
+    centre = jnp.sum(jnp.where(is_vertex[:, None], points, 0.0), axis=0) / jnp.maximum(jnp.sum(w), 1.0)
+    rel = jax.lax.stop_gradient(points - centre)
+    angle = jnp.arctan2(rel[:, 1], rel[:, 0])
+    key = jnp.where(is_vertex, angle, jnp.inf)
+    order = jnp.argsort(key)
+    verts = points[order]
+    valid = jnp.arange(points.shape[0]) < n_v
+    verts = jnp.where(valid[:, None], verts, verts[0])
+    return verts, valid
+
+
+def polygon_edges(vertices: Array, valid: Array) -> tuple[Array, Array, Array]:
+    """Edges (start, end, edge_valid) of a compacted CCW polygon from `convex_hull`."""
+    n = jnp.sum(valid)
+    idx = jnp.arange(vertices.shape[0])
+    nxt = jnp.where(idx + 1 < n, idx + 1, 0)
+    return vertices, vertices[nxt], valid
+
+
+def polygon_signed_distance(q: Array, vertices: Array, valid: Array) -> Array:
+    """Signed distance of q to a compacted CCW convex polygon (positive inside)."""
+    a, b, ev = polygon_edges(vertices, valid)
+    seg = jax.vmap(point_segment_distance, (None, 0, 0))(q, a, b)
+    big = jnp.asarray(jnp.finfo(vertices.dtype).max, vertices.dtype)
+    d = jnp.min(jnp.where(ev, seg, big))
+    inside = jnp.all(jnp.where(ev, cross2(b - a, q - a) >= 0, True)) & (jnp.sum(valid) >= 3)
+    return jnp.where(jnp.any(valid), jnp.where(inside, d, -d), -jnp.inf)
+
+
+def polygon_area(vertices: Array, valid: Array) -> Array:
+    """Area of a compacted CCW polygon (shoelace formula)."""
+    a, b, ev = polygon_edges(vertices, valid)
+    return 0.5 * jnp.sum(jnp.where(ev, cross2(a, b), 0.0))
+
+
+def halfplane_polygon(normals: Array, offsets: Array, mask: Array | None = None) -> tuple[Array, Array]:
+    """The bounded convex polygon {x : n_k . x <= c_k for all masked k} as
+    (vertices (K*(K-1)/2, 2), valid), CCW and compacted. Vertices are the pairwise line
+    intersections that satisfy every constraint; an empty set has no valid vertices.
+    The caller guarantees boundedness (e.g. with box constraints)."""
+    K = normals.shape[0]
+    mask = jnp.ones(K, bool) if mask is None else mask
+    ii, jj = jnp.triu_indices(K, k=1)
+    n1, n2 = normals[ii], normals[jj]
+    det = cross2(n1, n2)
+    scale = 1.0 + jnp.max(jnp.abs(offsets))
+    tol = 1e3 * jnp.finfo(normals.dtype).eps * scale
+    ok_det = jnp.abs(det) > 1e3 * jnp.finfo(normals.dtype).eps
+    sdet = jnp.where(ok_det, det, 1.0)
+    # solve [n1; n2] x = [c1; c2] by Cramer's rule
+    x = (offsets[ii] * n2[:, 1] - offsets[jj] * n1[:, 1]) / sdet
+    y = (n1[:, 0] * offsets[jj] - n2[:, 0] * offsets[ii]) / sdet
+    pts = jnp.stack([x, y], axis=1)
+    viol = pts @ normals.T - offsets[None, :]
+    feasible = jnp.all(jnp.where(mask[None, :], viol <= tol, True), axis=1)
+    cand = ok_det & mask[ii] & mask[jj] & feasible
+    return convex_hull(pts, cand)
+
+
+# ------------------------------------------------------------------------ soft minimum
+def soft_min(x: Array, temperature: Array, mask: Array | None = None, axis: int = -1) -> Array:
+    """Smooth lower bound of min(x): -T log sum exp(-x / T) over masked entries.
+
+    For tuning by gradient: it is differentiable everywhere, <= the true minimum, and
+    within T log(n) of it. Gradients of masked-out entries are exactly zero."""
+    mask = jnp.ones(x.shape, bool) if mask is None else mask
+    m = jax.lax.stop_gradient(jnp.min(jnp.where(mask, x, jnp.inf), axis=axis, keepdims=True))
+    m = jnp.where(jnp.isfinite(m), m, 0.0)
+    z = jnp.where(mask, (x - m) / temperature, 0.0)
+    s = jnp.sum(jnp.where(mask, jnp.exp(-z), 0.0), axis=axis)
+    return jnp.squeeze(m, axis) - temperature * jnp.log(s)

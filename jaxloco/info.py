@@ -1,0 +1,100 @@
+"""Versions and the JAX environment, for result tables and `jaxloco info`.
+
+`versions()` is cheap (package metadata only, nothing imported). `environment()` imports
+JAX and, quietly, `mujoco.mjx` to check that it loads.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import logging
+import os
+import sys
+import warnings
+from importlib import metadata
+from pathlib import Path
+
+import jaxloco
+from jaxloco import runtime
+
+PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx")
+
+
+def package_version(name: str) -> str:
+    """The installed version of a distribution, or "not installed"."""
+    try:
+        return metadata.version(name)
+    except metadata.PackageNotFoundError:
+        return "not installed"
+
+
+def versions() -> dict[str, str]:
+    """jaxloco and its main dependencies (from package metadata; imports nothing)."""
+    return {"jaxloco": jaxloco.__version__, **{name: package_version(name) for name in PACKAGES}}
+
+
+@contextlib.contextmanager
+def _silenced():
+    """Swallow prints, warnings and log records, at the Python and the file-descriptor level."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved: list[tuple[int, int]] = []
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        for fd in (1, 2):
+            try:
+                saved.append((fd, os.dup(fd)))
+                os.dup2(devnull, fd)
+            except OSError:
+                pass
+        os.close(devnull)
+    except OSError:
+        pass
+    previous = logging.root.manager.disable
+    logging.disable(logging.CRITICAL)
+    try:
+        with (
+            warnings.catch_warnings(),
+            contextlib.redirect_stdout(io.StringIO()),
+            contextlib.redirect_stderr(io.StringIO()),
+        ):
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        logging.disable(previous)
+        for fd, copy in saved:
+            os.dup2(copy, fd)
+            os.close(copy)
+
+
+def mjx_status() -> str:
+    """ "ok" when `mujoco.mjx` imports, else the reason (its import noise is silenced)."""
+    try:
+        with _silenced():
+            import mujoco.mjx  # noqa: F401
+    except Exception as exc:  # any failure to import is what we report
+        return f"import failed: {type(exc).__name__}: {exc}"
+    return "ok"
+
+
+def environment() -> list[tuple[str, str]]:
+    """(label, value) lines for `jaxloco info`."""
+    import jax
+
+    rows = [(name, version) for name, version in versions().items()]
+    rows.append(("mujoco.mjx import", mjx_status()))
+    rows.append(("python", sys.version.split()[0]))
+    rows.append(("jax backend", jax.default_backend()))
+    rows.append(("jax devices", ", ".join(str(d) for d in jax.devices())))
+    # Read the flags directly: `jax.config.read` refuses the compilation-cache flag.
+    x64 = bool(jax.config.jax_enable_x64)
+    rows.append(("float64 now", "on" if x64 else "off (sweeps switch it on for analyses with x64=True)"))
+    cache = runtime.default_cache_dir()
+    source = f" (from ${runtime.ENV_CACHE_DIR})" if os.environ.get(runtime.ENV_CACHE_DIR) else ""
+    state = "exists" if cache.is_dir() else "not created yet"
+    rows.append(("compilation cache", f"{cache}{source}, {state}"))
+    current = jax.config.jax_compilation_cache_dir
+    if current and Path(current) != cache:
+        rows.append(("compilation cache now", str(current)))
+    return rows

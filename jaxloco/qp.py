@@ -1,0 +1,243 @@
+"""A thin, batched, differentiable QP layer over qpax.
+
+Problem (one instance; batch with `jax.vmap` or `solve_batch`)::
+
+    minimize    0.5 x^T Q x + q^T x
+    subject to  A x = b,   G x <= h          Q: (n, n) PSD,  A: (m, n),  G: (p, n)
+
+Units and scaling. Inputs and the returned `x`, `y`, `z`, `objective` are in the
+caller's units. Inside, the layer solves an equivalent well-scaled problem:
+variables x = D x~ with D = diag(x_scale) (default ones, so pass the typical
+magnitude of each variable, e.g. 70 for a force in N); every row of A D and G D is
+divided by its 2-norm (an all-zero row keeps norm 1, so a row disabled as
+``G_i = 0, h_i > 0`` is harmless); the objective is divided by
+c = max(max|D Q D|, |D q|_inf, 1e-12). Multipliers are mapped back
+(y = c y~ / |row of A D|, z likewise). `primal_residual`, `dual_residual` and
+`complementarity` are measured on that scaled problem, so `tol` is a relative,
+unit-free tolerance. A row with h_i = +inf is treated as disabled.
+
+Fixed iterations. qpax's `solve_qp` stops when its KKT residual is below
+`solver_tol`; the layer passes a negative `solver_tol`, which can never be met, so
+every instance runs exactly `iterations` predictor-corrector iterations (qpax's
+while-loop then has a data-independent trip count, and no batch member's result
+depends on the others). qpax's own `converged` flag is not used.
+
+The ok flag. `ok` is True iff everything is finite and all three scaled residuals
+are <= `tol`. Infeasible problems (qpax then yields NaN or a diverging iterate),
+unbounded ones, non-finite inputs and ones that simply did not converge in
+`iterations` get ``ok=False``; their `x`, `y`, `z` and `objective` are zeros and
+their residual fields hold the residuals of the last iterate (the largest finite
+float where those are not finite), so a near miss can be told from a failure.
+No output is ever NaN. Non-finite inputs are swapped for a harmless dummy problem
+before the solve, with `jnp.where` on both sides, so no NaN enters the computation.
+
+Precision: tol=1e-6 suits float64 (25 iterations reach ~1e-9 on the quadruped QP).
+In float32 pass tol ~1e-4: qpax floors s and z at sqrt(eps) ~ 3e-4 in every
+iteration, so float32 residuals stall near 2e-5.
+
+Requirements inherited from qpax (violations give ok=False, not a wrong answer):
+A must have full row rank, and Q + G^T G must be positive definite, i.e. every
+direction without curvature (such as a margin variable) must appear in some
+inequality row; qpax factorizes both with Cholesky.
+
+Gradients (``differentiable=True``): reverse mode only (`jax.grad`, `jax.vjp`; not
+`jax.jvp`). `x`, `y`, `z` and `objective` are differentiable with respect to all of
+Q, q, A, b, G, h by implicit differentiation of the KKT conditions at the returned
+point (OptNet's formulas; the adjoint system is solved unreduced with an LU, which
+is ~1e-7 accurate against finite differences, and is our own because qpax's
+`solve_qp_primal` differentiates a relaxed point and gets dL/dG wrong). This is the
+exact derivative when the solution is strictly complementary (every active row has
+z_i > 0) and the active rows together with A are linearly independent (LICQ). At
+degenerate points (duplicated active rows, weakly active rows) the adjoint system
+is ill-conditioned but non-singular, since the iterate keeps s, z > 0: the result
+is finite but is only the derivative of the interior-point iterate, not a unique
+derivative of the solution. The residual fields, `ok` and `iterations` have zero
+gradient, and so has `x_scale` (the solution does not depend on it). Instances with
+``ok=False`` get zero cotangents and a dummy well-posed adjoint system, so a bad
+member of a vmapped batch contributes exactly zero (never NaN) to a gradient.
+With ``differentiable=False`` all outputs are wrapped in `stop_gradient`.
+
+Batching: `solve_batch(...)` vmaps `solve` over a leading axis (arrays without it are
+shared), or write ``jax.vmap(functools.partial(solve, iterations=25, tol=1e-6))``.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import qpax
+
+__all__ = ["QPSolution", "solve", "solve_batch"]
+
+
+class QPSolution(NamedTuple):
+    x: jax.Array  # (n,) primal solution, caller's units; zeros where not ok
+    y: jax.Array  # (m,) equality multipliers, caller's units; zeros where not ok
+    z: jax.Array  # (p,) inequality multipliers >= 0, caller's units; zeros where not ok
+    primal_residual: jax.Array  # () max(|A x - b|_inf, max(G x - h, 0)), scaled units
+    dual_residual: jax.Array  # () |Q x + q + A^T y + G^T z|_inf, scaled units
+    complementarity: jax.Array  # () max_i |z_i (h - G x)_i|, scaled units
+    objective: jax.Array  # () 0.5 x^T Q x + q^T x, caller's units; zero where not ok
+    ok: jax.Array  # () bool: all finite and every residual <= tol
+    iterations: jax.Array  # () int32, interior-point iterations run
+
+
+def _residuals(Q, q, A, b, G, h, x, y, z):
+    slack = h - G @ x
+    primal = jnp.maximum(jnp.max(jnp.abs(A @ x - b), initial=0.0), jnp.max(-slack, initial=0.0))
+    dual = jnp.max(jnp.abs(Q @ x + q + A.T @ y + G.T @ z), initial=0.0)
+    comp = jnp.max(jnp.abs(z * slack), initial=0.0)
+    return primal, dual, comp
+
+
+def _forward(data, iterations, tol):
+    """Run qpax for exactly `iterations` steps; return sanitized iterate, residuals, ok."""
+    Q, q, A, b, G, h = data
+    x, s, z, y, _, iters = qpax.solve_qp(Q, q, A, b, G, h, solver_tol=-1.0, max_iter=iterations)
+    res = _residuals(Q, q, A, b, G, h, x, y, z)
+    ok = (jnp.max(jnp.stack(res)) <= tol) & jnp.all(jnp.isfinite(s)) & jnp.all(z >= 0)
+    big = jnp.finfo(x.dtype).max
+    res = tuple(jnp.where(jnp.isfinite(r), r, big) for r in res)
+    x, y, z = (jnp.where(ok, v, 0.0) for v in (x, y, z))
+    s = jnp.where(ok, s, 1.0)  # safe slack for the adjoint solve of a bad instance
+    return (x, y, z, s, *res, ok, jnp.asarray(iters, jnp.int32))
+
+
+@functools.partial(jax.custom_vjp, nondiff_argnums=(6, 7))
+def _solve_diff(Q, q, A, b, G, h, iterations, tol):
+    return _forward((Q, q, A, b, G, h), iterations, tol)
+
+
+def _solve_diff_fwd(Q, q, A, b, G, h, iterations, tol):
+    out = _forward((Q, q, A, b, G, h), iterations, tol)
+    x, y, z, s, *_, ok, _ = out
+    return out, (Q, A, G, x, y, z, s, ok)
+
+
+def _solve_diff_bwd(iterations, tol, saved, cts):
+    del iterations, tol
+    Q, A, G, x, y, z, s, ok = saved
+    n, m, p = x.shape[0], y.shape[0], z.shape[0]
+    gx, gy, gz = (jnp.where(ok, g, 0.0) for g in cts[:3])
+    # A bad instance gets a well-posed dummy system (and zero right-hand side).
+    Qb = jnp.where(ok, Q, jnp.eye(n, dtype=Q.dtype))
+    Ab = jnp.where(ok, A, jnp.eye(m, n, dtype=A.dtype))
+    Gb = jnp.where(ok, G, 0.0)
+    zb = jnp.where(ok, z, 1.0)
+    # Adjoint of the KKT system at the returned point, K^T (dx, dy, dz) = -(gx, gy, gz):
+    # K^T = [[Q, A^T, G^T Z], [A, 0, 0], [G, 0, -S]]. Solved unreduced (LU): the reduced
+    # form with Q + G^T (Z/S) G has condition ~1e10 at the solution and loses ~5 digits.
+    zeros = functools.partial(jnp.zeros, dtype=x.dtype)
+    K = jnp.block([
+        [Qb, Ab.T, Gb.T * zb[None, :]],
+        [Ab, zeros((m, m)), zeros((m, p))],
+        [Gb, zeros((p, m)), -jnp.diag(s)],
+    ])
+    sol = jnp.linalg.solve(K, -jnp.concatenate([gx, gy, gz]))
+    dx, dy, w = sol[:n], sol[n:n + m], zb * sol[n + m:]  # w = Z dz
+    grads = (
+        0.5 * (jnp.outer(dx, x) + jnp.outer(x, dx)),
+        dx,
+        jnp.outer(dy, x) + jnp.outer(y, dx),
+        -dy,
+        jnp.outer(w, x) + jnp.outer(z, dx),
+        -w,
+    )
+    return tuple(jnp.where(ok, g, 0.0) for g in grads)
+
+
+_solve_diff.defvjp(_solve_diff_fwd, _solve_diff_bwd)
+
+
+def _row_norms(M):
+    norms = jnp.linalg.norm(M, axis=1)
+    return jnp.where(norms > 0, norms, 1.0)
+
+
+def solve(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: float = 1e-6,
+          differentiable: bool = True) -> QPSolution:
+    """Solve one QP (see the module docstring); jit/vmap compatible, float32 or float64.
+
+    Shapes: Q (n, n), q (n,), A (m, n), b (m,), G (p, n), h (p,), x_scale (n,) > 0.
+    `iterations` (static int >= 1): interior-point iterations, always all of them.
+    `tol` (static float): bound on the scaled residuals for ``ok``.
+    """
+    if int(iterations) != iterations or iterations < 1:
+        raise ValueError(f"iterations must be a positive int, got {iterations!r}")
+    dtype = jnp.result_type(Q, q, A, b, G, h, 0.0)
+    Q, q, A, b, G, h = (jnp.asarray(v, dtype) for v in (Q, q, A, b, G, h))
+    if not differentiable:
+        Q, q, A, b, G, h = (jax.lax.stop_gradient(v) for v in (Q, q, A, b, G, h))
+    n, m, p = q.shape[0], b.shape[0], h.shape[0]
+    Q = 0.5 * (Q + Q.T)
+    off = jnp.isposinf(h)  # h = +inf: disabled row
+    G = jnp.where(off[:, None], 0.0, G)
+    h = jnp.where(off, 1.0, h)
+    d = jnp.ones(n, dtype) if x_scale is None else jnp.asarray(x_scale, dtype)
+    finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(v)) for v in (Q, q, A, b, G, h, d)]))
+    finite = finite & jnp.all(d > 0)
+    # Double where: a non-finite instance is replaced by a dummy (and its gradient is 0).
+    Q = jnp.where(finite, Q, jnp.eye(n, dtype=dtype))
+    q = jnp.where(finite, q, 0.0)
+    A = jnp.where(finite, A, jnp.eye(m, n, dtype=dtype))
+    b = jnp.where(finite, b, 0.0)
+    G = jnp.where(finite, G, 0.0)
+    h = jnp.where(finite, h, 1.0)
+    d = jax.lax.stop_gradient(jnp.where(finite, d, 1.0))
+    # Scale factors are constants for autodiff: x, y, z of the caller's problem do not
+    # depend on them, so the derivative at fixed factors is the exact derivative.
+    Qd, qd, Ad, Gd = d[:, None] * Q * d[None, :], d * q, A * d[None, :], G * d[None, :]
+    ra, rg = jax.lax.stop_gradient(_row_norms(Ad)), jax.lax.stop_gradient(_row_norms(Gd))
+    c = jnp.maximum(jnp.max(jnp.abs(Qd)), jnp.max(jnp.abs(qd), initial=0.0))
+    c = jax.lax.stop_gradient(jnp.maximum(c, 1e-12))
+    data = (Qd / c, qd / c, Ad / ra[:, None], b / ra, Gd / rg[:, None], h / rg)
+    if differentiable:
+        out = _solve_diff(*data, int(iterations), float(tol))
+    else:
+        out = _forward(data, int(iterations), float(tol))
+    xs, ys, zs, _, primal, dual, comp, ok, iters = out
+    ok = ok & finite
+    big = jnp.finfo(dtype).max  # residuals of the dummy stand-in would mislead
+    primal, dual, comp = (jnp.where(finite, r, big) for r in (primal, dual, comp))
+    x = jnp.where(ok, d * xs, 0.0)
+    y = jnp.where(ok, c * ys / ra, 0.0)
+    z = jnp.where(ok, c * zs / rg, 0.0)
+    objective = jnp.where(ok, 0.5 * x @ Q @ x + q @ x, 0.0)
+    sol = QPSolution(x, y, z, primal, dual, comp, objective, ok, iters)
+    return sol if differentiable else jax.tree_util.tree_map(jax.lax.stop_gradient, sol)
+
+
+_BASE_NDIM = (2, 1, 2, 1, 2, 1, 1)  # Q, q, A, b, G, h, x_scale
+
+
+def solve_batch(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: float = 1e-6,
+                differentiable: bool = True, sequential: bool = False) -> QPSolution:
+    """`solve` over a leading batch axis: `jax.vmap` or, if `sequential`, `jax.lax.map`.
+
+    Each of Q, q, A, b, G, h, x_scale may carry the batch axis (shape (B, ...)) or not
+    (shared by all members; at least one must carry it). Returns a batched QPSolution.
+    `sequential=True` solves one instance at a time, so every LAPACK call has batch 1:
+    with jaxlib 0.10.x on CPU, batched LAPACK kernels (Cholesky/triangular solves, used
+    by qpax) can deadlock XLA's CPU thread pool; the sequential form avoids them.
+    """
+    fn = functools.partial(solve, iterations=iterations, tol=tol, differentiable=differentiable)
+    args = [jnp.asarray(v) for v in (Q, q, A, b, G, h, 1.0 if x_scale is None else x_scale)]
+    axes = [0 if v.ndim == k + 1 else None for v, k in zip(args, _BASE_NDIM)]
+    if x_scale is None:
+        axes[6] = None
+
+    def call(*a):
+        return fn(*a[:6], x_scale=None if x_scale is None else a[6])
+
+    if not sequential:
+        return jax.vmap(call, in_axes=axes)(*args)
+    mapped = [a for a, ax in zip(args, axes) if ax == 0]
+
+    def one(ms):
+        it = iter(ms)
+        return call(*(next(it) if ax == 0 else a for a, ax in zip(args, axes)))
+
+    return jax.lax.map(one, mapped)

@@ -1,0 +1,1 @@
+"""Robot models, each from its paper: params, kinematics, control, scenarios."""

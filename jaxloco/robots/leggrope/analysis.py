@@ -1,0 +1,205 @@
+"""`leggrope.slope_cycle`: one leg-grope walk cycle on a (simple or irregular) slope with
+the force-distribution QP at every step, as a sweep analysis.
+
+The question it answers (paper, "Simulation"): for an inclination theta and walking
+direction psi, does a force distribution with friction safety margin s >= 0 exist at
+every 15 ms step of the cycle? The paper reports yes for |theta| < ~0.40 rad and every
+psi, against atan(mu) = 0.42 rad for a rigid block.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxloco.analysis import Analysis, Metric, Param, Summary
+from jaxloco.robots.leggrope import forces, gait
+from jaxloco.robots.leggrope.params import G, default_params
+
+HALF_PI = 0.5 * math.pi
+
+PARAMS = (
+    Param("theta", 0.0, "slope inclination (positive: walking direction psi = 0 climbs)", "rad",
+          lo=-HALF_PI, hi=HALF_PI, lo_open=True, hi_open=True),
+    Param("psi", 0.0, "walking direction relative to the slope gradient (paper Fig. 5)", "rad",
+          lo=-HALF_PI, hi=HALF_PI),
+    Param("mu", 0.45, "static friction coefficient", "", lo=0.0, hi=2.0, lo_open=True),
+    Param("r_ref_factor", 0.5, "grope reaction R_ref = factor * M g cos(theta)", "", lo=0.0, hi=1.0, lo_open=True),
+    Param("a_max", 0.15, "body acceleration limit", "m/s^2", lo=0.0, hi=2.0, lo_open=True),
+    Param("v_max", 0.1, "body speed limit", "m/s", lo=0.0, hi=1.0, lo_open=True),
+    Param("h_s", -2.0, "QP weight of the safety margin s (Eq. 22), negative", "1/N", lo=-1e3, hi=0.0, hi_open=True),
+    Param("h_tau", 1.0, "QP weight of the torque norm", "1/(N m)^2", lo=0.0, hi=1e4, lo_open=True),
+    Param("h_c", 80.0, "QP weight of torque continuity", "1/(N m)^2", lo=0.0, hi=1e5),
+    Param("stride", 0.06, "forward step of every foot per cycle", "m", lo=0.0, hi=0.12, lo_open=True),
+    Param("swing_height", 0.03, "toe lift during the swing", "m", lo=0.0, hi=0.1),
+    Param("facet_spread", 0.0, "irregular slope: facet gradient directions spread +- this (uses the seed)", "rad",
+          lo=0.0, hi=HALF_PI),
+    Param("normal_tol", 0.10, "tolerated normal-force excess over R_ref / grope shortfall, fraction of R_ref", "",
+          lo=0.0, hi=1.0),
+    Param("dt", 0.015, "QP time step", "s", lo=0.001, hi=0.1, sweepable=False),
+    Param("n_move", 100, "steps of phase A (body move)", "", kind="int", lo=10, hi=1000, sweepable=False),
+    Param("n_unload", 20, "steps of phase B (unload the groping leg)", "", kind="int", lo=2, hi=1000, sweepable=False),
+    Param("n_swing", 40, "steps of phase C (swing)", "", kind="int", lo=4, hi=1000, sweepable=False),
+    Param("n_load", 20, "steps of phase D (load to R_ref)", "", kind="int", lo=2, hi=1000, sweepable=False),
+    Param("qp_iterations", 20, "interior-point iterations per QP", "", kind="int", lo=5, hi=200, sweepable=False),
+    Param("capacity", False, "also solve max-s (slip capacity) at every step (doubles the cost)", "",
+          kind="bool", sweepable=False),
+)
+
+METRICS = (
+    Metric("slip_free", "a distribution with s >= 0 exists at every step", kind="bool"),
+    Metric("slip_steps", "steps without a slip-free distribution", kind="int"),
+    Metric("min_s", "smallest friction safety margin s of the QP (Eqs. 17-18)", "N"),
+    Metric("min_s_norm", "min_s / (M g)"),
+    Metric("min_capacity", "smallest slip capacity max s (only with capacity = true, else inf)", "N"),
+    Metric("max_normal_ratio", "largest free stance-leg normal force / R_ref"),
+    Metric("max_relaxation", "largest normal-force relaxation r (R_ref excess or grope shortfall) / R_ref"),
+    Metric("plan_margin", "smallest geometric margin of the plan (COG in pi_g, foothold in step-D region)", "m"),
+    Metric("min_static_margin", "smallest static stability margin of the stance", "m"),
+    Metric("min_ne_margin", "smallest normalized energy stability margin of the stance", "m"),
+    Metric("min_leg_margin", "smallest pyramid margin of any loaded leg", "N"),
+    Metric("max_friction_use", "largest (|f_x| + |f_y|) / (mu f_z) of a leg carrying >= 1% of M g (1 = slipping)"),
+    Metric("max_torque", "largest joint torque magnitude", "N m"),
+    Metric("min_reach", "smallest leg reach margin (negative: unreachable)", "m"),
+    Metric("max_move_time", "longest phase-A body move", "s"),
+    Metric("max_qp_residual", "largest scaled primal residual of the solved QPs"),
+    Metric("cycle_time", "duration of the cycle", "s"),
+)
+
+STATUSES = (
+    "ok",
+    "failed: slip (no distribution with s >= 0 at some step)",
+    "failed: normal force beyond R_ref tolerance",
+    "failed: leg out of reach",
+    "failed: body move longer than phase A",
+    "failed: QP did not converge",
+)
+
+
+def _config(fixed: Mapping[str, Any]) -> tuple[gait.WalkConfig, forces.QPSettings]:
+    config = gait.WalkConfig(
+        n_move=fixed["n_move"], n_unload=fixed["n_unload"], n_swing=fixed["n_swing"], n_load=fixed["n_load"]
+    )
+    settings = forces.QPSettings(iterations=fixed["qp_iterations"], capacity=fixed["capacity"])
+    return config, settings
+
+
+def run_one(values: Mapping[str, jax.Array], key: jax.Array, config: gait.WalkConfig,
+            settings: forces.QPSettings, dt: float) -> dict[str, jax.Array]:
+    """Metrics and status code of one cycle for scalar parameter `values`."""
+    params = default_params().with_(
+        mu=values["mu"], r_ref_factor=values["r_ref_factor"], a_max=values["a_max"], v_max=values["v_max"],
+        h_s=values["h_s"], h_tau=values["h_tau"], h_c=values["h_c"], dt=dt,
+    )
+    walk = gait.WalkParams(stride=values["stride"], swing_height=values["swing_height"])
+    terrain = gait.irregular_slope(values["theta"], values["psi"], values["facet_spread"], key)
+    plan, sm, _ = forces.simulate_cycle(params, walk, terrain, config, settings)
+    weight = params.total_mass * G
+    r_ref = params.r_ref_factor * weight * jnp.cos(terrain.theta)
+    move = jnp.max(gait.move_durations(params, plan))
+    residual_tol = 1e-3
+    # a failed QP whose last iterate is (nearly) feasible did not converge; otherwise it is
+    # infeasible: no slip-free distribution
+    n_bad = sm.n_qp_failed
+    slip = (n_bad > 0) & (sm.max_primal_residual > residual_tol)
+    status = jnp.select(
+        [sm.min_reach < 0, move > config.n_move * dt, slip, n_bad > 0,
+         sm.max_overshoot > values["normal_tol"] * r_ref],
+        [3, 4, 1, 5, 2],
+        0,
+    )
+    return dict(
+        slip_free=n_bad == 0,
+        slip_steps=n_bad,
+        min_s=sm.min_s,
+        min_s_norm=sm.min_s / weight,
+        min_capacity=sm.min_capacity,
+        max_normal_ratio=sm.max_normal_ratio,
+        max_relaxation=sm.max_overshoot / r_ref,
+        plan_margin=plan.margin,
+        min_static_margin=sm.min_static_margin,
+        min_ne_margin=sm.min_ne_margin,
+        min_leg_margin=sm.min_leg_margin,
+        max_friction_use=sm.max_friction_use,
+        max_torque=sm.max_torque,
+        min_reach=sm.min_reach,
+        max_move_time=move,
+        max_qp_residual=sm.max_primal_residual,
+        cycle_time=jnp.asarray(config.n_steps * dt, weight.dtype),
+        status=status,
+    )
+
+
+def make_batch_fn(fixed: Mapping[str, Any]):
+    config, settings = _config(fixed)
+    dt = float(fixed["dt"])
+    sweepable = [p.name for p in PARAMS if p.sweepable]
+
+    def batch(swept: Mapping[str, jax.Array], keys: jax.Array) -> dict[str, jax.Array]:
+        n = keys.shape[0]
+        dtype = jnp.result_type(float)
+        values = {
+            name: jnp.asarray(swept[name], dtype) if name in swept else jnp.full(n, fixed[name], dtype)
+            for name in sweepable
+        }
+        return jax.vmap(lambda v, k: run_one(v, k, config, settings, dt))(values, keys)
+
+    return batch
+
+
+def summarize(table) -> Summary:
+    """Critical inclination per walking direction: the largest |theta| such that every
+    row of that psi with 0 <= theta' <= theta (or theta <= theta' <= 0) is ok."""
+    cols = table.column_names
+    theta = np.asarray(table.column("theta").to_numpy(zero_copy_only=False), float)
+    psi = np.asarray(table.column("psi").to_numpy(zero_copy_only=False), float)
+    ok = np.asarray([s == "ok" for s in table.column("status").to_pylist()])
+    status = np.asarray(table.column("status").to_pylist(), dtype=object)
+    others = [c for c in cols if c not in ("row", "theta", "psi", "seed") and table.schema.field(c).metadata
+              and table.schema.field(c).metadata.get(b"role") == b"swept"]
+    rows = []
+    for p in np.unique(psi):
+        sel = psi == p
+        out = [f"{p:+.3f}", f"{math.degrees(p):+.0f}"]
+        for sign in (1.0, -1.0):
+            t = theta[sel] * sign
+            side = t >= -1e-12
+            order = np.argsort(t[side])
+            ts, oks, sts = t[side][order], ok[sel][side][order], status[sel][side][order]
+            bad = np.nonzero(~oks)[0]
+            crit = ts[bad[0] - 1] if len(bad) and bad[0] > 0 else (ts[-1] if len(ts) and not len(bad) else float("nan"))
+            reason = sts[bad[0]].replace("failed: ", "") if len(bad) else "-"
+            first = f"{ts[bad[0]]:.3f}" if len(bad) else "-"
+            out += [f"{crit:.3f}" if np.isfinite(crit) else "none", first, reason.split(" (")[0]]
+        rows.append(tuple(out))
+    notes = [
+        "critical = largest |theta| with every smaller |theta| of that psi ok (grid resolution applies)",
+        "paper (Ambe & Matsuno 2016): critical |theta| ~ 0.40 rad for every psi; rigid block atan(mu) = "
+        f"{math.atan(0.45):.3f} rad at mu = 0.45",
+    ]
+    if others:
+        notes.append("other swept parameters are pooled: " + ", ".join(others))
+    return Summary(
+        title="leg-grope walk on slopes: critical inclination per walking direction",
+        columns=("psi [rad]", "psi [deg]", "crit +theta", "first fail +", "why +",
+                 "crit -theta", "first fail -", "why -"),
+        rows=tuple(rows),
+        notes=tuple(notes),
+    )
+
+
+SLOPE_CYCLE = Analysis(
+    name="leggrope.slope_cycle",
+    doc="One leg-grope walk cycle on a slope: is a slip-free force distribution feasible at every step?",
+    params=PARAMS,
+    metrics=METRICS,
+    make_batch_fn=make_batch_fn,
+    statuses=STATUSES,
+    summarize=summarize,
+    x64=True,
+)

@@ -1,0 +1,114 @@
+"""Design of the footstep sequence of the leg-grope walk cycle: initial stance and the
+sideways shift of each leg's step.
+
+With h_ref = 1/2 the admissible regions are tight (see `gait` module docstring): the
+plan's margins depend strongly on where the four feet start and where they land.
+`search_footsteps` maximizes the smallest planner margin of the cycle over the 8
+stance coordinates and the 4 sideways shifts by a cross-entropy search (batched
+planner calls), subject to a reach margin for every leg. The shipped defaults
+(`gait.DEFAULT_STANCE`, `gait.DEFAULT_LATERAL`) came from
+
+    python -m jaxloco.robots.leggrope.design --seed 0
+
+on level ground; the plan's bary-centric geometry is invariant under the slope's affine
+foreshortening, so the same stance serves every slope (the COG targets are re-planned
+for each slope and walking direction).
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxloco.robots.leggrope import gait
+from jaxloco.robots.leggrope.params import LegGropeParams, default_params
+
+
+# The footsteps must serve every slope: on a slope the body sits uphill of the footprint
+# (the COG's vertical projection is what the regions constrain), which changes the leg
+# configurations and so the COG shift of each swing. The search maximizes the worst case.
+DESIGN_SLOPES = np.array(
+    [(t, p) for t in (0.0, 0.25, -0.25, 0.5, -0.5) for p in (0.0, 0.25 * np.pi, -0.25 * np.pi, 0.5 * np.pi)]
+)
+
+
+def footstep_score(
+    params: LegGropeParams,
+    walk: gait.WalkParams,
+    config: gait.WalkConfig,
+    x: jax.Array,
+    min_reach: float,
+    max_lateral: float,
+    slopes: np.ndarray,
+) -> jax.Array:
+    """Smallest plan margin [m] over the (theta, psi) pairs `slopes` for x = (stance (8),
+    lateral (4)), penalized when a leg's reach margin falls below `min_reach` or a sideways step
+    exceeds `max_lateral` (long sideways steps swing a foot past its hip, where the yaw
+    joint whips round and the leg's inertia upsets the force balance)."""
+    w = replace(walk, stance=x[:8].reshape(4, 2), lateral=x[8:])
+    slopes = jnp.asarray(slopes, x.dtype)
+    plans = jax.vmap(lambda tp: gait.plan_cycle(params, w, gait.simple_slope(tp[0], tp[1]), config))(slopes)
+    margin = jnp.min(jax.vmap(lambda pl: pl.margin)(plans))
+    reach = jnp.min(plans.reach_margin)
+    over = jnp.sum(jnp.maximum(jnp.abs(x[8:]) - max_lateral, 0.0))
+    return margin - 2.0 * jnp.maximum(min_reach - reach, 0.0) - 2.0 * over
+
+
+def search_footsteps(
+    params: LegGropeParams | None = None,
+    walk: gait.WalkParams | None = None,
+    config: gait.WalkConfig | None = None,
+    *,
+    seed: int = 0,
+    population: int = 128,
+    elite: int = 16,
+    iterations: int = 30,
+    min_reach: float = 0.02,
+    max_lateral: float = 0.08,
+    slopes: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Cross-entropy search; returns (stance (4, 2), lateral (4,), score [m])."""
+    params = params or default_params()
+    walk = walk or gait.WalkParams()
+    config = config or gait.WalkConfig()
+    slopes = DESIGN_SLOPES if slopes is None else slopes
+    score = jax.jit(jax.vmap(lambda x: footstep_score(params, walk, config, x, min_reach, max_lateral, slopes)))
+    rng = np.random.default_rng(seed)
+    mean = np.concatenate([np.asarray(walk.stance, float).reshape(-1), np.asarray(walk.lateral, float)])
+    std = np.full(12, 0.03)
+    best, best_score = mean.copy(), -np.inf
+    for _ in range(iterations):
+        pop = mean + std * rng.standard_normal((population, 12))
+        pop[0] = best
+        s = np.asarray(score(jnp.asarray(pop)))
+        top = np.argsort(-s)[:elite]
+        if s[top[0]] > best_score:
+            best, best_score = pop[top[0]].copy(), float(s[top[0]])
+        mean = pop[top].mean(axis=0)
+        std = np.maximum(pop[top].std(axis=0), 1e-3)
+    return best[:8].reshape(4, 2), best[8:], best_score
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--stride", type=float, default=float(gait.WalkParams().stride))
+    ap.add_argument("--iterations", type=int, default=30)
+    ap.add_argument("--max-lateral", type=float, default=0.08)
+    args = ap.parse_args()
+    jax.config.update("jax_enable_x64", True)
+    walk = gait.WalkParams(stride=args.stride)
+    stance, lateral, s = search_footsteps(
+        walk=walk, seed=args.seed, iterations=args.iterations, max_lateral=args.max_lateral
+    )
+    print(f"smallest plan margin {s * 1000:.2f} mm with")
+    print("stance (u, v) [m] =", np.array2string(np.round(stance, 4), separator=", "))
+    print("lateral [m] =", np.array2string(np.round(lateral, 4), separator=", "))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,198 @@
+"""Stability margins of a robot standing on a masked, fixed-size, unordered set of contact
+points. Pure JAX (jit, vmap, grad; float32 and float64).
+
+Inputs, unless said otherwise: `cog` (3,) and `contacts` (N, 3) in a world frame whose
+z axis points up (against gravity); `mask` (N,) marks the active contacts (N is fixed,
+e.g. 16 for a crawler with many contacts). `up` optionally replaces world z by another
+unit "up" vector (e.g. the negative of an effective gravity that includes a tether
+force). Distances in metres, forces in newtons.
+
+The support polygon is the convex hull of the active contacts projected along `up`;
+its edges come from `geometry.hull_edges`, so no ordering of contacts is needed.
+
+Every margin is signed: positive when stable, negative when the robot would tip (or
+slip, for the friction margin). Each has a `*_smooth` variant for gradient-based
+tuning: the min over edges/contacts is replaced by `geometry.soft_min` with a
+temperature T (metres or newtons); it is smooth, never above the exact margin when the
+robot is stable, and within T log(n) of the min over the same terms. The smooth
+variants are for objectives, not for safety checks.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from jaxloco import geometry as geo
+
+Array = jax.Array
+
+
+def _vertical_frame(up: Array | None, dtype) -> Array:
+    """Rows (u1, u2, up): an orthonormal basis whose third axis is `up`."""
+    if up is None:
+        return jnp.eye(3, dtype=dtype)
+    R = geo.contact_frame(up)  # columns: x, y, z=up
+    return R.T
+
+
+def _split(cog: Array, contacts: Array, up: Array | None) -> tuple[Array, Array, Array, Array]:
+    """Horizontal (2D) and vertical coordinates of the COG and the contacts."""
+    B = _vertical_frame(up, contacts.dtype)
+    c = B @ cog
+    p = contacts @ B.T
+    return c[:2], c[2], p[:, :2], p[:, 2]
+
+
+def _edge_line_distances(q: Array, p2: Array) -> Array:
+    """d[i, j]: signed distance of q from the line p_i -> p_j (left positive)."""
+    e = p2[None, :, :] - p2[:, None, :]
+    elen = geo._safe_norm(e)  # not jnp.linalg.norm: its gradient is NaN on the i == j diagonal
+    safe = jnp.where(elen > 0, elen, 1.0)
+    return geo.cross2(e, q[None, None, :] - p2[:, None, :]) / safe
+
+
+# ----------------------------------------------------------------- static (support) margin
+def static_margin(cog: Array, contacts: Array, mask: Array, up: Array | None = None) -> Array:
+    """Static stability margin: signed horizontal distance from the COG's vertical
+    projection to the boundary of the support polygon (positive inside, negative
+    outside; <= 0 for fewer than three non-collinear contacts; -inf with none)."""
+    q, _, p2, _ = _split(cog, contacts, up)
+    return geo.hull_signed_distance(q, p2, mask)
+
+
+def static_margin_smooth(
+    cog: Array, contacts: Array, mask: Array, temperature: Array, up: Array | None = None
+) -> Array:
+    """Soft-min over the support edges of the signed distance from the projected COG to
+    each edge's line. Equals a smooth lower bound of `static_margin` inside the polygon;
+    outside it is negative but smaller in magnitude (distance to a line, not a segment)."""
+    q, _, p2, _ = _split(cog, contacts, up)
+    E = geo.hull_edges(p2, mask)
+    return geo.soft_min(_edge_line_distances(q, p2).ravel(), temperature, E.ravel())
+
+
+# ------------------------------------------------------ normalized energy stability margin
+def _ne_edge_margins(cog: Array, contacts: Array, up: Array | None) -> tuple[Array, Array]:
+    """Per-edge energy margin h_max - h_0 (m), signed by the side of the COG."""
+    B = _vertical_frame(up, contacts.dtype)
+    c = B @ cog
+    p = contacts @ B.T
+    pi = p[:, None, :]
+    e = p[None, :, :] - pi  # axis i -> j
+    elen = geo._safe_norm(e)[..., None]  # finite gradient on the i == j diagonal
+    e = e / jnp.where(elen > 0, elen, 1.0)
+    r = c[None, None, :] - pi
+    R = r - jnp.sum(r * e, axis=-1, keepdims=True) * e  # from the axis to the COG, normal to it
+    rho = jnp.sqrt(jnp.sum(R * R, axis=-1) + jnp.finfo(c.dtype).tiny)
+    ez = e[..., 2]
+    rise = rho * jnp.sqrt(jnp.clip(1.0 - ez * ez, 0.0, 1.0)) - R[..., 2]  # >= 0
+    side = _edge_line_distances(c[:2], p[:, :2])
+    return jnp.where(side >= 0, rise, -rise), p[:, :2]
+
+
+def ne_stability_margin(cog: Array, contacts: Array, mask: Array, up: Array | None = None) -> Array:
+    """Normalized energy stability margin (Hirose, Tsukagoshi & Yoneda, ICRA 2001), in m.
+
+    For each edge of the support polygon the tipping axis is the 3D line through its two
+    contacts (edges need not be horizontal: slopes, rough terrain). Rotating about that
+    axis, the COG moves on a circle; the edge's margin is the height of the circle's
+    highest point above the COG's present height, i.e. the tip-over energy divided by
+    the weight. It is signed: negative when the COG's projection is outside the edge
+    (already past the top). NESM = min over edges; -inf with fewer than two contacts.
+    """
+    S, p2 = _ne_edge_margins(cog, contacts, up)
+    E = geo.hull_edges(p2, mask)
+    return jnp.where(jnp.any(E), jnp.min(jnp.where(E, S, jnp.inf)), -jnp.inf)
+
+
+def ne_stability_margin_smooth(
+    cog: Array, contacts: Array, mask: Array, temperature: Array, up: Array | None = None
+) -> Array:
+    """Soft-min over the support edges of the signed energy margins (see module doc)."""
+    S, p2 = _ne_edge_margins(cog, contacts, up)
+    E = geo.hull_edges(p2, mask)
+    return geo.soft_min(S.ravel(), temperature, E.ravel())
+
+
+# ------------------------------------------------------------ longitudinal stability margin
+def _longitudinal_terms(cog, contacts, direction, up, eps):
+    q, _, p2, _ = _split(cog, contacts, up)
+    B = _vertical_frame(up, contacts.dtype)
+    d3 = jnp.concatenate([direction, jnp.zeros(3 - direction.shape[0], direction.dtype)])
+    d = (B @ d3)[:2]
+    d = d / jnp.linalg.norm(d)
+    e = p2[None, :, :] - p2[:, None, :]
+    elen = geo._safe_norm(e)  # finite gradient on the i == j diagonal
+    outward = jnp.stack([e[..., 1], -e[..., 0]], axis=-1) / jnp.where(elen > 0, elen, 1.0)[..., None]
+    along = jnp.abs(outward @ d)
+    dist = _edge_line_distances(q, p2)
+    return dist / jnp.maximum(along, eps), p2
+
+
+def longitudinal_margin(
+    cog: Array, contacts: Array, mask: Array, direction: Array, up: Array | None = None, eps: float = 1e-6
+) -> Array:
+    """Longitudinal stability margin (McGhee & Frank 1968), in m: the shorter of the
+    distances from the projected COG, along the line of travel `direction` (2D or 3D,
+    horizontal part used), to the front and rear boundaries of the support polygon.
+
+    Signed: for a COG outside the polygon it is minus the distance along the travel line
+    to the line of the violated edge (edges parallel to the travel line count with
+    |n.d| floored at `eps`, so a COG beside the polygon gives a large negative value)."""
+    terms, p2 = _longitudinal_terms(cog, contacts, direction, up, eps)
+    E = geo.hull_edges(p2, mask)
+    return jnp.where(jnp.any(E), jnp.min(jnp.where(E, terms, jnp.inf)), -jnp.inf)
+
+
+def longitudinal_margin_smooth(
+    cog: Array,
+    contacts: Array,
+    mask: Array,
+    direction: Array,
+    temperature: Array,
+    up: Array | None = None,
+    eps: float = 1e-6,
+) -> Array:
+    """Soft-min version of `longitudinal_margin`."""
+    terms, p2 = _longitudinal_terms(cog, contacts, direction, up, eps)
+    E = geo.hull_edges(p2, mask)
+    return geo.soft_min(terms.ravel(), temperature, E.ravel())
+
+
+# ----------------------------------------------------------------- friction safety margin
+SQRT2 = 2.0**0.5
+
+
+def forces_in_contact_frames(forces: Array, frames: Array) -> Array:
+    """Express world-frame forces (N, 3) in contact frames (N, 3, 3) whose columns are
+    the frames' axes in the world (as `geometry.contact_frame` returns)."""
+    return jnp.einsum("nij,ni->nj", frames, forces)
+
+
+def friction_margins(forces: Array, mu: Array) -> Array:
+    """Per-contact safety margin of the linearized friction pyramid, leg-grope Eqs. 17-18.
+
+    `forces` (N, 3) are the ground reaction forces on the robot in each contact frame
+    Sigma_iS (z along the normal, x along the gradient of the contact plane). The four
+    rows -mu/sqrt2 f_z +- f_x/sqrt2 +- f_y/sqrt2 <= -s hold for every s up to
+        s_i = (mu f_z - |f_x| - |f_y|) / sqrt(2)      [N].
+    s_i >= 0 means the force is inside the pyramid (which is inscribed in the friction
+    cone and touches it along +-x and +-y); a negative normal force gives s_i < 0."""
+    return (mu * forces[:, 2] - jnp.abs(forces[:, 0]) - jnp.abs(forces[:, 1])) / SQRT2
+
+
+def friction_margin(forces: Array, mu: Array, mask: Array) -> Array:
+    """Friction safety margin s of a contact force set: min of `friction_margins` over
+    the active contacts (+inf if none is active)."""
+    return jnp.min(jnp.where(mask, friction_margins(forces, mu), jnp.inf))
+
+
+def friction_margin_smooth(
+    forces: Array, mu: Array, mask: Array, temperature: Array, abs_eps: float = 1e-3
+) -> Array:
+    """Smooth friction margin: |.| replaced by sqrt(x^2 + abs_eps^2) and the min by a
+    soft-min with `temperature` (N). A lower bound of `friction_margin`."""
+    sabs = lambda x: jnp.sqrt(x * x + abs_eps * abs_eps)  # noqa: E731
+    s = (mu * forces[:, 2] - sabs(forces[:, 0]) - sabs(forces[:, 1])) / SQRT2
+    return geo.soft_min(s, temperature, mask)

@@ -1,0 +1,146 @@
+"""The structure of a sweep spec (pydantic models) and one-line messages for its errors."""
+
+from __future__ import annotations
+
+import difflib
+import os
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from jaxloco.analysis import SpecError
+
+MAX_ROWS = 100_000_000
+MAX_SEED = 2**31  # exclusive; keeps jax.random.PRNGKey(seed) identical with and without x64
+DEFAULT_CHUNK_SIZE = 256
+
+NonEmptyStr = Annotated[str, Field(min_length=1)]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
+
+
+class SweepSection(_Strict):
+    analysis: NonEmptyStr
+    name: NonEmptyStr | None = None
+    output: NonEmptyStr | None = None
+    chunk_size: int = Field(DEFAULT_CHUNK_SIZE, ge=1)
+    seeds: list[int] = [0]
+    combine: Literal["product", "zip"] = "product"
+    zip: list[list[str]] | None = None
+    formats: list[Literal["parquet", "csv"]] = ["parquet"]
+
+    @field_validator("output", mode="before")
+    @classmethod
+    def _path_to_str(cls, v: Any) -> Any:
+        return os.fspath(v) if isinstance(v, os.PathLike) else v
+
+    @field_validator("seeds", mode="before")
+    @classmethod
+    def _seed_count(cls, v: Any) -> Any:
+        if isinstance(v, int) and not isinstance(v, bool):
+            if v < 1:
+                raise ValueError(f"a seed count must be >= 1, got {v}")
+            return list(range(v))
+        return v
+
+    @field_validator("seeds")
+    @classmethod
+    def _seed_values(cls, v: list[int]) -> list[int]:
+        if not v:
+            raise ValueError("empty list; give at least one seed")
+        for s in v:
+            if not 0 <= s < MAX_SEED:
+                raise ValueError(f"seed {s} is outside [0, {MAX_SEED})")
+        dup = sorted({s for s in v if v.count(s) > 1})
+        if dup:
+            raise ValueError(f"duplicate seed {dup[0]}")
+        return v
+
+
+class SpecDoc(_Strict):
+    sweep: SweepSection
+    fixed: dict[str, Any] = {}
+    params: dict[str, Any] = {}
+
+
+class RangeModel(_Strict):
+    start: float
+    stop: float
+    num: int | None = Field(None, ge=1)
+    step: float | None = Field(None, gt=0)
+    scale: Literal["linear", "log"] = "linear"
+
+
+# ---------------------------------------------------------------------------- errors
+
+
+def _key(loc: tuple[Any, ...]) -> str:
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+def _known_keys(model: type[BaseModel], parent: tuple[Any, ...]) -> list[str]:
+    for part in parent:
+        field = model.model_fields.get(part) if isinstance(part, str) else None
+        sub = getattr(field, "annotation", None) if field else None
+        if not (isinstance(sub, type) and issubclass(sub, BaseModel)):
+            return []
+        model = sub
+    return list(model.model_fields)
+
+
+def _pydantic_problem(err: dict[str, Any], model: type[BaseModel]) -> str:
+    kind, value, ctx = err["type"], err.get("input"), err.get("ctx") or {}
+    if kind == "extra_forbidden":
+        known = _known_keys(model, tuple(err["loc"][:-1]))
+        close = difflib.get_close_matches(str(err["loc"][-1]), known, n=1)
+        if close:
+            return f"unknown key (did you mean '{close[0]}'?)"
+        return f"unknown key (known: {', '.join(known)})" if known else "unknown key"
+    if kind == "missing":
+        return "required key is missing"
+    expected = {
+        "int_type": "an integer",
+        "int_parsing": "an integer",
+        "int_from_float": "an integer",
+        "float_type": "a number",
+        "float_parsing": "a number",
+        "string_type": "a string",
+        "list_type": "a list",
+        "dict_type": "a table",
+        "model_type": "a table",
+        "model_attributes_type": "a table",
+        "bool_type": "true or false",
+        "finite_number": "a finite number",
+    }.get(kind)
+    if expected:
+        return f"expected {expected}, got {value!r}"
+    if kind == "literal_error":
+        return f"expected {ctx.get('expected')}, got {value!r}"
+    if kind == "greater_than_equal":
+        return f"must be >= {ctx.get('ge')}, got {value!r}"
+    if kind == "greater_than":
+        return f"must be > {ctx.get('gt')}, got {value!r}"
+    if kind == "string_too_short":
+        return "must not be empty"
+    if kind == "value_error":
+        return str(ctx.get("error", err["msg"]))
+    return f"{err['msg']}, got {value!r}"
+
+
+def validate(model: type[BaseModel], data: Any, source: str, prefix: tuple[Any, ...] = ()) -> Any:
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors(include_url=False)[0]
+        loc = prefix + tuple(err["loc"])
+        where = f"{_key(loc)}: " if loc else ""
+        raise SpecError(f"{source}: {where}{_pydantic_problem(err, model)}") from None
+
+
+def error(source: str, key: str, problem: str) -> SpecError:
+    return SpecError(f"{source}: {key}: {problem}")

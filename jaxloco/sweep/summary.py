@@ -1,0 +1,55 @@
+"""The short human summary of a sweep table (the analysis' own, or status counts)."""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from jaxloco import analysis as registry
+from jaxloco.analysis import Analysis, SpecError, Summary
+
+
+def status_counts(table: pa.Table, analysis: Analysis) -> Summary:
+    """Rows per status, in the analysis' status order (statuses not declared come last)."""
+    counts = Counter(table.column("status").to_pylist()) if "status" in table.column_names else Counter()
+    total = table.num_rows
+    order = list(analysis.statuses) + sorted(set(counts) - set(analysis.statuses))
+    rows = tuple(
+        (status, str(counts.get(status, 0)), f"{100.0 * counts.get(status, 0) / total:.1f}%" if total else "-")
+        for status in order
+    )
+    return Summary(title=f"{analysis.name}: {total} rows by status", columns=("status", "rows", "share"), rows=rows)
+
+
+def summarize(table: pa.Table, analysis: Analysis) -> Summary:
+    """`analysis.summarize(table)`, or the status counts when the analysis has none."""
+    if analysis.summarize is None:
+        return status_counts(table, analysis)
+    return analysis.summarize(table)
+
+
+def read_table(path: str | Path) -> tuple[pa.Table, Analysis]:
+    """A sweep table from disk and its analysis (named by its `analysis` column)."""
+    label = str(path)
+    p = Path(path)
+    if not p.exists():
+        raise SpecError(f"{label}: no such file")
+    if p.is_dir():
+        raise SpecError(f"{label}: is a directory; give the table.parquet inside it")
+    try:
+        table = pq.read_table(p)
+    except (OSError, pa.ArrowException) as exc:
+        raise SpecError(f"{label}: not a readable Parquet file ({exc})") from None
+    if "analysis" not in table.column_names:
+        raise SpecError(f"{label}: no 'analysis' column; not a jaxloco sweep table")
+    names = sorted(set(table.column("analysis").drop_null().to_pylist()))
+    if len(names) != 1:
+        raise SpecError(f"{label}: expected one analysis name in its 'analysis' column, found {len(names)}")
+    try:
+        analysis = registry.get(names[0])
+    except SpecError as exc:
+        raise SpecError(f"{label}: {exc}") from None
+    return table, analysis

@@ -1,0 +1,339 @@
+"""Running sweeps end to end on a toy analysis: table layout, chunking and padding,
+atomic chunk files, resume after an interruption, output-directory rules."""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from jaxloco.analysis import Analysis, Metric, Param, SpecError, Summary, register
+from jaxloco.sweep import (
+    AnalysisError,
+    SweepInterrupted,
+    expand,
+    run,
+    spec_from_dict,
+    store,
+)
+
+# ------------------------------------------------------------------ the toy analysis
+
+TRACES: list[dict[str, str]] = []  # one entry per trace of a toy batch function: input dtypes
+
+
+def _toy_batch_fn(fixed):
+    n = fixed["n"]  # not sweepable: a Python int that sets an array shape
+
+    def fn(swept, keys):
+        TRACES.append({name: str(v.dtype) for name, v in swept.items()})
+        rows = keys.shape[0]
+
+        def value(name):
+            return jnp.broadcast_to(jnp.asarray(swept[name] if name in swept else fixed[name]), (rows,))
+
+        a, b, m, flag = value("a"), value("b"), value("m"), value("flag")
+        y = a * jnp.sum(jnp.arange(n)) / n + b + jnp.where(flag, 1.0, 0.0)
+        u = jax.vmap(jax.random.uniform)(keys)
+        return {
+            "y": y,
+            "u": u,
+            "k": m + n,
+            "pos": y > 0,
+            "status": jnp.where(y < 0, 1, 0),
+        }
+
+    return fn
+
+
+def toy_expected_y(a, b, n, flag):
+    return a * sum(range(n)) / n + b + (1.0 if flag else 0.0)
+
+
+def _toy_summary(table):
+    ys = table.column("y").to_pylist()
+    return Summary(title="toy", columns=("rows", "max y"), rows=((str(len(ys)), f"{max(ys):.3f}"),), notes=("a note",))
+
+
+TOY_PARAMS = (
+    Param("a", 1.0, "slope", unit="m", lo=-10.0, hi=10.0),
+    Param("b", 0.0, "offset", unit="m"),
+    Param("m", 0, "an integer knob", kind="int", lo=0, hi=100),
+    Param("n", 3, "shape-changing count", kind="int", lo=1, hi=16, sweepable=False),
+    Param("flag", False, "adds one", kind="bool"),
+    Param("label", "toy", "a label", kind="str"),
+)
+TOY_METRICS = (
+    Metric("y", "a*mean(0..n-1) + b + flag", unit="m"),
+    Metric("u", "uniform noise from the row's key"),
+    Metric("k", "m + n", kind="int"),
+    Metric("pos", "y > 0", kind="bool"),
+)
+TOY = register(
+    Analysis(
+        name="test.toy",
+        doc="A toy analysis for the sweep tests.\nSecond line.",
+        params=TOY_PARAMS,
+        metrics=TOY_METRICS,
+        make_batch_fn=_toy_batch_fn,
+        statuses=("ok", "failed: negative"),
+    )
+)
+TOY_SUMMARY = register(
+    Analysis(
+        name="test.toy_summary",
+        doc="The toy with a summary.",
+        params=TOY_PARAMS,
+        metrics=TOY_METRICS,
+        make_batch_fn=_toy_batch_fn,
+        statuses=("ok", "failed: negative"),
+        summarize=_toy_summary,
+    )
+)
+
+COLUMNS = ["row", "a", "b", "m", "n", "flag", "label", "y", "u", "k", "pos", "status", "seed",
+           "analysis", "jaxloco_version", "jax_version", "mujoco_version"]  # fmt: skip
+
+
+def toy_spec(out, *, analysis="test.toy", chunk_size=4, seeds=(0, 1), **params):
+    params = params or {"a": {"start": -1.0, "stop": 1.0, "num": 5}, "flag": [True, False]}
+    return spec_from_dict(
+        {
+            "sweep": {"analysis": analysis, "output": str(out), "chunk_size": chunk_size, "seeds": list(seeds)},
+            "fixed": {"n": 4, "label": "hi"},
+            "params": params,
+        }
+    )
+
+
+@pytest.fixture
+def chunk_writes(monkeypatch):
+    """The chunk indices written to disk, in order."""
+    written: list[int] = []
+    original = store.write_chunk
+
+    def counting(out, index, table):
+        written.append(index)
+        original(out, index, table)
+
+    monkeypatch.setattr(store, "write_chunk", counting)
+    return written
+
+
+# ----------------------------------------------------------------------------- tests
+
+
+def test_run_table_columns_types_order_and_values(tmp_path):
+    TRACES.clear()
+    spec = toy_spec(tmp_path / "out")  # 5 a x 2 flag x 2 seeds = 20 rows, chunks 4 -> 5 chunks
+    result = run(spec, progress=False)
+    t = result.table
+    assert t.column_names == COLUMNS
+    types = {f.name: f.type for f in t.schema}
+    assert types["row"] == pa.int64() and types["a"] == pa.float64() and types["m"] == pa.int64()
+    assert types["flag"] == pa.bool_() and types["label"] == pa.string() and types["k"] == pa.int64()
+    assert types["pos"] == pa.bool_() and types["status"] == pa.string() and types["seed"] == pa.int64()
+    rows = t.to_pylist()
+    assert [r["row"] for r in rows] == list(range(20))
+    grid = expand(spec).columns
+    assert [r["a"] for r in rows] == grid["a"].tolist()
+    assert [r["seed"] for r in rows] == [0, 1] * 10
+    for r in rows:
+        assert r["y"] == pytest.approx(toy_expected_y(r["a"], 0.0, 4, r["flag"]))
+        assert r["status"] == ("failed: negative" if r["y"] < 0 else "ok")
+        assert (r["n"], r["label"], r["b"], r["m"], r["k"]) == (4, "hi", 0.0, 0, 4)
+        assert r["analysis"] == "test.toy" and r["jax_version"] == jax.__version__
+    # seeds matter; the same seed gives the same key
+    u: dict[int, set[float]] = {0: set(), 1: set()}
+    for r in rows:
+        u[r["seed"]].add(r["u"])
+    assert len(u[0]) == 1 and len(u[1]) == 1 and u[0] != u[1]
+    assert {r["status"] for r in rows} == {"ok", "failed: negative"}
+    # float64 inputs, int32 ints, one compilation for all chunks
+    assert TRACES == [{"a": "float64", "flag": "bool"}]
+    assert (result.path / "table.parquet").is_file() and not (result.path / "table.csv").exists()
+    assert pq.read_table(result.path / "table.parquet").equals(t)
+    assert result.summary is not None and result.summary.columns == ("status", "rows", "share")
+
+
+def test_units_and_docs_in_parquet_metadata(tmp_path):
+    result = run(toy_spec(tmp_path / "out", seeds=(0,)), progress=False)
+    schema = pq.read_schema(result.path / "table.parquet")
+    assert schema.field("a").metadata[b"unit"] == b"m"
+    assert schema.field("a").metadata[b"role"] == b"swept"
+    assert schema.field("b").metadata[b"role"] == b"fixed"
+    assert schema.field("u").metadata[b"doc"] == b"uniform noise from the row's key"
+    described = json.loads(schema.metadata[b"jaxloco"])
+    assert described["analysis"] == "test.toy"
+    assert [p["name"] for p in described["params"]] == ["a", "b", "m", "n", "flag", "label"]
+    assert described["statuses"] == ["ok", "failed: negative"]
+    manifest = json.loads((result.path / "manifest.json").read_text())
+    assert manifest["rows"] == 10 and manifest["chunks"] == 3 and manifest["spec_hash"] == described["spec_hash"]
+
+
+def test_padding_does_not_leak_rows(tmp_path, chunk_writes):
+    TRACES.clear()
+    spec = toy_spec(tmp_path / "out", chunk_size=4, seeds=(0,), a=[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, -1.0])
+    result = run(spec, progress=False)
+    assert result.table.num_rows == 10
+    assert result.table.column("row").to_pylist() == list(range(10))
+    assert result.table.column("a").to_pylist()[-1] == -1.0
+    assert result.table.column("status").to_pylist()[-1] == "failed: negative"
+    assert chunk_writes == [0, 1, 2]
+    assert [pq.read_metadata(store.chunk_path(result.path, i)).num_rows for i in range(3)] == [4, 4, 2]
+    assert len(TRACES) == 1  # every call had the same shape
+
+
+def test_batch_is_never_larger_than_the_sweep(tmp_path):
+    TRACES.clear()
+    spec = toy_spec(tmp_path / "out", chunk_size=256, seeds=(0,), a=[0.5, 1.5])
+    assert run(spec, progress=False).table.num_rows == 2
+
+
+def test_no_swept_params_gives_one_row_per_seed(tmp_path):
+    spec = spec_from_dict({"sweep": {"analysis": "test.toy", "output": str(tmp_path / "o"), "seeds": 3}})
+    t = run(spec, progress=False).table
+    assert t.column("seed").to_pylist() == [0, 1, 2]
+    assert t.column("a").to_pylist() == [1.0, 1.0, 1.0]
+
+
+def test_resume_after_interruption_matches_uninterrupted_run(tmp_path, chunk_writes):
+    spec = toy_spec(tmp_path / "interrupted")  # 5 chunks
+    saved_calls = []
+
+    def stop_after_two(index, n_chunks):
+        saved_calls.append((index, n_chunks))
+        if len(saved_calls) == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(SweepInterrupted) as info:
+        run(spec, progress=False, on_chunk=stop_after_two)
+    assert (info.value.saved, info.value.total) == (2, 5)
+    assert str(info.value) == f"interrupted: 2 of 5 chunks saved in {spec.output}; rerun with --resume"
+    assert isinstance(info.value, KeyboardInterrupt)
+    assert not (spec.output / "table.parquet").exists()
+    before = {i: store.chunk_path(spec.output, i).stat().st_mtime_ns for i in (0, 1)}
+
+    with pytest.raises(SpecError, match="exists; pass --resume to continue it or --overwrite to start again"):
+        run(spec, progress=False)
+
+    resumed_calls = []
+    result = run(spec, progress=False, resume=True, on_chunk=lambda i, n: resumed_calls.append(i))
+    assert resumed_calls == [2, 3, 4]
+    assert chunk_writes == [0, 1, 2, 3, 4]  # nothing recomputed or written twice
+    assert (result.chunks_computed, result.chunks_reused) == (3, 2)
+    assert {i: store.chunk_path(spec.output, i).stat().st_mtime_ns for i in (0, 1)} == before
+
+    fresh = run(toy_spec(tmp_path / "fresh"), progress=False)
+    assert result.table.equals(fresh.table)
+    assert pq.read_table(spec.output / "table.parquet").equals(fresh.table)
+
+    # resuming a finished sweep computes nothing and gives the same table
+    again = run(spec, progress=False, resume=True)
+    assert again.chunks_computed == 0 and again.table.equals(fresh.table)
+
+
+def test_resume_with_changed_spec_is_refused(tmp_path):
+    out = tmp_path / "out"
+    run(toy_spec(out, seeds=(0,)), progress=False)
+    with pytest.raises(SpecError, match="different spec"):
+        run(toy_spec(out, seeds=(0, 1)), progress=False, resume=True)
+    with pytest.raises(SpecError, match="different spec"):
+        run(toy_spec(out, seeds=(0,), chunk_size=3), progress=False, resume=True)
+
+
+def test_overwrite_starts_again_but_only_in_a_sweep_directory(tmp_path, chunk_writes):
+    out = tmp_path / "out"
+    run(toy_spec(out, seeds=(0,)), progress=False)
+    (out / "notes.txt").write_text("mine")
+    result = run(toy_spec(out, seeds=(0, 1), chunk_size=8), progress=False, overwrite=True)
+    assert result.table.num_rows == 20
+    assert sorted(p.name for p in (out / "chunks").iterdir()) == [f"chunk-0000{i}.parquet" for i in range(3)]
+    assert (out / "notes.txt").read_text() == "mine"
+    with pytest.raises(SpecError, match="either --resume or --overwrite"):
+        run(toy_spec(out), progress=False, overwrite=True, resume=True)
+
+    other = tmp_path / "not_a_sweep"
+    other.mkdir()
+    (other / "precious.txt").write_text("keep")
+    with pytest.raises(SpecError, match="not a sweep output"):
+        run(toy_spec(other), progress=False, overwrite=True)
+    with pytest.raises(SpecError, match="no manifest.json"):
+        run(toy_spec(other), progress=False, resume=True)
+    assert (other / "precious.txt").read_text() == "keep"
+
+
+def test_csv_on_request_and_output_override(tmp_path):
+    spec = toy_spec(tmp_path / "ignored", seeds=(0,)).with_options(csv=True)
+    result = run(spec, progress=False, output=tmp_path / "here")
+    assert result.path == tmp_path / "here"
+    csv = (tmp_path / "here" / "table.csv").read_text().splitlines()
+    assert csv[0].replace('"', "").split(",") == COLUMNS
+    assert len(csv) == 1 + result.table.num_rows
+    assert not (tmp_path / "ignored").exists()
+
+
+def test_interrupted_then_resumed_with_leftover_temporary_file(tmp_path):
+    spec = toy_spec(tmp_path / "out", seeds=(0,))
+
+    def stop(index, n):
+        raise KeyboardInterrupt
+
+    with pytest.raises(SweepInterrupted):
+        run(spec, progress=False, on_chunk=stop)
+    leftover = spec.output / "chunks" / ".tmp-chunk-00001.parquet.abc"
+    leftover.write_bytes(b"half a file")
+    result = run(spec, progress=False, resume=True)
+    assert result.table.num_rows == 10 and not leftover.exists()
+
+
+def test_custom_summary_and_failing_summary(tmp_path):
+    result = run(toy_spec(tmp_path / "a", analysis="test.toy_summary", seeds=(0,)), progress=False)
+    assert result.summary == _toy_summary(result.table)
+
+    def broken(table):
+        raise ZeroDivisionError("oops")
+
+    bad = Analysis(
+        name="test.toy_bad_summary", doc="", params=TOY_PARAMS, metrics=TOY_METRICS,
+        make_batch_fn=_toy_batch_fn, statuses=("ok", "failed: negative"), summarize=broken,
+    )  # fmt: skip
+    register(bad)
+    result = run(toy_spec(tmp_path / "b", analysis="test.toy_bad_summary", seeds=(0,)), progress=False)
+    assert result.summary is None and "oops" in result.summary_error
+    assert (tmp_path / "b" / "table.parquet").is_file()
+
+
+def test_analysis_returning_wrong_keys_is_a_bug_not_a_user_error(tmp_path):
+    def bad_fn(fixed):
+        return lambda swept, keys: {"y": jnp.zeros(keys.shape[0]), "status": jnp.zeros(keys.shape[0], jnp.int32)}
+
+    register(Analysis(name="test.wrong_keys", doc="", params=TOY_PARAMS, metrics=TOY_METRICS, make_batch_fn=bad_fn))
+    with pytest.raises(AnalysisError, match="missing: k, pos, u"):
+        run(toy_spec(tmp_path / "out", analysis="test.wrong_keys", seeds=(0,)), progress=False)
+
+
+def test_float32_inputs_when_x64_is_off(tmp_path):
+    TRACES.clear()
+    previous = jax.config.jax_enable_x64
+    jax.config.update("jax_enable_x64", False)
+    try:
+        result = run(toy_spec(tmp_path / "out", seeds=(0,), a=[0.1, 0.2]), progress=False, configure_jax=False)
+    finally:
+        jax.config.update("jax_enable_x64", previous)
+    assert TRACES == [{"a": "float32"}]
+    assert result.table.column("a").to_pylist() == [0.1, 0.2]  # the spec's values, not float32 ones
+    assert result.table.schema.field("y").type == pa.float64()
+
+
+def test_int_sweep_uses_int32_inputs(tmp_path):
+    TRACES.clear()
+    result = run(toy_spec(tmp_path / "out", seeds=(0,), m={"start": 0, "stop": 6, "step": 2}), progress=False)
+    assert TRACES == [{"m": "int32"}]
+    assert result.table.column("k").to_pylist() == [4, 6, 8, 10]
+    assert np.array_equal(result.table.column("m").to_numpy(), [0, 2, 4, 6])
