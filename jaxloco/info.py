@@ -82,6 +82,7 @@ def environment() -> list[tuple[str, str]]:
     """(label, value) lines for `jaxloco info`."""
     import jax
 
+    runtime.use_cpu_cores()  # report the devices a sweep will shard over
     rows = [(name, version) for name, version in versions().items()]
     rows.append(("mujoco.mjx import", mjx_status()))
     rows.append(("python", sys.version.split()[0]))

@@ -47,11 +47,7 @@ def configure(
     import jax
 
     jax.config.update("jax_enable_x64", bool(x64))
-    n = cpu_devices or int(os.environ.get("JAXLOCO_CPU_DEVICES", 0)) or (os.cpu_count() or 1)
-    try:
-        jax.config.update("jax_num_cpu_devices", int(n))
-    except RuntimeError:  # backend already initialized: keep what it has
-        pass
+    use_cpu_cores(cpu_devices)
     path: Path | None = None
     if cache_dir is True:
         path = default_cache_dir()
@@ -63,6 +59,18 @@ def configure(
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
         jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     return RuntimeSettings(x64=bool(x64), cache_dir=path)
+
+
+def use_cpu_cores(n: int | None = None) -> None:
+    """Expose `n` JAX CPU devices (default `$JAXLOCO_CPU_DEVICES` or the core count) so a
+    batch sharded over them uses every core. No effect once JAX's backend has started."""
+    import jax
+
+    n = n or int(os.environ.get("JAXLOCO_CPU_DEVICES", 0)) or (os.cpu_count() or 1)
+    try:
+        jax.config.update("jax_num_cpu_devices", int(n))
+    except RuntimeError:  # backend already initialized: keep what it has
+        pass
 
 
 def current_settings() -> RuntimeSettings:

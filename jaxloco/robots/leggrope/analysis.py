@@ -63,7 +63,7 @@ METRICS = (
     Metric("min_static_margin", "smallest static stability margin of the stance", "m"),
     Metric("min_ne_margin", "smallest normalized energy stability margin of the stance", "m"),
     Metric("min_leg_margin", "smallest pyramid margin of any loaded leg", "N"),
-    Metric("max_friction_use", "largest (|f_x| + |f_y|) / (mu f_z) of a leg carrying >= 1% of M g (1 = slipping)"),
+    Metric("max_friction_use", "largest (|f_x| + |f_y|) / (mu f_z) of a leg carrying >= 10% of M g (1 = slipping)"),
     Metric("max_torque", "largest joint torque magnitude", "N m"),
     Metric("min_reach", "smallest leg reach margin (negative: unreachable)", "m"),
     Metric("max_move_time", "longest phase-A body move", "s"),

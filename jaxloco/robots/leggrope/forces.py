@@ -225,7 +225,7 @@ class CycleSummary:
     min_capacity: Array  # smallest slip capacity s_max: best achievable margin [N]
     min_s: Array  # smallest friction safety margin s of the controller QP [N]
     min_leg_margin: Array  # smallest per-leg pyramid margin of any loaded leg [N]
-    max_friction_use: Array  # largest (|F_x| + |F_y|) / (mu F_z) of a leg carrying >= 1% of M g
+    max_friction_use: Array  # largest (|F_x| + |F_y|) / (mu F_z) of a leg carrying >= 10% of M g
     max_normal_ratio: Array  # largest stance normal force / R_ref outside step D
     max_overshoot: Array  # largest relaxation r of Eq. 19 [N]
     n_qp_failed: Array  # steps whose QP found no solution (no slip-free distribution)
@@ -312,7 +312,7 @@ def simulate_cycle(
         loaded = modes.free | modes.ramp
         leg_margin = jnp.min(jnp.where(loaded, stability.friction_margins(f, params.mu), jnp.inf))
         normal_ratio = jnp.max(jnp.where(modes.free, f[:, 2], -jnp.inf)) / r_ref
-        carrying = loaded & (f[:, 2] >= 0.01 * weight)
+        carrying = loaded & (f[:, 2] >= 0.1 * weight)
         use = (jnp.abs(f[:, 0]) + jnp.abs(f[:, 1])) / (params.mu * jnp.where(carrying, f[:, 2], 1.0))
         friction_use = jnp.max(jnp.where(carrying, use, 0.0))
         contacts_on = ~modes.air

@@ -101,7 +101,7 @@ class WalkConfig:
     n_swing: int = 40  # steps of phase C (0.6 s)
     n_load: int = 20  # steps of phase D (0.3 s)
     lattice: int = 32  # barycentric lattice resolution of the COG search
-    fixed_point_iters: int = 6  # iterations placing the body under a COG target
+    fixed_point_iters: int = 5  # Newton iterations placing the body under a COG target
 
     @property
     def steps_per_grope(self) -> int:
@@ -250,7 +250,9 @@ def _search_cog(stance, h_stance, h_grp, target, lattice, swing_shift):
         return m_cog, m_grp
 
     m_cog, m_grp = jax.vmap(margins)(cand)
-    best = jnp.argmax(jnp.minimum(m_cog, m_grp))
+    # quantize to 10 nm so that near-ties resolve the same way in every compiled variant
+    # (batched or not, any device count): argmax then takes the first of equal scores
+    best = jnp.argmax(jnp.round(jnp.minimum(m_cog, m_grp) * 1e8))
     return cand[best], m_cog[best], m_grp[best]
 
 
@@ -283,19 +285,22 @@ def place_body(
     params: LegGropeParams, terrain: SlopeTerrain, R_GR: Array, feet: Array, cog_xy: Array, iters: int
 ) -> Array:
     """Body origin (world) at `body_height` above the slope whose whole-body COG projects
-    vertically onto `cog_xy`: fixed-point iteration moving the body along the slope."""
+    vertically onto `cog_xy`: Newton iterations on the body's position in the slope
+    plane (the legs follow by inverse kinematics)."""
     R_GS = slope_rotation(terrain.theta)
-    cos_t = jnp.cos(terrain.theta)
-
-    def step(body, _):
-        err = cog_xy - whole_body_cog(params, R_GR, body, feet)[:2]
-        delta_S = jnp.stack([err[0] / cos_t, err[1], jnp.zeros_like(err[0])])
-        return body + R_GS @ delta_S, None
-
     height = jnp.asarray(params.body_height, cog_xy.dtype)
-    body0 = R_GS @ jnp.stack([cog_xy[0] / cos_t, cog_xy[1], height])
-    body, _ = jax.lax.scan(step, body0, None, length=iters)
-    return body
+
+    def cog_of(uv):
+        body = R_GS @ jnp.concatenate([uv, height[None]])
+        return whole_body_cog(params, R_GR, body, feet)[:2]
+
+    def step(uv, _):
+        J = jax.jacfwd(cog_of)(uv)
+        return uv + jnp.linalg.solve(J, cog_xy - cog_of(uv)), None
+
+    uv0 = jnp.stack([cog_xy[0] / jnp.cos(terrain.theta), cog_xy[1]])
+    uv, _ = jax.lax.scan(step, uv0, None, length=iters)
+    return R_GS @ jnp.concatenate([uv, height[None]])
 
 
 def plan_cycle(

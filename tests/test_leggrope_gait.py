@@ -1,0 +1,151 @@
+"""The leg-grope walk cycle plan and motion: the forward-walk impossibility, motion
+limits, plan invariance on slopes, body placement, continuity of the motion."""
+
+from dataclasses import replace
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxloco.robots.leggrope import gait as G
+from jaxloco.robots.leggrope import regions as R
+from jaxloco.robots.leggrope.params import default_params
+
+P = default_params()
+CFG = G.WalkConfig()
+WALK = G.WalkParams()
+
+
+@pytest.fixture(scope="module")
+def plans():
+    """Plans on a few slopes and directions (one compiled, vmapped planner)."""
+    th = jnp.array([0.0, 0.25, -0.4, 0.4, 0.1])
+    ps = jnp.array([0.0, 0.7, -1.2, 1.5707963, -1.5707963])
+    f = jax.jit(jax.vmap(lambda t, p: G.plan_cycle(P, WALK, G.simple_slope(t, p), CFG)))
+    return th, ps, f(th, ps)
+
+
+def _inside_antimedial(target, stance):
+    V, OK = R.groping_region_all(stance, jnp.full(3, 0.5), jnp.asarray(0.5))
+    return float(R.union_signed_distance(target, V, OK))
+
+
+def test_forward_walk_with_paper_order_is_impossible():
+    """With L1..L4 clockwise from the left front and groping order L2, L1, L3, L4, a walk
+    along x_R cannot have both front gropes admissible (h_ref = 1/2): checked on random
+    stances and sideways shifts, while the same test passes for sideways walking."""
+    rng = np.random.default_rng(0)
+    # L1 left-front, L2 right-front, L3 right-rear, L4 left-rear, in (x_R, y_R)
+    base = np.array([[0.2, 0.2], [0.2, -0.2], [-0.2, -0.2], [-0.2, 0.2]])
+    admissible_forward = 0
+    for _ in range(300):
+        feet = base + rng.normal(0.0, 0.05, (4, 2))
+        step = np.array([0.05, 0.0])
+        lat = rng.normal(0.0, 0.04, 2)
+        t2 = feet[1] + step + [0.0, lat[0]]
+        ok2 = _inside_antimedial(jnp.asarray(t2), jnp.asarray(feet[[0, 2, 3]])) > 0
+        after = feet.copy()
+        after[1] = t2
+        t1 = feet[0] + step + [0.0, lat[1]]
+        ok1 = _inside_antimedial(jnp.asarray(t1), jnp.asarray(after[[1, 2, 3]])) > 0
+        admissible_forward += ok1 and ok2
+    assert admissible_forward == 0
+
+
+def test_sideways_walk_plan_is_at_the_knife_edge(plans):
+    """The designed sideways walk is (nearly) admissible on every slope: the smallest
+    margin is the design value (about -1.7 mm), far from the forward walk's failure."""
+    _, _, pl = plans
+    assert float(jnp.min(jax.vmap(lambda p: p.margin)(pl))) > -2.5e-3
+    assert float(jnp.min(pl.reach_margin)) > 0.005
+
+
+def test_plan_is_invariant_on_slopes(plans):
+    """Planning in slope coordinates with the COG's vertical projection makes the plan's
+    geometry affine-invariant: with massless legs (no swing shift of the COG) every margin
+    is the same on every slope and direction; with the real legs the swinging leg's mass
+    moves them by millimetres."""
+    th, ps, pl = plans
+    massless = P.with_(link_masses=np.zeros(3))
+    f = jax.jit(jax.vmap(lambda t, p: G.plan_cycle(massless, WALK, G.simple_slope(t, p), CFG)))
+    ideal = f(th, ps)
+    for m in (ideal.cog_margin, ideal.grope_margin):
+        np.testing.assert_allclose(m, np.broadcast_to(m[0], m.shape), atol=1e-9)
+    margins = jax.vmap(lambda p: p.margin)(pl)
+    assert float(jnp.max(margins) - jnp.min(margins)) < 3e-3
+
+
+def test_footsteps_and_body_placement(plans):
+    th, ps, pl = plans
+    for k in range(len(th)):
+        terrain = G.simple_slope(th[k], ps[k])
+        plan = jax.tree_util.tree_map(lambda x: x[k], pl)
+        # every foot moved once: stride forward plus its designed sideways shift
+        uv = lambda p: G.world_xy_to_uv(terrain, p[:2])  # noqa: E731
+        for leg in range(4):
+            d = uv(plan.feet[4][leg]) - uv(plan.feet[0][leg])
+            np.testing.assert_allclose(d, [WALK.stride, WALK.lateral[leg]], atol=1e-12)
+        # feet on the slope plane, body at body_height above it
+        n = G.slope_rotation(terrain.theta)[:, 2]
+        np.testing.assert_allclose(plan.feet @ n, 0.0, atol=1e-12)
+        np.testing.assert_allclose(plan.body @ n, P.body_height, atol=1e-12)
+        # the whole-body COG projects vertically onto each target
+        for i in range(1, 5):
+            cog = G.whole_body_cog(P, plan.R_GR, plan.body[i], plan.feet[i])
+            np.testing.assert_allclose(cog[:2], plan.cog_target[i], atol=1e-10)
+
+
+def test_trapezoid_profile_limits():
+    a, v = 0.15, 0.1
+    for d in (0.01, 0.0667, 0.08):
+        t = jnp.linspace(0.0, 3.0, 3001)
+        s, total = G.trapezoid(t, jnp.asarray(d), a, v)
+        vel = jax.vmap(jax.grad(lambda x: G.trapezoid(x, jnp.asarray(d), a, v)[0]))(t)
+        acc = jax.vmap(jax.grad(jax.grad(lambda x: G.trapezoid(x, jnp.asarray(d), a, v)[0])))(t)
+        assert float(jnp.max(jnp.abs(vel))) <= v + 1e-12
+        assert float(jnp.max(jnp.abs(acc))) <= a + 1e-12
+        assert float(s[-1]) == pytest.approx(d)
+        expected = 2 * np.sqrt(d / a) if d < v * v / a else d / v + v / a
+        assert float(total) == pytest.approx(expected)
+        assert np.all(np.diff(np.asarray(s)) >= -1e-15)
+
+
+def test_step_info_covers_the_cycle():
+    infos = jax.vmap(lambda i: G.step_info(i, CFG, P.dt))(jnp.arange(CFG.n_steps))
+    counts = np.zeros((4, 4), int)
+    np.add.at(counts, (np.asarray(infos.grope), np.asarray(infos.phase)), 1)
+    assert (counts == np.array(CFG.phase_lengths())[None, :]).all()
+    np.testing.assert_array_equal(np.asarray(infos.leg)[:: CFG.steps_per_grope], CFG.order)
+    assert float(jnp.max(infos.fraction)) == 1.0
+
+
+def test_motion_is_continuous_and_rests_between_phases(plans):
+    th, ps, pl = plans
+    terrain = G.simple_slope(th[1], ps[1])
+    plan = jax.tree_util.tree_map(lambda x: x[1], pl)
+    for k in range(4):
+        base = k * CFG.steps_per_grope
+        end_a = G.step_info(jnp.asarray(base + CFG.n_move - 1), CFG, P.dt)
+        body, feet = G.pose_at(P, WALK, plan, end_a, end_a.tau, CFG)
+        np.testing.assert_allclose(body, plan.body[k + 1], atol=1e-12)
+        vel = jax.jacfwd(lambda t: G.pose_at(P, WALK, plan, end_a, t, CFG)[0])(end_a.tau)
+        np.testing.assert_allclose(vel, 0.0, atol=1e-12)
+        end_c = G.step_info(jnp.asarray(base + CFG.n_move + CFG.n_unload + CFG.n_swing - 1), CFG, P.dt)
+        _, feet = G.pose_at(P, WALK, plan, end_c, end_c.tau, CFG)
+        np.testing.assert_allclose(feet, plan.feet[k + 1], atol=1e-12)
+
+
+def test_planner_vmap_equals_loop(plans):
+    th, ps, pl = plans
+    single = jax.jit(lambda t, p: G.plan_cycle(P, WALK, G.simple_slope(t, p), CFG))(th[2], ps[2])
+    np.testing.assert_allclose(single.body, pl.body[2], atol=1e-10)
+    np.testing.assert_allclose(single.cog_margin, pl.cog_margin[2], atol=1e-10)
+
+
+def test_irregular_slope_keeps_inclination():
+    t = G.irregular_slope(jnp.asarray(0.3), jnp.asarray(0.0), jnp.asarray(0.8), jax.random.PRNGKey(3))
+    np.testing.assert_allclose(jnp.arccos(t.normals[..., 2]), 0.3, atol=1e-12)
+    assert float(jnp.std(jnp.arctan2(t.normals[..., 1], t.normals[..., 0]))) > 0.05
+    same = replace(t, normals=G.simple_slope(jnp.asarray(0.3), jnp.asarray(0.0)).normals)
+    np.testing.assert_allclose(same.normals[..., 2], np.cos(0.3))
