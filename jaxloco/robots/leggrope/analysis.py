@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
-from jaxloco.robots.leggrope import forces, gait
+from jaxloco.robots.leggrope import forces, gait, results
 from jaxloco.robots.leggrope.params import G, default_params
 
 HALF_PI = 0.5 * math.pi
@@ -153,37 +153,37 @@ def make_batch_fn(fixed: Mapping[str, Any]):
 
 
 def summarize(table) -> Summary:
-    """Critical inclination per walking direction: the largest |theta| such that every
-    row of that psi with 0 <= theta' <= theta (or theta <= theta' <= 0) is ok."""
-    cols = table.column_names
-    theta = np.asarray(table.column("theta").to_numpy(zero_copy_only=False), float)
-    psi = np.asarray(table.column("psi").to_numpy(zero_copy_only=False), float)
-    ok = np.asarray([s == "ok" for s in table.column("status").to_pylist()])
-    status = np.asarray(table.column("status").to_pylist(), dtype=object)
-    others = [c for c in cols if c not in ("row", "theta", "psi", "seed") and table.schema.field(c).metadata
-              and table.schema.field(c).metadata.get(b"role") == b"swept"]
+    """Critical inclination per walking direction (`results.critical_theta`): the largest
+    |theta| such that every row of that psi with 0 <= theta' <= theta (or theta <=
+    theta' <= 0) is ok, the first failing |theta| and why it failed."""
+    crit = results.critical_theta(table)
+    theta = results._floats(table, "theta")
+    psi = results._floats(table, "psi")
+    status = results._column(table, "status")
+
+    def reason(p, t, sign):
+        """Why the first failing row (psi p, theta = sign * t) failed."""
+        if not np.isfinite(t):
+            return "-"
+        bad = [x for x in status[(psi == p) & np.isclose(theta, sign * t)] if x != "ok"]
+        return bad[0].replace("failed: ", "").split(" (")[0] if bad else "-"
+
+    fmt = lambda v: f"{v:.3f}" if np.isfinite(v) else "none"  # noqa: E731
     rows = []
-    for p in np.unique(psi):
-        sel = psi == p
-        out = [f"{p:+.3f}", f"{math.degrees(p):+.0f}"]
-        for sign in (1.0, -1.0):
-            t = theta[sel] * sign
-            side = t >= -1e-12
-            order = np.argsort(t[side])
-            ts, oks, sts = t[side][order], ok[sel][side][order], status[sel][side][order]
-            bad = np.nonzero(~oks)[0]
-            crit = ts[bad[0] - 1] if len(bad) and bad[0] > 0 else (ts[-1] if len(ts) and not len(bad) else float("nan"))
-            reason = sts[bad[0]].replace("failed: ", "") if len(bad) else "-"
-            first = f"{ts[bad[0]]:.3f}" if len(bad) else "-"
-            out += [f"{crit:.3f}" if np.isfinite(crit) else "none", first, reason.split(" (")[0]]
-        rows.append(tuple(out))
+    for i, p in enumerate(crit.psi):
+        row = [f"{p:+.3f}", f"{math.degrees(p):+.0f}"]
+        for sign, c, first in ((1.0, crit.plus, crit.first_fail_plus), (-1.0, crit.minus, crit.first_fail_minus)):
+            row += [fmt(c[i]), fmt(first[i]) if np.isfinite(first[i]) else "-", reason(p, first[i], sign)]
+        rows.append(tuple(row))
+    swept = [n for n in table.column_names if n not in ("row", "theta", "psi", "seed")
+             and (table.schema.field(n).metadata or {}).get(b"role") == b"swept"] if hasattr(table, "schema") else []
     notes = [
         "critical = largest |theta| with every smaller |theta| of that psi ok (grid resolution applies)",
-        "paper (Ambe & Matsuno 2016): critical |theta| ~ 0.40 rad for every psi; rigid block atan(mu) = "
-        f"{math.atan(0.45):.3f} rad at mu = 0.45",
+        f"paper (Ambe & Matsuno 2016): critical |theta| ~ {results.PAPER_CRITICAL_THETA:.2f} rad for every psi; "
+        f"rigid block atan(mu) = {math.atan(0.45):.3f} rad at mu = 0.45",
     ]
-    if others:
-        notes.append("other swept parameters are pooled: " + ", ".join(others))
+    if swept:
+        notes.append("other swept parameters are pooled: " + ", ".join(swept))
     return Summary(
         title="leg-grope walk on slopes: critical inclination per walking direction",
         columns=("psi [rad]", "psi [deg]", "crit +theta", "first fail +", "why +",

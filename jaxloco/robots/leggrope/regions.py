@@ -106,6 +106,9 @@ def groping_region(p_i, p_j, p_k, h_i, h_j, h_k, h_grp) -> tuple[Array, Array]:
     """pi_grp(Li, Lj, Lgrp) with float leg L_k: union over every admissible COG."""
     cog_v, cog_ok = cog_region(p_i, p_j, p_k, h_i, h_j, h_k)
     ab, ab_ok = _grope_weights_polygon(h_i, h_j, h_grp)
+    # both polygons come compacted (valid vertices first): pi_g has at most 6 vertices
+    # (Table 2a, pattern 8) and the (a, b) polygon at most 5 (Table 2b, pattern 1)
+    cog_v, cog_ok, ab, ab_ok = cog_v[:6], cog_ok[:6], ab[:5], ab_ok[:5]
     scale = 1.0 + ab[:, 0] + ab[:, 1]  # (A,)
     pts = scale[:, None, None] * cog_v[None, :, :] - ab[:, None, :1] * p_i - ab[:, None, 1:] * p_j
     ok = ab_ok[:, None] & cog_ok[None, :]
