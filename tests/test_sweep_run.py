@@ -337,3 +337,15 @@ def test_int_sweep_uses_int32_inputs(tmp_path):
     assert TRACES == [{"m": "int32"}]
     assert result.table.column("k").to_pylist() == [4, 6, 8, 10]
     assert np.array_equal(result.table.column("m").to_numpy(), [0, 2, 4, 6])
+
+
+def test_chunks_larger_than_one_call_are_split(tmp_path, monkeypatch):
+    """A chunk bigger than MAX_ROWS_PER_DEVICE x devices runs as several calls of one
+    compiled shape (guarding against jaxlib's batched-LAPACK hang); the table is the
+    same as with one call per chunk."""
+    from jaxloco.sweep import runner
+
+    whole = run(toy_spec(tmp_path / "whole"), progress=False).table
+    monkeypatch.setattr(runner, "MAX_ROWS_PER_DEVICE", 1)
+    split = run(toy_spec(tmp_path / "split"), progress=False).table
+    assert split.drop_columns(["jaxloco_version"]).equals(whole.drop_columns(["jaxloco_version"]))

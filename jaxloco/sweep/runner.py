@@ -101,9 +101,12 @@ def run(
         "jax_version": versions["jax"],
         "mujoco_version": versions["mujoco"],
     }
-    # the batch axis is sharded over every JAX device (all CPU cores, or the GPUs)
+    # the batch axis is sharded over every JAX device (all CPU cores, or the GPUs); one
+    # compiled call takes at most MAX_ROWS_PER_DEVICE rows per device, larger chunks are
+    # run in several calls of that shape
     devices = jax.devices()
-    batch = -(-min(spec.chunk_size, grid.n_rows) // len(devices)) * len(devices)
+    per_call = min(spec.chunk_size, grid.n_rows, MAX_ROWS_PER_DEVICE * len(devices))
+    batch = -(-per_call // len(devices)) * len(devices)
     sharding = jax.sharding.NamedSharding(jax.sharding.Mesh(np.array(devices), ("batch",)),
                                           jax.sharding.PartitionSpec("batch"))
     x64 = bool(jax.config.jax_enable_x64)
@@ -118,10 +121,14 @@ def run(
                 bar.chunk_started(index, len(bounds), first=count == 0)
                 start, stop = bounds[index]
                 swept, seed_pos = grid.rows(start, stop)
-                inputs = {name: _padded(_device_array(values, x64), batch) for name, values in swept.items()}
-                inputs, keys = jax.device_put((inputs, _padded(keys_by_seed[seed_pos], batch)), sharding)
-                raw = fn(inputs, keys)
-                outputs = {k: v[: stop - start] for k, v in checked_outputs(analysis, raw, batch).items()}
+                parts = []
+                for lo in range(0, stop - start, batch):
+                    hi = min(lo + batch, stop - start)
+                    inputs = {name: _padded(_device_array(v[lo:hi], x64), batch) for name, v in swept.items()}
+                    keys = _padded(keys_by_seed[seed_pos[lo:hi]], batch)
+                    raw = fn(*jax.device_put((inputs, keys), sharding))
+                    parts.append({k: v[: hi - lo] for k, v in checked_outputs(analysis, raw, batch).items()})
+                outputs = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
                 table = chunk_table(
                     schema,
                     analysis,
@@ -157,6 +164,12 @@ def run(
         warnings=tuple(warnings),
         summary_error=summary_error,
     )
+
+
+# jaxlib 0.10.2's batched LAPACK kernels on CPU were seen to deadlock when one call
+# batched about 1,000 small factorizations (the leg-grope QP at vmapped batch 1,000 hung;
+# 512 ran). Keeping each compiled call at or below this many rows per device avoids it.
+MAX_ROWS_PER_DEVICE = 256
 
 
 def _device_array(values: np.ndarray, x64: bool) -> np.ndarray:
