@@ -10,9 +10,10 @@ planner calls), subject to a reach margin for every leg. The shipped defaults
 
     python -m jaxloco.robots.leggrope.design --seed 0
 
-on level ground; the plan's bary-centric geometry is invariant under the slope's affine
-foreshortening, so the same stance serves every slope (the COG targets are re-planned
-for each slope and walking direction).
+which maximizes the worst margin over `DESIGN_SLOPES` (|theta| <= 0.5, four walking
+directions): -1.7 mm. The plan's barycentric geometry is invariant under the slope's
+affine foreshortening, but the swinging leg's mass is not (on a slope the body sits
+uphill of the footprint, which changes the leg configurations), hence the worst case.
 """
 
 from __future__ import annotations

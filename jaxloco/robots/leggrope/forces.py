@@ -19,20 +19,24 @@ linear correspondence (Eq. 14, away from theta_i3 = n pi), so we optimize
 x = [F_1..F_4 in their contact frames Sigma_iS (12), s, r, d (3)] with the same cost:
     Phi = h_s s + 1/2 tau^T W_tau tau + 1/2 (tau - tau_b)^T W_c (tau - tau_b)
           + h_r r + 1/2 |d|^2
-Two additions, both with fixed shapes so the program compiles once:
-  * r >= 0 relaxes Eq. 19 (F_z <= R_ref + r on the stance legs) at a large price h_r.
-    With R_ref = 1/2 M g cos(theta) the admissible regions leave only millimetres of
-    room (see `gait`), so leg-mass and inertial effects can need a few percent more;
-    a hard Eq. 19 would then report "infeasible" for reasons that have nothing to do
-    with slipping. r is reported (max normal-force ratio), never hidden.
-  * d: three dummy variables with unit curvature. The groping leg's rows (normal force
-    on a ramp in steps B and D, all three force components zero in the air) take the
-    place of "d_j = 0" rows when unused, so the equality matrix is always 9 x 17 with
-    full row rank.
-Friction safety margin s: the stance legs carry the pyramid of Eqs. 17-18 with margin
-s. The groping leg on its ramp (steps B, D) must stay inside its pyramid with zero
-margin: its normal force is driven to 0 by design, where any positive margin is
-impossible, so including it would make s <= 0 at every lift-off by construction.
+Constraints: Newton-Euler (6 equalities); per loaded leg the pyramid of Eqs. 17-18;
+s >= -s_tol M g. The paper defines s >= 0; imposing it makes "no QP solution" mean "no
+slip-free force distribution", which is the sweep's failure test (the sliver s_tol keeps
+an interior: at the end of every step D one leg floats with zero load, so s touches 0
+by construction, as in the paper's Fig. 8). Additions, all with fixed shapes so the
+program compiles once:
+  * r >= 0 relaxes Eq. 19 (F_z <= R_ref + r on the free stance legs) and the groping
+    ramp (ramp - r <= F_z <= ramp) at a large price h_r. With R_ref = 1/2 M g cos(theta)
+    the admissible regions leave only millimetres of room (see `gait`), so leg mass
+    and inertia need a few percent more; hard rules would report "infeasible" for
+    reasons that have nothing to do with slipping. r is reported, never hidden.
+  * d: three dummy variables with unit curvature. The rows pinning the leg in the air
+    to zero force take the place of "d_j = 0" rows when no leg is in the air, so the
+    equality matrix is always 9 x 17 with full row rank.
+  * `QPSettings.capacity`: optionally a second QP per step, max s without Eq. 19 (the
+    slip capacity), for diagnostics.
+The groping leg on its ramp (steps B, D) keeps its pyramid with zero margin: its normal
+force is driven to 0 by design, where any positive margin is impossible.
 Torque continuity uses tau_b of the previous step (none at the first step).
 """
 

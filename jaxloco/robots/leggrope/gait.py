@@ -18,10 +18,16 @@ each stance foot parallel to the opposite side, so when L2 and then L1 are grope
 L3 and L4 stand, L1 can never end farther from the line L3-L4 than it started. A walk
 along x_R (away from that line) is therefore impossible with this order; along y_R the
 same order is the classical crawl sequence (rear-right, front-right, rear-left,
-front-left in walking terms) and works when the leading feet stand closer together than
-the trailing ones (the two side lines then converge in the walking direction, which
-leaves room for every groped foot). `tests/test_leggrope_gait.py` checks that the
-planner finds no admissible plan for heading = 0.
+front-left in walking terms). `tests/test_leggrope_gait.py` checks the impossibility on
+random stances.
+
+How little room there is: with h_ref = 1/2 the admissible regions are the medial
+triangle (COG) and the reflection of the stance triangle through the COG (groped
+foot). A joint search over stance, sideways steps and COG targets (`design.py`) finds a
+worst-case margin of about +1 to +2 mm on level ground; once the swinging leg's mass
+(which moves the COG between steps B and D) and slopes up to 0.5 rad are counted, the
+best footsteps reach -1.7 mm. h_ref = 0.45 or 0.55 is worse by about 6 mm. The force
+QP therefore reports a small relaxation of the normal-force rules (`forces`).
 
 Cycle (for each groping leg g in order; fixed numbers of 15 ms steps so the whole cycle
 is one `lax.scan`):
@@ -30,12 +36,12 @@ is one `lax.scan`):
   B  unload leg g: its normal force ramps linearly to 0, nothing moves;
   C  swing g: minimum-jerk along the slope, lifted by `swing_height` along the normal;
   D  load g: its normal force ramps linearly from 0 to R_ref, nothing moves.
-Footholds: nominal points (+-foot_u, +-foot_v_front/rear) in the walking frame, offset
-along u by stride * (phase - 1/2) (phase = position of the leg in the groping order / 4,
-the usual crawl stagger); each groped foot moves forward by `stride`. COG targets: for
-each grope, the point of pi_g (three stance legs) that maximizes the smaller of its
-distance inside pi_g and the target foothold's distance inside pi_grp,g, searched on a
-barycentric lattice over the stance triangle (fixed size, vmaps).
+Footsteps: the initial stance and the sideways shift of each step are design inputs
+(`WalkParams.stance`, `.lateral`, defaults from `design.py`); every groped foot moves
+`stride` forward along the walk plus its sideways shift. COG targets: for each grope,
+the point of a barycentric lattice over the stance triangle that maximizes the smaller
+of (the step-B COG's distance inside pi_g) and (the groped foothold's distance inside
+the step-D region), planned in slope-plane coordinates (see `plan_cycle`).
 """
 
 from __future__ import annotations
