@@ -3,6 +3,7 @@ atomic chunk files, resume after an interruption, output-directory rules."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import jax
@@ -84,17 +85,8 @@ TOY = register(
         statuses=("ok", "failed: negative"),
     )
 )
-TOY_SUMMARY = register(
-    Analysis(
-        name="test.toy_summary",
-        doc="The toy with a summary.",
-        params=TOY_PARAMS,
-        metrics=TOY_METRICS,
-        make_batch_fn=_toy_batch_fn,
-        statuses=("ok", "failed: negative"),
-        summarize=_toy_summary,
-    )
-)
+TOY_SUMMARY = register(dataclasses.replace(TOY, name="test.toy_summary", doc="The toy with a summary.",
+                                           summarize=_toy_summary))
 
 COLUMNS = ["row", "a", "b", "m", "n", "flag", "label", "y", "u", "k", "pos", "status", "seed",
            "analysis", "jaxloco_version", "jax_version", "mujoco_version"]  # fmt: skip
