@@ -171,7 +171,7 @@ def solve(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: float = 
     Q, q, A, b, G, h = (jnp.asarray(v, dtype) for v in (Q, q, A, b, G, h))
     if not differentiable:
         Q, q, A, b, G, h = (jax.lax.stop_gradient(v) for v in (Q, q, A, b, G, h))
-    n, m, p = q.shape[0], b.shape[0], h.shape[0]
+    n, m = q.shape[0], b.shape[0]
     Q = 0.5 * (Q + Q.T)
     off = jnp.isposinf(h)  # h = +inf: disabled row
     G = jnp.where(off[:, None], 0.0, G)

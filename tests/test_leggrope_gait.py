@@ -126,8 +126,7 @@ def test_step_info_covers_the_cycle():
 
 
 def test_motion_is_continuous_and_rests_between_phases(plans):
-    th, ps, pl = plans
-    terrain = G.simple_slope(th[1], ps[1])
+    _, _, pl = plans
     plan = jax.tree_util.tree_map(lambda x: x[1], pl)
     for k in range(4):
         base = k * CFG.steps_per_grope

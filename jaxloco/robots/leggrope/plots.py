@@ -24,9 +24,30 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
+
+from jaxloco.robots.leggrope.results import (  # critical_theta, status_category: public here too
+    PAPER_CRITICAL_THETA,
+    _categories,
+    _field_meta,
+    _floats,
+    _mus,
+    critical_theta,
+    status_category,
+)
+
+__all__ = [
+    "critical_theta",
+    "status_category",
+    "plot_feasibility_map",
+    "plot_critical_theta",
+    "plot_metric_vs_theta",
+    "plot_cycle_forces",
+    "plot_cycle_margin",
+    "plot_cycle_torques",
+]
 
 LEGS = ("L1", "L2", "L3", "L4")
 GROPE_ORDER = (1, 0, 2, 3)  # L2, L1, L3, L4: `gait.WalkConfig.order`; used only when a trace has no `free`
@@ -34,21 +55,6 @@ PHASES = ("A move", "B unload", "C swing", "D load")
 PHASE_COLORS = ("#ececec", "#fbd9b5", "#c9def2", "#cdeac4")
 CATEGORIES = ("ok", "slip", "other failure")
 CATEGORY_COLORS = ("#4c9a4c", "#d9822b", "#b03a3a")
-
-
-from jaxloco.robots.leggrope.results import (  # noqa: E402  (re-exported for users of plots)
-    DEFAULT_MU,
-    PAPER_CRITICAL_THETA,
-    CriticalTheta,
-    _categories,
-    _column,
-    _field_meta,
-    _floats,
-    _mus,
-    _names,
-    critical_theta,
-    status_category,
-)
 
 
 def _edges(values: np.ndarray) -> np.ndarray:
@@ -131,13 +137,13 @@ def plot_critical_theta(table: Any, *, ax=None, figsize=(6.4, 4.0)):
     crit = critical_theta(table)
     fig, ax = _new_axes(ax, figsize)
     dx = 0.01 * (float(np.ptp(crit.psi)) or 1.0)  # the two sides' bars side by side
-    for values, fails, marker, color, label, dx in (
+    for values, fails, marker, color, label, offset in (
         (crit.plus, crit.first_fail_plus, "o", "C0", "+θ side", -dx),
         (crit.minus, crit.first_fail_minus, "s", "C3", "−θ side (|θ|)", dx),
     ):
         ax.plot(crit.psi, values, marker=marker, color=color, label=label)
         has = np.isfinite(values) & np.isfinite(fails)
-        ax.vlines(crit.psi[has] + dx, values[has], fails[has], color=color, lw=3, alpha=0.35)
+        ax.vlines(crit.psi[has] + offset, values[has], fails[has], color=color, lw=3, alpha=0.35)
     _theta_references(ax, _mus(table), vertical=False, both_signs=False)
     ax.set_xticks(crit.psi, [f"{p:+.2f}\n({math.degrees(p):+.0f}°)" for p in crit.psi])
     ax.set_xlabel("walking direction ψ [rad]")
