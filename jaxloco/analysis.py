@@ -12,6 +12,9 @@ Contract of `Analysis.make_batch_fn(fixed)`:
     from the row's seed). `fn` is pure and jit-compatible; the caller jits it.
   * `fn` returns a dict with one (B,) array per metric in `Analysis.metrics` plus
     `"status"`: an int array indexing `Analysis.statuses` (0 means "ok").
+  * executor "jax" (default): the runner jits `fn` and shards the batch over the JAX
+    devices. executor "host": `fn` is called as it is with numpy arrays (it runs its own
+    batched engine, e.g. the native MuJoCo backend of `jaxloco.sim`) once per chunk.
 """
 
 from __future__ import annotations
@@ -126,6 +129,7 @@ class Analysis:
     statuses: tuple[str, ...] = ("ok",)
     summarize: SummaryFn | None = None  # pyarrow.Table -> Summary
     x64: bool = True  # run in float64 (the CLI configures JAX accordingly)
+    executor: Literal["jax", "host"] = "jax"
     _by_name: dict[str, Param] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -150,6 +154,7 @@ class Analysis:
 # name -> "module:attribute" (imported lazily) or an Analysis registered at run time.
 _BUILTIN: dict[str, str] = {
     "leggrope.slope_cycle": "jaxloco.robots.leggrope.analysis:SLOPE_CYCLE",
+    "leggrope.fragile_walk": "jaxloco.robots.leggrope.sim_analysis:FRAGILE_WALK",
 }
 _REGISTERED: dict[str, Analysis] = {}
 

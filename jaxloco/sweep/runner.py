@@ -87,7 +87,10 @@ def run(
 
     if configure_jax:
         runtime.configure(x64=analysis.x64, cache_dir=True)
-    fn = jax.jit(analysis.make_batch_fn(dict(spec.fixed)))
+    host = analysis.executor == "host"
+    fn = analysis.make_batch_fn(dict(spec.fixed))
+    if not host:
+        fn = jax.jit(fn)
 
     versions = info.versions()
     store.open_output(out, _manifest(spec, spec_hash, len(bounds), versions), mode)
@@ -107,6 +110,8 @@ def run(
     devices = jax.devices()
     per_call = min(spec.chunk_size, grid.n_rows, MAX_ROWS_PER_DEVICE * len(devices))
     batch = -(-per_call // len(devices)) * len(devices)
+    if host:  # the analysis batches itself: one call per chunk, no padding
+        batch = spec.chunk_size
     sharding = jax.sharding.NamedSharding(jax.sharding.Mesh(np.array(devices), ("batch",)),
                                           jax.sharding.PartitionSpec("batch"))
     x64 = bool(jax.config.jax_enable_x64)
@@ -124,6 +129,11 @@ def run(
                 parts = []
                 for lo in range(0, stop - start, batch):
                     hi = min(lo + batch, stop - start)
+                    if host:
+                        inputs = {name: v[lo:hi] for name, v in swept.items()}
+                        raw = fn(inputs, keys_by_seed[seed_pos[lo:hi]])
+                        parts.append(checked_outputs(analysis, raw, hi - lo))
+                        continue
                     inputs = {name: _padded(_device_array(v[lo:hi], x64), batch) for name, v in swept.items()}
                     keys = _padded(keys_by_seed[seed_pos[lo:hi]], batch)
                     raw = fn(*jax.device_put((inputs, keys), sharding))

@@ -310,7 +310,11 @@ def place_body(
 
 
 def plan_cycle(
-    params: LegGropeParams, walk: WalkParams, terrain: SlopeTerrain, config: WalkConfig = WalkConfig()
+    params: LegGropeParams,
+    walk: WalkParams,
+    terrain: SlopeTerrain,
+    config: WalkConfig = WalkConfig(),
+    steps: Array | None = None,
 ) -> CyclePlan:
     """Footholds, COG targets and body placements for one leg-grope walk cycle.
 
@@ -321,7 +325,8 @@ def plan_cycle(
     is then the same on every slope and in every walking direction, and the margins are
     distances in the slope plane. Every groped foot moves `stride` forward and
     `lateral[leg]` sideways (a design input, see `design.py`); the COG target of each
-    grope is searched on a lattice (`_search_cog`)."""
+    grope is searched on a lattice (`_search_cog`). `steps` (4, 2) overrides each leg's
+    step (u forward, v left) [m] in the walking frame (e.g. a shorter fallback step)."""
     dtype = jnp.asarray(terrain.theta).dtype
     R_GR = body_rotation(terrain, walk)
     to_world = lambda uv: slope_to_world(terrain, jnp.concatenate([uv, jnp.zeros(1, dtype)]))  # noqa: E731
@@ -329,6 +334,9 @@ def plan_cycle(
     h_ref = params.r_ref_factor * jnp.cos(terrain.theta) / cos_n  # (2, 4)
     lattice = _lattice(config.lattice)
     lateral = jnp.asarray(walk.lateral, dtype)
+    if steps is None:
+        steps = jnp.stack([jnp.full(4, walk.stride, dtype), lateral], axis=1)
+    steps = jnp.asarray(steps, dtype)
 
     uv = jnp.asarray(walk.stance, dtype)
     feet0 = jax.vmap(to_world)(uv)
@@ -341,7 +349,7 @@ def plan_cycle(
         cur, cur_uv = feet[-1], uvs[-1]
         stance_idx = np.array([n for n in range(4) if n != g])
         h_cur = jnp.where(jnp.asarray(moved), h_ref[1], h_ref[0])
-        new_uv = cur_uv.at[g].set(cur_uv[g] + jnp.stack([walk.stride, lateral[g]]))
+        new_uv = cur_uv.at[g].set(cur_uv[g] + steps[g])
         after = cur.at[g].set(to_world(new_uv[g]))
         # COG shift (slope-plane uv) caused by swinging leg g, body where it was
         b_prev = out["body"][-1] if out["body"] else body0

@@ -1,0 +1,292 @@
+"""The experimental leg-grope walk (paper, "Experiments": steps A', B', C, D'-1, D'-2) as
+a pure-JAX position controller, for the simulated robot of `model.py`.
+
+For each groping leg g in the order L2, L1, L3, L4 (phases as `PHASES`):
+  A'    move the body (four legs) so that the COG is `safe_blend` of the way from the
+        grope's COG target towards the centroid of the other three footholds: deeper
+        inside the support triangle for the swing (Fig. 10). (The centroid itself is out
+        of the legs' reach for this sprawled footstep design: blend 1 drags the toes.)
+  B'    raise toe g along its foothold normal until its measured normal force is ~0;
+  C     swing it (minimum jerk, lifted by `swing_height`) to above the target foothold,
+  C*    then lower it along the normal until it touches (normal force > f_touch);
+  D'-1  move the body to the COG position for the grope (from `gait.plan_cycle`): the
+        groping leg's normal force grows as the COG approaches;
+  D'-2  push toe g down along the normal until its normal force exceeds R_ref.
+If the normal force of the groping leg collapses during C*/D'-1/D'-2 (it falls below
+`collapse_fraction` of its peak, or the toe finds nothing within `probe_depth`), the
+foothold is taken as collapsed: the robot stays on its three other legs, moves its body
+back to the A' position and gropes a fallback foothold `fallback_fraction` of a stride
+short of the target (one retry; a second collapse stops the walk, status
+"no_foothold"). COG targets of every primary/fallback combination are planned at init
+(16 plans), so the step function has fixed shapes and no search.
+
+The controller knows what the real robot knows: its joint angles, toe force sensors,
+IMU, the slope map (foothold positions and normals) and the plan; the body pose it
+commands is the planned one (open loop in the world, as a position-controlled robot).
+Frames: world Sigma_G; forces are ground reactions on the toes [N].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxloco.robots.leggrope import gait
+from jaxloco.robots.leggrope import kinematics as kin
+from jaxloco.robots.leggrope.model import TOE_RADIUS
+from jaxloco.robots.leggrope.params import G, LegGropeParams, default_params
+
+Array = jax.Array
+
+PHASES = ("A'", "B'", "C", "C*", "D'-1", "D'-2", "done", "stopped")
+A, B, C, TOUCH, D1, D2, DONE, STOPPED = range(8)
+STATUSES = ("ok", "no_foothold", "timeout")
+ORDER = (1, 0, 2, 3)  # L2, L1, L3, L4
+
+
+@dataclass(frozen=True)
+class GropeSettings:
+    """Static settings of the controller (SI units)."""
+
+    control_dt: float = 0.02  # control period [s]
+    v_lift: float = 0.02  # B': toe raise speed [m/s]
+    f_zero: float = 0.03  # B': "normal force 0" threshold, fraction of M g
+    f_touch: float = 0.06  # C*: touchdown threshold, fraction of M g
+    v_touch: float = 0.03  # C*: toe lowering speed [m/s]
+    clearance: float = 0.01  # C: the swing ends this far above the target [m]
+    probe_depth: float = 0.03  # C*: give up (no foothold) this far below the target [m]
+    v_push: float = 0.01  # D'-2: toe push speed [m/s]
+    push_depth: float = 0.03  # D'-2: deepest push below the touchdown point [m]
+    swing_time: float = 0.8  # C [s]
+    settle: float = 0.2  # pause at the end of A' and D'-1 [s]
+    collapse_fraction: float = 0.3  # normal force below this fraction of its peak: collapsed
+    grope_tolerance: float = 0.05  # D'-2 ends at (1 - tolerance) R_ref (sensing tolerance; see below)
+    phase_timeout: float = 4.0  # any phase longer than this stops the walk [s]
+    force_filter: float = 0.05  # time constant of the toe-force low-pass filter [s]
+    collapse_min_peak: float = 0.15  # collapse detection needs a peak above this, fraction of M g
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class WalkTargets:
+    """Everything the walk needs that depends on the simulation's parameters (world frame).
+
+    feet0: initial footholds (4, 3); cand: primary/fallback footholds of each leg
+    (4, 2, 3); normals0, cand_normals: their unit normals; body0: initial body origin;
+    body_grope/body_safe: body origin for D'-1 / A' of grope k (0..3) under each of the
+    16 primary/fallback combinations (bit g set: leg g used its fallback), (16, 4, 3);
+    R_GR: body attitude (parallel to the slope); r_ref [N]; margin: the plan's smallest
+    geometric margin [m] (primary footholds)."""
+
+    feet0: Array
+    normals0: Array
+    cand: Array
+    cand_normals: Array
+    body0: Array
+    body_grope: Array
+    body_safe: Array
+    R_GR: Array
+    r_ref: Array
+    margin: Array
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class GropeState:
+    k: Array  # grope index 0..3 (4: cycle done)
+    phase: Array
+    tau: Array  # time in the phase [s]
+    cand: Array  # 0 primary foothold, 1 fallback
+    bits: Array  # legs (bit mask) that moved to their fallback
+    body_from: Array  # (3,) body origin at the start of the phase
+    body_cmd: Array  # (3,) commanded body origin
+    toe_from: Array  # (3,) groping toe centre at the start of the phase
+    toe_cmd: Array  # (4, 3) commanded toe centres
+    f_peak: Array  # peak normal force of the groping leg since touchdown [N]
+    collapses: Array  # collapses met
+    status: Array  # index into STATUSES
+    grope_force: Array  # (4,) normal force reached at the end of each leg's D'-2 [N]
+    force: Array  # (4, 3) low-pass filtered toe forces (world) [N]
+    targets: WalkTargets = field(default=None)
+
+
+def robot_params(p: dict) -> LegGropeParams:
+    """The Table 1 robot with the simulation's mu and R_ref factor."""
+    return default_params().with_(mu=p["mu"], r_ref_factor=p["r_ref_factor"])
+
+
+def walk_targets(p: dict, key: Array) -> WalkTargets:
+    """Plan the cycle for one simulation's parameters `p` (theta, psi, stride,
+    swing_height, facet_spread, fallback_fraction, safe_blend, r_ref_factor, mu) and
+    terrain key."""
+    robot = robot_params(p)
+    walk = gait.WalkParams(stride=p["stride"], swing_height=p["swing_height"])
+    terrain = terrain_of(p, key)
+    dtype = jnp.asarray(p["theta"]).dtype
+    primary = jnp.stack([jnp.full(4, walk.stride, dtype), jnp.asarray(walk.lateral, dtype)], axis=1)
+    fallback = primary.at[:, 0].multiply(1.0 - p["fallback_fraction"])
+    combos = np.array([[(c >> g) & 1 for g in range(4)] for c in range(16)], bool)
+    steps = jnp.where(jnp.asarray(combos)[:, :, None], fallback[None], primary[None])  # (16, 4, 2)
+    plans = jax.vmap(lambda s: gait.plan_cycle(robot, walk, terrain, steps=s))(steps)
+
+    def safe_bodies(plan):
+        def one(k):
+            g = jnp.asarray(ORDER)[k]
+            feet = plan.feet[k]
+            others = jnp.where((jnp.arange(4) == g)[:, None], 0.0, feet)
+            centroid = jnp.sum(others, axis=0)[:2] / 3.0
+            cog = plan.cog_target[k + 1] + p["safe_blend"] * (centroid - plan.cog_target[k + 1])
+            return gait.place_body(robot, terrain, plan.R_GR, feet, cog, 5)
+
+        return jax.vmap(one)(jnp.arange(4))
+
+    body_safe = jax.vmap(safe_bodies)(plans)
+    full = plans.feet[15, 4]  # every leg on its fallback
+    cand = jnp.stack([plans.feet[0, 4], full], axis=1)  # (4, 2, 3)
+    normals0 = terrain.normals[0]
+    cand_normals = jnp.stack([terrain.normals[1], terrain.normals[1]], axis=1)
+    return WalkTargets(
+        feet0=plans.feet[0, 0],
+        normals0=normals0,
+        cand=cand,
+        cand_normals=cand_normals,
+        body0=plans.body[0, 0],
+        body_grope=plans.body[:, 1:],
+        body_safe=body_safe,
+        R_GR=plans.R_GR[0],
+        r_ref=robot.r_ref_factor * robot.total_mass * G * jnp.cos(p["theta"]),
+        margin=jnp.minimum(jnp.min(plans.cog_margin[0]), jnp.min(plans.grope_margin[0])),
+    )
+
+
+def terrain_of(p: dict, key: Array) -> gait.SlopeTerrain:
+    """The slope under the footholds: simple (facet_spread 0) or irregular."""
+    return gait.irregular_slope(p["theta"], p["psi"], p["facet_spread"], key)
+
+
+def joint_targets(robot: LegGropeParams, R_GR: Array, body: Array, toes: Array) -> Array:
+    """Joint angles (12,) (legs L1..L4, yaw/pitch/knee) putting the toe centres `toes`
+    (4, 3, world) at their places for the body origin `body` with attitude R_GR."""
+    q, _ = jax.vmap(lambda leg, t: kin.inverse_kinematics(robot, leg, t))(jnp.arange(4), (toes - body) @ R_GR)
+    return q.reshape(12)
+
+
+def make_controller(settings: GropeSettings = GropeSettings()):
+    """(init, step) of the leg-grope walk controller (see the module docstring).
+
+    obs: dict with "foot_force" (4, 3) world ground reactions [N] and "time" [s].
+    params: dict with the keys of `walk_targets` and "key" (2,) uint32 (terrain)."""
+    s_ = settings
+    dt = s_.control_dt
+    order = jnp.asarray(ORDER)
+
+    def init(p, obs):
+        t = walk_targets(p, p["key"])
+        toes = t.feet0 + TOE_RADIUS * t.normals0
+        dtype = t.body0.dtype
+        z = jnp.zeros((), dtype)
+        i0 = jnp.zeros((), jnp.int32)
+        return GropeState(k=i0, phase=i0, tau=z, cand=i0, bits=i0, body_from=t.body0, body_cmd=t.body0,
+                          toe_from=toes[ORDER[0]], toe_cmd=toes, f_peak=z, collapses=i0, status=i0,
+                          grope_force=jnp.zeros(4, dtype), force=jnp.asarray(obs["foot_force"], dtype), targets=t)
+
+    def step(p, s: GropeState, obs):
+        robot = robot_params(p)
+        t = s.targets
+        mg = robot.total_mass * G
+        kk = jnp.minimum(s.k, 3)
+        g = order[kk]
+        combo = s.bits | (s.cand << g)
+        b_safe, b_grope = t.body_safe[combo, kk], t.body_grope[combo, kk]
+        n_tgt = t.cand_normals[g, s.cand]
+        n_now = jnp.where(s.phase <= B, t.normals0[g], n_tgt)  # the foothold toe g is on / aims at
+        target = t.cand[g, s.cand] + TOE_RADIUS * n_tgt
+        above = target + s_.clearance * n_tgt
+        # toe forces through a first-order low-pass (light, stiff contacts chatter at
+        # the physics rate; real force sensors are filtered too)
+        alpha = dt / (s_.force_filter + dt)
+        force = s.force + alpha * (obs["foot_force"] - s.force)
+        f_n = jnp.dot(force[g], n_now)
+        tau = s.tau + dt
+        robot_a = (robot.a_max, robot.v_max)
+
+        # the commanded body and groping toe in each phase, and whether the phase is over
+        body_a, t_a = _move(s.body_from, b_safe, tau, *robot_a)
+        body_d1, t_d1 = _move(s.body_from, b_grope, tau, *robot_a)
+        toe_b = s.toe_cmd[g] + s_.v_lift * dt * n_now
+        frac = jnp.clip(tau / s_.swing_time, 0.0, 1.0)
+        lift = p["swing_height"] * jnp.sin(jnp.pi * frac)
+        toe_c = s.toe_from + (above - s.toe_from) * gait.min_jerk(frac) + lift * n_tgt
+        toe_touch = s.toe_cmd[g] - s_.v_touch * dt * n_tgt
+        toe_push = s.toe_cmd[g] - s_.v_push * dt * n_tgt
+        depth = jnp.dot(above - s.toe_cmd[g], n_tgt)  # how far below `above` the toe is commanded
+
+        ph = s.phase
+        body = jnp.select([ph == A, ph == D1], [body_a, body_d1], s.body_cmd)
+        toe_g = jnp.select([ph == B, ph == C, ph == TOUCH, ph == D2], [toe_b, toe_c, toe_touch, toe_push], s.toe_cmd[g])
+        f_peak = jnp.where((ph == D1) | (ph == D2) | (ph == TOUCH), jnp.maximum(s.f_peak, f_n), 0.0)
+
+        finished = jnp.select(
+            [ph == A, ph == B, ph == C, ph == TOUCH, ph == D1, ph == D2],
+            [tau >= t_a + s_.settle, f_n < s_.f_zero * mg, tau >= s_.swing_time, f_n > s_.f_touch * mg,
+             tau >= t_d1 + s_.settle, f_n >= (1.0 - s_.grope_tolerance) * t.r_ref],
+            False,
+        )
+        lost = (f_peak > s_.collapse_min_peak * mg) & (f_n < s_.collapse_fraction * f_peak) & ((ph == D1) | (ph == D2))
+        missed = (ph == TOUCH) & (depth > s_.clearance + s_.probe_depth) & ~finished
+        pushed_out = (ph == D2) & (depth > s_.clearance + s_.push_depth) & ~finished
+        collapsed = lost | missed
+        rejected = collapsed | pushed_out  # the foothold could not be verified: try the fallback
+        timeout = (tau > s_.phase_timeout) & (ph < DONE) & ~finished
+
+        # transitions
+        grope_done = (ph == D2) & finished & ~rejected
+        retry = rejected & (s.cand == 0)
+        give_up = rejected & (s.cand == 1)
+        nxt = jnp.where(grope_done, A, jnp.where(finished, ph + 1, ph))
+        k = jnp.where(grope_done, s.k + 1, s.k)
+        nxt = jnp.where(grope_done & (k >= 4), DONE, nxt)
+        nxt = jnp.where(retry, A, nxt)
+        nxt = jnp.where(give_up | timeout, STOPPED, nxt)
+        changed = nxt != ph
+        bits = jnp.where(grope_done, s.bits | (s.cand << g), s.bits)
+        cand = jnp.where(retry, 1, jnp.where(grope_done, 0, s.cand))
+        status = jnp.where(give_up, 1, jnp.where(timeout, 2, s.status))
+        # once probed, the groping toe's command goes back to the foothold surface: a
+        # command left pushed into the ground would keep loading that leg for the rest
+        # of the walk (position control of an over-constrained four-leg stance)
+        toe_cmd = s.toe_cmd.at[g].set(jnp.where(grope_done, target, toe_g))
+        next_g = order[jnp.minimum(k, 3)]
+        grope_force = jnp.where(grope_done, s.grope_force.at[g].set(f_n), s.grope_force)
+        new = GropeState(
+            k=k,
+            phase=nxt,
+            tau=jnp.where(changed, 0.0, tau),
+            cand=cand,
+            bits=bits,
+            body_from=jnp.where(changed, body, s.body_from),
+            body_cmd=body,
+            toe_from=jnp.where(changed, toe_cmd[next_g], s.toe_from),
+            toe_cmd=toe_cmd,
+            f_peak=jnp.where(changed, 0.0, f_peak),
+            collapses=s.collapses + collapsed.astype(s.collapses.dtype),
+            status=status,
+            grope_force=grope_force,
+            force=force,
+            targets=t,
+        )
+        return new, joint_targets(robot, t.R_GR, body, toe_cmd)
+
+    return init, step
+
+
+def _move(start: Array, end: Array, tau: Array, a_max: Array, v_max: Array) -> tuple[Array, Array]:
+    """Point on the straight rest-to-rest move start -> end at time tau (trapezoidal
+    speed) and the move's duration."""
+    dist = jnp.linalg.norm(end - start)
+    s, total = gait.trapezoid(tau, dist, a_max, v_max)
+    direction = (end - start) / jnp.where(dist > 0, dist, 1.0)
+    return start + s * direction, total

@@ -1,0 +1,152 @@
+"""The MJCF model of the leg-grope quadruped (Table 1): `models/leggrope.xml`.
+
+The file is generated from `LegGropeParams` by `python -m jaxloco.robots.leggrope.model
+--write` (and a test checks that it is in sync); `load_spec` reads it back as an MjSpec
+to which a scenario adds its terrain.
+
+Structure (robot frame Sigma_R = the torso body frame: x forward, y left, z up, origin at
+the body centre in the hip plane):
+  * torso: box 0.29 x 0.15 x 0.04 m, 4.54 kg, free joint; an IMU site at the origin
+    with `imu_quat` (framequat), `imu_gyro` and `imu_acc` sensors;
+  * leg i (L1..L4) at the hip `params.hips()[i]`, rotated by its mount angle: a yaw
+    joint `Li_yaw` (z), the link i1 (l1 along x), a pitch joint `Li_pitch` and the link
+    i2, the knee `Li_knee` and the link i3, each pitch axis -y so that a positive angle
+    lifts the link (the convention of `kinematics.py`); links are capsules with their
+    Table 1 mass (uniform rods: COM at the midpoint);
+  * a toe body `Li_toe` at the end of link i3 with a sphere of radius TOE_RADIUS (the
+    only leg geom that collides) and a site `Li_toe` carrying the 3-axis force sensor
+    `Li_force` (as the real robot's toe sensors);
+  * stiff toe contacts (CONTACT_SOLREF/SOLIMP, impratio 10): see the constants;
+  * a position actuator per joint (the real robot's joints take position inputs) with
+    stiffness KP, damping KV and torque limit TAU_MAX.
+Collision bits: the torso and toes use `contype 1, conaffinity 2`, terrain pieces
+`contype 2, conaffinity 1` (`jaxloco.sim.terrain`): the robot never collides with
+itself. Toe sliding friction is 0 so that MuJoCo's max-combination gives the terrain's
+friction, which scenarios sweep.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from jaxloco.analysis import SpecError
+from jaxloco.robots.leggrope.params import LEG_NAMES, LegGropeParams, default_params
+
+MODEL_PATH = Path(__file__).resolve().parents[3] / "models" / "leggrope.xml"
+TOE_RADIUS = 0.008  # [m]
+KP = 150.0  # position servo stiffness [N m / rad]
+KV = 3.0  # position servo damping [N m s / rad]
+TAU_MAX = 12.0  # joint torque limit [N m]
+ARMATURE = 0.005  # reflected rotor inertia [kg m^2]
+TIMESTEP = 0.002  # physics step [s]
+# Stiff, nearly hard toe contacts: MuJoCo's soft friction lets a loaded toe creep. With
+# the defaults (solref 0.02, solimp 0.9, impratio 1) a standing robot's toes crept about
+# 60 mm/s on the 15 degree slope; with these, 0.14 mm/s (measured, see the tests). Terrain
+# geoms of leg-grope scenarios get the same solref/solimp (MuJoCo averages the two geoms').
+CONTACT_SOLREF = (0.004, 1.0)  # time constant 2 timesteps (the smallest MuJoCo honours)
+CONTACT_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
+IMPRATIO = 10.0
+JOINTS = ("yaw", "pitch", "knee")
+
+
+def build_spec(params: LegGropeParams | None = None) -> mujoco.MjSpec:
+    """The robot alone (no terrain) as an MjSpec, from `params`."""
+    params = params or default_params()
+    spec = mujoco.MjSpec()
+    spec.modelname = "leggrope"
+    spec.compiler.degree = False
+    spec.option.timestep = TIMESTEP
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+    spec.option.impratio = IMPRATIO
+    spec.option.iterations = 20
+    spec.option.ls_iterations = 10
+    lengths = np.asarray(params.link_lengths, float)
+    masses = np.asarray(params.link_masses, float)
+    hips = np.asarray(params.hips(), float)
+    mounts = np.asarray(params.mount_angles(), float)
+
+    torso = spec.worldbody.add_body(name="torso", pos=[0, 0, float(params.body_height)])
+    torso.add_freejoint(name="root")
+    half = [0.5 * float(params.body_length), 0.5 * float(params.body_width), 0.02]
+    torso.add_geom(name="torso", type=mujoco.mjtGeom.mjGEOM_BOX, size=half, mass=float(params.body_mass),
+                   contype=1, conaffinity=2, rgba=[0.3, 0.4, 0.6, 1])
+    torso.add_site(name="imu", size=[0.01, 0, 0])
+    for i, leg in enumerate(LEG_NAMES):
+        parent = torso.add_body(name=f"{leg}_hip", pos=hips[i].tolist(), quat=_yaw_quat(mounts[i]))
+        axes = ([0, 0, 1], [0, -1, 0], [0, -1, 0])
+        ranges = ([-0.5 * math.pi, 0.5 * math.pi], [-0.5 * math.pi, 0.5 * math.pi], [-math.pi + 0.05, 0.2])
+        for j, name in enumerate(JOINTS):
+            if j:
+                parent = parent.add_body(name=f"{leg}_{name}_link", pos=[float(lengths[j - 1]), 0, 0])
+            parent.add_joint(name=f"{leg}_{name}", axis=axes[j], range=ranges[j], limited=mujoco.mjtLimited.mjLIMITED_TRUE,
+                             armature=ARMATURE, damping=0.02)
+            parent.add_geom(name=f"{leg}_link{j + 1}", type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.01, 0, 0],
+                            fromto=[0, 0, 0, float(lengths[j]), 0, 0], mass=float(masses[j]), contype=0, conaffinity=0,
+                            rgba=[0.7, 0.7, 0.7, 1])
+        toe = parent.add_body(name=f"{leg}_toe", pos=[float(lengths[2]), 0, 0])
+        toe.add_geom(name=f"{leg}_toe", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[TOE_RADIUS, 0, 0], mass=0.0,
+                     contype=1, conaffinity=2, condim=3, friction=[0.0, 0.005, 0.0001], solref=list(CONTACT_SOLREF),
+                     solimp=list(CONTACT_SOLIMP),
+                     rgba=[0.9, 0.3, 0.2, 1])
+        toe.add_site(name=f"{leg}_toe", size=[0.005, 0, 0])
+    for leg in LEG_NAMES:
+        for name in JOINTS:
+            spec.add_actuator(name=f"{leg}_{name}", target=f"{leg}_{name}",
+                              trntype=mujoco.mjtTrn.mjTRN_JOINT).set_to_position(kp=KP, kv=KV)
+            act = spec.actuator(f"{leg}_{name}")
+            act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.forcerange = [-TAU_MAX, TAU_MAX]
+    for leg in LEG_NAMES:
+        spec.add_sensor(name=f"{leg}_force", type=mujoco.mjtSensor.mjSENS_FORCE,
+                        objtype=mujoco.mjtObj.mjOBJ_SITE, objname=f"{leg}_toe")
+    spec.add_sensor(name="imu_quat", type=mujoco.mjtSensor.mjSENS_FRAMEQUAT, objtype=mujoco.mjtObj.mjOBJ_SITE,
+                    objname="imu")
+    spec.add_sensor(name="imu_gyro", type=mujoco.mjtSensor.mjSENS_GYRO, objtype=mujoco.mjtObj.mjOBJ_SITE, objname="imu")
+    spec.add_sensor(name="imu_acc", type=mujoco.mjtSensor.mjSENS_ACCELEROMETER, objtype=mujoco.mjtObj.mjOBJ_SITE,
+                    objname="imu")
+    return spec
+
+
+def _yaw_quat(angle: float) -> list[float]:
+    return [math.cos(0.5 * angle), 0.0, 0.0, math.sin(0.5 * angle)]
+
+
+def load_spec(path: str | Path | None = None) -> mujoco.MjSpec:
+    """The robot MJCF (default `models/leggrope.xml`) as an MjSpec; SpecError (one line)
+    for a missing or broken file."""
+    path = Path(path) if path is not None else MODEL_PATH
+    if not path.is_file():
+        raise SpecError(f"model file not found: {path}")
+    try:
+        return mujoco.MjSpec.from_file(str(path))
+    except Exception as exc:  # mujoco raises ValueError with a multi-line message
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise SpecError(f"broken MJCF {path}: {first}") from None
+
+
+def xml_text(params: LegGropeParams | None = None) -> str:
+    spec = build_spec(params)
+    spec.compile()
+    return spec.to_xml()
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--write", action="store_true", help=f"write {MODEL_PATH}")
+    args = parser.parse_args(argv)
+    text = xml_text()
+    if args.write:
+        MODEL_PATH.write_text(text)
+        print(f"wrote {MODEL_PATH}")
+    else:
+        print(text)
+
+
+if __name__ == "__main__":
+    main()

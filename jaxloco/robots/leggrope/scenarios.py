@@ -1,0 +1,267 @@
+"""The leg-grope quadruped walking one cycle over fragile footholds on a slope, as a
+`jaxloco.sim.Scenario` (both backends).
+
+Terrain (`jaxloco.sim.terrain`): a slope box whose surface lies `PAD_THICKNESS` below the
+footholds, and 12 fragile pads (mocap bodies with touch sensors) whose top faces are the
+footholds of the plan: pads 0-3 the initial footholds of L1..L4, 4-7 their primary
+targets, 8-11 their fallback targets. Each pad's top face is tilted to its facet normal
+(`facet_spread` > 0 makes the paper's irregular slope: same inclination, scattered
+gradient directions). A pad collapses (drops away, `terrain.drop_away`) once its touch
+sensor reads more than its R_break; R_break is infinite for the initial pads and, for
+the target pads, Mg U(r_break_lo, r_break_hi) with probability p_weak (else infinite);
+`weak_leg` (0..3 for L1..L4) makes that leg's primary target weak for certain.
+
+Parameters (one dict per simulation, see `PARAM_DEFAULTS`): theta, psi [rad]; mu;
+r_ref_factor (R_ref = factor M g cos theta); stride, swing_height [m]; facet_spread
+[rad]; fallback_fraction; p_weak; r_break_lo, r_break_hi [M g]; weak_leg (int, -1 none).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+from jaxloco.robots.leggrope import control, model
+from jaxloco.robots.leggrope.params import LEG_NAMES, G, default_params
+from jaxloco.sim import metrics as sm
+from jaxloco.sim import terrain as tr
+from jaxloco.sim.data import SimData, sensor_slice
+from jaxloco.sim.scenario import (
+    Controller,
+    Environment,
+    InitialState,
+    ModelField,
+    Scenario,
+)
+
+PAD_THICKNESS = 0.04  # [m] pads stand this far out of the slope
+PAD_HALF = 0.018  # [m] pad half side
+N_PADS = 12
+UNBREAKABLE = 1e9  # [N]
+FELL_TILT = 0.35  # [rad] an attitude change beyond this counts as a fall
+CONTACT_FORCE = 1.0  # [N] a toe with more normal force than this is a support point
+
+PARAM_DEFAULTS: dict[str, float] = {
+    "theta": float(np.pi / 12),
+    "psi": 0.0,
+    "mu": 0.45,
+    "r_ref_factor": 0.5,
+    "stride": 0.06,
+    "swing_height": 0.03,
+    "facet_spread": 0.0,
+    "fallback_fraction": 0.5,
+    "safe_blend": 0.25,
+    "p_weak": 0.0,
+    "r_break_lo": 0.35,
+    "r_break_hi": 0.45,
+    "weak_leg": -1,
+}
+
+METRIC_NAMES = (
+    "success", "completed_gropes", "max_attitude_change", "max_abs_roll", "max_abs_pitch", "max_normal_ratio",
+    "grope_ratio_min", "min_margin", "collapses_met", "collapses_survived", "unexpected_collapses", "fell",
+    "cycle_time", "plan_margin", "status",
+)
+
+
+def build_model(robot_xml: str | Path | None = None) -> tuple[mujoco.MjModel, tr.Terrain]:
+    """The robot (`models/leggrope.xml` unless given) on the slope-and-pads terrain."""
+    spec = model.load_spec(robot_xml)
+    terrain = tr.combine(tr.slope(1.5, 1.0), tr.footholds(N_PADS, half_size=PAD_HALF, thickness=PAD_THICKNESS))
+    terrain.add_to(spec, friction=(PARAM_DEFAULTS["mu"], 0.005, 0.0001))
+    for name in terrain.body_names():
+        geom = spec.geom(name)
+        geom.solref = list(model.CONTACT_SOLREF)
+        geom.solimp = list(model.CONTACT_SOLIMP)
+    return spec.compile(), terrain
+
+
+def make_scenario(
+    horizon_s: float = 30.0,
+    record_every: int = 5,
+    settings: control.GropeSettings | None = None,
+    robot_xml: str | Path | None = None,
+) -> Scenario:
+    """The fragile-slope walk scenario (control period settings.control_dt)."""
+    settings = settings or control.GropeSettings()
+    m, terrain = build_model(robot_xml)
+    substeps = round(settings.control_dt / m.opt.timestep)
+    horizon = round(horizon_s / settings.control_dt)
+    horizon -= horizon % record_every
+    mocap = tr.mocap_ids(m, terrain)
+    slope_row, pad_rows = int(mocap[0]), mocap[1:]
+    touch = [sensor_slice(m, n) for n in terrain.touch_sensor_names()]
+    force = [sensor_slice(m, f"{leg}_force") for leg in LEG_NAMES]
+    quat_s = sensor_slice(m, "imu_quat")
+    toe_sites = np.array([m.site(f"{leg}_toe").id for leg in LEG_NAMES])
+    torso = m.body("torso").id
+    terrain_geoms = np.array([m.geom(n).id for n in terrain.body_names()])
+    slope_half = terrain.pieces[0].half_size
+    init_ctrl, step_ctrl = control.make_controller(settings)
+    mass = float(default_params().total_mass)
+
+    def poses(p, key):
+        """Mocap poses (nmocap) of the slope and the intact pads, and the pads' R_break."""
+        t = control.walk_targets(p, key)
+        n_slope = tr.slope_normal(p["theta"], jnp.zeros_like(p["theta"]))
+        s_pos, s_quat = tr.box_pose_from_top(-PAD_THICKNESS * n_slope, n_slope, 0.0, jnp.asarray(slope_half))
+        centres = jnp.concatenate([t.feet0, t.cand[:, 0], t.cand[:, 1]])
+        normals = jnp.concatenate([t.normals0, t.cand_normals[:, 0], t.cand_normals[:, 1]])
+        p_pos, p_quat = tr.pad_poses(centres, normals, PAD_THICKNESS)
+        pos = jnp.zeros((m.nmocap, 3), p_pos.dtype).at[slope_row].set(s_pos).at[pad_rows].set(p_pos)
+        quat = jnp.zeros((m.nmocap, 4), p_pos.dtype).at[slope_row].set(s_quat).at[pad_rows].set(p_quat)
+        return pos, quat, t
+
+    def r_break(p, key):
+        k1, k2 = jax.random.split(jax.random.fold_in(key, 7))
+        weak = jax.random.uniform(k1, (8,)) < p["p_weak"]
+        weak = weak | ((jnp.arange(8) == p["weak_leg"]) & (p["weak_leg"] >= 0))
+        level = mass * G * jax.random.uniform(k2, (8,), minval=p["r_break_lo"], maxval=p["r_break_hi"])
+        targets = jnp.where(weak, level, UNBREAKABLE)
+        return jnp.concatenate([jnp.full(4, UNBREAKABLE), targets])
+
+    def initial_state(p, key):
+        pos, quat, t = poses(p, key)
+        toes = t.feet0 + model.TOE_RADIUS * t.normals0
+        q = control.joint_targets(control.robot_params(p), t.R_GR, t.body0, toes)
+        qpos = jnp.concatenate([t.body0, _matrix_to_quat(t.R_GR), q])
+        return InitialState(qpos=qpos, qvel=jnp.zeros(m.nv), ctrl=q, mocap_pos=pos, mocap_quat=quat)
+
+    def env_init(p, data: SimData):
+        pos, quat, _ = poses(p, p["key"])
+        return {"pos": pos, "quat": quat, "collapsed": jnp.zeros(N_PADS, bool), "r_break": r_break(p, p["key"]),
+                "t_collapse": jnp.full(N_PADS, jnp.nan)}
+
+    def env_step(p, e, data: SimData):
+        loads = jnp.stack([data.sensordata[s][0] for s in touch])
+        collapsed = tr.collapse_update(e["collapsed"], loads, e["r_break"])
+        pad_pos = tr.drop_away(e["pos"][pad_rows], e["quat"][pad_rows], collapsed)
+        t_collapse = jnp.where(collapsed & ~e["collapsed"], data.time, e["t_collapse"])
+        new = {**e, "collapsed": collapsed, "t_collapse": t_collapse}
+        return new, e["pos"].at[pad_rows].set(pad_pos), e["quat"]
+
+    def observe(data: SimData):
+        # the force sensor gives the interaction force between the (massless) toe body and
+        # the shank in the toe site frame, pointing from the toe to the shank: minus the
+        # ground reaction on the toe. Ground reaction, world frame:
+        f_site = jnp.stack([data.sensordata[s] for s in force])
+        f_world = -jnp.einsum("lij,lj->li", data.site_xmat[toe_sites], f_site)
+        return {"time": data.time, "foot_force": f_world, "quat": data.sensordata[quat_s],
+                "q": data.qpos[7:], "dq": data.qvel[6:]}
+
+    def record(p, data: SimData, obs, c: control.GropeState, e):
+        t = c.targets
+        moved = _moved_legs(c.k)
+        normals = jnp.where(moved[:, None], t.cand_normals[jnp.arange(4), jnp.where(
+            (c.bits >> jnp.arange(4)) & 1, 1, 0)], t.normals0)
+        return {
+            "rpy": sm.quat_to_rpy(obs["quat"]),
+            "quat": obs["quat"],
+            "normal_force": jnp.einsum("li,li->l", obs["foot_force"], normals),
+            "foot_force": obs["foot_force"],
+            "toe_pos": data.site_xpos[toe_sites],
+            "cog": data.subtree_com[torso],
+            "phase": c.phase,
+            "grope": c.k,
+            "leg": jnp.asarray(control.ORDER)[jnp.minimum(c.k, 3)],
+            "collapsed": jnp.sum(e["collapsed"]),
+            "r_ref": t.r_ref,
+        }
+
+    def summarize(p, r, final):
+        c: control.GropeState = final.ctrl_state
+        e = final.env_state
+        alive_t = jnp.ones(r["phase"].shape[0], bool)
+        rpy = r["rpy"]
+        att = sm.attitude_extremes(rpy, alive_t)
+        tilt = sm.tilt_change(r["quat"], r["quat"][0])
+        fell = (jnp.max(tilt) > FELL_TILT) | ~final.alive
+        # "outside groping": every leg, outside the leg-grope step D' (paper: "the
+        # magnitude of the normal forces except for Step D are less than R_ref")
+        groping = (r["phase"] == control.D1) | (r["phase"] == control.D2)
+        outside = ((r["phase"] < control.DONE) & ~groping)[:, None] & jnp.ones((1, 4), bool)
+        fn = r["normal_force"]
+        contacts = fn > CONTACT_FORCE
+        margins = sm.support_margins(r["cog"], r["toe_pos"], contacts)
+        margin_ok = (r["phase"] < control.DONE) & (jnp.sum(contacts, axis=1) >= 3)
+        margin_ok = margin_ok.at[0].set(False)  # t = 0: the robot is placed, not yet loaded
+        t = c.targets
+        done = c.k >= 4
+        survived = jnp.where(fell, 0, c.collapses)
+        # collapses of pads that were not being groped at the time (should not happen)
+        groped_pads = jnp.zeros(N_PADS, bool).at[4:].set(True)
+        unexpected = jnp.sum(e["collapsed"] & ~groped_pads)
+        t_end = sm.first_time(r["phase"] >= control.DONE, jnp.arange(r["phase"].shape[0]) * (
+            record_every * settings.control_dt))
+        return {
+            "success": done & ~fell & (c.status == 0),
+            "completed_gropes": c.k,
+            "max_attitude_change": jnp.max(tilt),
+            "max_abs_roll": att["max_abs_roll"],
+            "max_abs_pitch": att["max_abs_pitch"],
+            "max_normal_ratio": sm.force_ratio(fn, t.r_ref, outside),
+            "grope_ratio_min": jnp.min(jnp.where(jnp.arange(4) < 4, c.grope_force / t.r_ref, jnp.inf)),
+            "min_margin": jnp.where(jnp.any(margin_ok), sm.masked_min(margins, margin_ok), jnp.nan),
+            "collapses_met": c.collapses,
+            "collapses_survived": survived,
+            "unexpected_collapses": unexpected,
+            "fell": fell,
+            "cycle_time": t_end,
+            "plan_margin": t.margin,
+            "status": jnp.where(done, 0, jnp.where(c.status > 0, c.status, 2)),
+        }
+
+    def mu_values(p):
+        return jnp.full(len(terrain_geoms), p["mu"])
+
+    return Scenario(
+        name="leggrope.fragile_slope",
+        model=m,
+        controller=Controller(init_ctrl, step_ctrl, name="leg-grope walk"),
+        initial_state=initial_state,
+        observe=observe,
+        record=record,
+        summarize=summarize,
+        horizon=horizon,
+        substeps=substeps,
+        record_every=record_every,
+        environment=Environment(env_init, env_step),
+        model_fields=(ModelField("geom_friction", (terrain_geoms, 0), mu_values),),
+        statuses=control.STATUSES,
+    )
+
+
+def _moved_legs(k):
+    """Which legs (4,) have finished their grope after k gropes (order L2, L1, L3, L4)."""
+    rank = jnp.argsort(jnp.asarray(control.ORDER))  # position of each leg in the order
+    return rank < k
+
+
+def _matrix_to_quat(R):
+    """Unit quaternion (w, x, y, z) of a rotation matrix (robust for any angle)."""
+    import jax.numpy as jnp
+
+    m00, m11, m22 = R[0, 0], R[1, 1], R[2, 2]
+    w = jnp.sqrt(jnp.maximum(0.0, 1 + m00 + m11 + m22)) / 2
+    x = jnp.sqrt(jnp.maximum(0.0, 1 + m00 - m11 - m22)) / 2
+    y = jnp.sqrt(jnp.maximum(0.0, 1 - m00 + m11 - m22)) / 2
+    z = jnp.sqrt(jnp.maximum(0.0, 1 - m00 - m11 + m22)) / 2
+    x = jnp.copysign(x, R[2, 1] - R[1, 2])
+    y = jnp.copysign(y, R[0, 2] - R[2, 0])
+    z = jnp.copysign(z, R[1, 0] - R[0, 1])
+    q = jnp.stack([w, x, y, z])
+    return q / jnp.linalg.norm(q)
+
+
+def params_batch(n: int = 1, **overrides) -> dict[str, jax.Array]:
+    """A batch of n identical parameter dicts (defaults with `overrides`); overrides may
+    be arrays of length n to vary one parameter."""
+    out = {}
+    for k, v in {**PARAM_DEFAULTS, **overrides}.items():
+        dtype = jnp.int32 if k == "weak_leg" else None
+        out[k] = jnp.broadcast_to(jnp.asarray(v, dtype), (n,))
+    return out

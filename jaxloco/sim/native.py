@@ -1,0 +1,171 @@
+"""The native backend: MuJoCo's multithreaded `mujoco.batch.Batch` steps the physics in
+C; the scenario's controller, observation, environment and records run as one jitted,
+vmapped JAX function called once per control period.
+
+Per-simulation model fields are written through `Batch.expand`; fields that
+`mj_setConst` reads (masses, inertias, body poses) are followed by `Batch.set_const()`
+so that derived constants (subtree masses, invweight0, ...) are recomputed. Results
+are bit-identical for any number of threads (the batch's guarantee; the JAX part does
+not depend on it).
+
+Divergence: a simulation whose state is non-finite, whose joint speeds exceed the
+scenario's limit, that raises a MuJoCo error or whose warning counters rise (bad
+qpos/qvel/qacc/ctrl, contact or constraint buffer full: MuJoCo would otherwise reset it
+silently) is stopped; the others go on.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import mujoco.batch
+import numpy as np
+
+from jaxloco.sim import data as simdata
+from jaxloco.sim.scenario import Final, Scenario, init_fn, tick_fn
+
+# warnings that mean the simulation can no longer be trusted
+DIVERGENCE_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQACC,
+    mujoco.mjtWarning.mjWARN_BADCTRL,
+    mujoco.mjtWarning.mjWARN_CONTACTFULL,
+    mujoco.mjtWarning.mjWARN_CNSTRFULL,
+)
+
+
+def make_batch(scenario: Scenario, params: Any, nsim: int, nthread: int = 0) -> mujoco.batch.Batch:
+    """A Batch of the scenario's model with the per-simulation model fields of `params`
+    (a pytree whose leaves have a leading axis of nsim) written in."""
+    batch = mujoco.batch.Batch(scenario.model, nsim, nthread)
+    set_const = False
+    for f in scenario.model_fields:
+        values = np.asarray(jax.vmap(f.value)(params))
+        arr = batch.expand(f.name)
+        index = f.index if isinstance(f.index, tuple) else (f.index,)
+        arr[(slice(None), *index)] = values
+        set_const |= f.needs_set_const
+    if set_const:
+        batch.set_const()
+    return batch
+
+
+def run(
+    scenario: Scenario,
+    params: Any,
+    keys: jax.Array,
+    *,
+    nthread: int = 0,
+    progress: bool = False,
+) -> dict[str, Any]:
+    """Run the scenario for a batch of parameter sets (leaves with leading axis B) and
+    PRNG keys (B, 2). Returns a dict with records (B, R, ...), metrics (B,), final
+    (batched `Final`) and timings; `jaxloco.sim.rollout.rollout` wraps it."""
+    nsim = int(keys.shape[0])
+    t0 = time.perf_counter()
+    batch = make_batch(scenario, params, nsim, nthread)
+    bound = simdata.bind_native(batch)  # before any call: outputs bound later read zero until the next call
+    init_state = jax.jit(jax.vmap(scenario.initial_state))(params, keys)
+    batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
+    for name in ("qpos", "qvel", "ctrl", "mocap_pos", "mocap_quat"):
+        batch.bind(name)[...] = np.asarray(getattr(init_state, name))
+    batch.forward()
+    cstate, estate = jax.jit(jax.vmap(init_fn(scenario)))(params, simdata.from_native(bound))
+    tick = _jitted_tick(scenario)
+    warn_idx = np.array([int(w) for w in DIVERGENCE_WARNINGS])
+    warnings0 = batch.warning[:, warn_idx, 1].sum(axis=1).copy()
+
+    alive = np.ones(nsim, bool)
+    t_div = np.full(nsim, np.nan)
+    records: dict[str, np.ndarray] = {}
+    bar = _progress(scenario.horizon, enabled=progress)
+    t_setup = time.perf_counter() - t0
+    try:
+        for t in range(scenario.horizon):
+            data = simdata.from_native(bound)
+            cstate, estate, ctrl, mocap_pos, mocap_quat, rec, bad = tick(params, cstate, estate, data)
+            if t % scenario.record_every == 0:
+                _store(records, rec, t // scenario.record_every, scenario.n_records)
+            newly = np.asarray(bad) & alive
+            _mark(alive, t_div, newly, data.time)
+            ids = np.flatnonzero(alive)
+            if not ids.size:
+                break
+            batch.ctrl[ids] = np.asarray(ctrl)[ids]
+            batch.mocap_pos[ids] = np.asarray(mocap_pos)[ids]
+            batch.mocap_quat[ids] = np.asarray(mocap_quat)[ids]
+            _step(batch, ids, scenario.substeps, alive, t_div)
+            warned = (batch.warning[:, warn_idx, 1].sum(axis=1) > warnings0) & alive
+            _mark(alive, t_div, warned, batch.time)
+            if bar is not None:
+                bar.advance(bar.task_ids[0])
+    finally:
+        if bar is not None:
+            bar.stop()
+    for t_rest in range(t + 1, scenario.horizon):  # only after everything diverged
+        if t_rest % scenario.record_every == 0:
+            _store(records, rec, t_rest // scenario.record_every, scenario.n_records)
+    t_loop = time.perf_counter() - t0 - t_setup
+    final_data = simdata.from_native(bound)
+    final = Final(final_data, cstate, estate, jnp.asarray(alive), jnp.asarray(t_div))
+    metrics = jax.jit(jax.vmap(scenario.summarize))(params, records, final)
+    return {
+        "records": records,
+        "metrics": {k: np.asarray(v) for k, v in metrics.items()},
+        "final": final,
+        "alive": alive,
+        "t_diverged": t_div,
+        "timing": {"setup_s": t_setup, "loop_s": t_loop, "total_s": time.perf_counter() - t0},
+    }
+
+
+_TICKS: dict[int, Any] = {}
+
+
+def _jitted_tick(scenario: Scenario):
+    """One jitted, vmapped tick per scenario object (reused across calls)."""
+    key = id(scenario)
+    if key not in _TICKS or _TICKS[key][0] is not scenario:
+        _TICKS[key] = (scenario, jax.jit(jax.vmap(tick_fn(scenario))))
+    return _TICKS[key][1]
+
+
+def _step(batch: mujoco.batch.Batch, ids: np.ndarray, nstep: int, alive: np.ndarray, t_div: np.ndarray) -> None:
+    """Step the simulations `ids`; those that raise a MuJoCo error are marked diverged."""
+    try:
+        batch.step(ids=None if ids.size == batch.nsim else ids, nstep=nstep)
+    except mujoco.batch.SimulationError as exc:
+        failed = np.zeros_like(alive)
+        failed[exc.ids] = True
+        _mark(alive, t_div, failed, batch.time)
+
+
+def _mark(alive: np.ndarray, t_div: np.ndarray, newly: np.ndarray, when: Any) -> None:
+    if newly.any():
+        t_div[newly] = np.asarray(when)[newly]
+        alive[newly] = False
+
+
+def _store(records: dict[str, np.ndarray], rec: dict[str, Any], index: int, n: int) -> None:
+    for name, value in rec.items():
+        value = np.asarray(value)
+        if name not in records:
+            records[name] = np.zeros((value.shape[0], n, *value.shape[1:]), value.dtype)
+        records[name][:, index] = value
+
+
+def _progress(total: int, enabled: bool):
+    if not enabled:
+        return None
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    bar = Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.completed}/{task.total} periods"),
+                   TimeRemainingColumn(), transient=True)
+    bar.add_task("sim", total=total)
+    bar.start()
+    return bar

@@ -1,0 +1,212 @@
+"""What a rollout needs: a scenario (model, terrain dynamics, initial state, horizon,
+records and metrics) and a controller, all pure JAX except the compiled MuJoCo model.
+
+The controller protocol (one simulation; the backends vmap it over the batch):
+    init(params, obs) -> state
+    step(params, state, obs) -> (state, action)
+`params` is the simulation's parameter pytree (a dict of scalars/arrays: controller
+gains, thresholds, terrain and physical parameters), `obs` is what the scenario's
+`observe` builds from `SimData`, `action` is the (nu,) control vector written to
+MjData.ctrl for the next control period (position targets for position actuators).
+
+A scenario may also carry an `Environment`: pure-JAX terrain dynamics run at the
+control rate beside the controller (e.g. fragile footholds that drop away once their
+load exceeds a threshold). It owns the mocap bodies' poses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+from jaxloco.sim.data import SimData
+
+Array = jax.Array
+Params = Mapping[str, Any]
+
+# model fields that mj_setConst reads: changing them per simulation needs the derived
+# constants (subtree masses, invweight0, ...) recomputed
+MASS_FIELDS = frozenset({"body_mass", "body_inertia", "body_ipos", "body_iquat", "dof_armature", "body_pos", "body_quat"})
+
+
+@dataclass(frozen=True)
+class Controller:
+    """A pure-JAX controller: `init(params, obs) -> state`, `step(params, state, obs) -> (state, action)`."""
+
+    init: Callable[[Params, Any], Any]
+    step: Callable[[Params, Any, Any], tuple[Any, Array]]
+    name: str = "controller"
+
+
+@dataclass(frozen=True)
+class Environment:
+    """Terrain dynamics at the control rate: `init(params, data) -> state` and
+    `step(params, state, data) -> (state, mocap_pos (nmocap, 3), mocap_quat (nmocap, 4))`."""
+
+    init: Callable[[Params, SimData], Any]
+    step: Callable[[Params, Any, SimData], tuple[Any, Array, Array]]
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class InitialState:
+    """Initial MuJoCo state of one simulation (world frame, SI)."""
+
+    qpos: Array
+    qvel: Array
+    ctrl: Array
+    mocap_pos: Array
+    mocap_quat: Array
+
+
+@dataclass(frozen=True)
+class ModelField:
+    """A per-simulation model field: `model.<name>[index] = value(params)`.
+
+    index: a static numpy index into the field (e.g. `(geom_ids, 0)` for the sliding
+    friction of some geoms); value(params) returns an array of the indexed shape.
+    Fields in MASS_FIELDS get their derived constants recomputed (native backend
+    only: the MJX backend refuses them, see `jaxloco.sim.mjx`)."""
+
+    name: str
+    index: Any
+    value: Callable[[Params], Array]
+
+    @property
+    def needs_set_const(self) -> bool:
+        return self.name in MASS_FIELDS
+
+
+@dataclass(frozen=True)
+class DivergenceTest:
+    """When a simulation counts as diverged: a non-finite state, a joint speed above
+    `qvel_limit` [m/s or rad/s] (penetration blow-ups show up as huge speeds), or
+    (native backend) a MuJoCo warning (bad qpos/qvel/qacc/ctrl, contact or constraint
+    buffer full)."""
+
+    qvel_limit: float = 100.0
+
+    def __call__(self, data: SimData) -> Array:
+        finite = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
+        fast = jnp.max(jnp.abs(jnp.where(jnp.isfinite(data.qvel), data.qvel, 0.0))) > self.qvel_limit
+        return ~finite | fast
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A closed-loop simulation to run for a batch of parameter sets.
+
+    model: the compiled MuJoCo model (robot + terrain), shared by every simulation.
+    initial_state(params, key) -> InitialState.
+    observe(data) -> obs: what the controller sees (the same in every backend).
+    record(params, data, obs, ctrl_state, env_state) -> dict of signals, sampled every
+        `record_every` control periods (decimation).
+    summarize(params, records, final) -> dict of scalar metrics; `records` maps each
+        signal to its (n_records, ...) history, `final` is a `Final`.
+    horizon: number of control periods; substeps: physics steps per control period
+        (control period = substeps * model.opt.timestep).
+    statuses: names of the scenario's own outcome codes (metric "status", int; 0 "ok").
+    """
+
+    name: str
+    model: mujoco.MjModel
+    controller: Controller
+    initial_state: Callable[[Params, Array], InitialState]
+    observe: Callable[[SimData], Any]
+    record: Callable[[Params, SimData, Any, Any, Any], dict[str, Array]]
+    summarize: Callable[[Params, dict[str, Array], Final], dict[str, Array]]
+    horizon: int
+    substeps: int = 10
+    record_every: int = 1
+    environment: Environment | None = None
+    model_fields: tuple[ModelField, ...] = ()
+    divergence: DivergenceTest = field(default_factory=DivergenceTest)
+    statuses: tuple[str, ...] = ("ok",)
+
+    def __post_init__(self) -> None:
+        if self.horizon < 1 or self.substeps < 1 or self.record_every < 1:
+            raise ValueError(f"scenario {self.name}: horizon, substeps and record_every must be >= 1")
+        if self.horizon % self.record_every:
+            raise ValueError(
+                f"scenario {self.name}: horizon ({self.horizon}) must be a multiple of record_every ({self.record_every})"
+            )
+
+    @property
+    def control_dt(self) -> float:
+        return float(self.substeps * self.model.opt.timestep)
+
+    @property
+    def n_records(self) -> int:
+        return self.horizon // self.record_every
+
+    @property
+    def physics_steps(self) -> int:
+        return self.horizon * self.substeps
+
+    def with_(self, **changes) -> Scenario:
+        from dataclasses import replace
+
+        return replace(self, **changes)
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class Final:
+    """End of one rollout: the last data, controller and environment states, whether the
+    simulation ran to the end without diverging and, if not, when it diverged [s]."""
+
+    data: SimData
+    ctrl_state: Any
+    env_state: Any
+    alive: Array  # () bool
+    t_diverged: Array  # () [s], nan when alive
+
+
+def tick_fn(scenario: Scenario) -> Callable:
+    """The per-control-period computation shared by the backends (one simulation):
+    (params, ctrl_state, env_state, data) -> (ctrl_state, env_state, ctrl, mocap_pos,
+    mocap_quat, record, bad)."""
+
+    env = scenario.environment
+
+    def tick(params, cstate, estate, data: SimData):
+        obs = scenario.observe(data)
+        rec = scenario.record(params, data, obs, cstate, estate)
+        cstate, action = scenario.controller.step(params, cstate, obs)
+        if env is not None:
+            estate, mocap_pos, mocap_quat = env.step(params, estate, data)
+        else:
+            mocap_pos, mocap_quat = data.mocap_pos, data.mocap_quat
+        bad = scenario.divergence(data)
+        return cstate, estate, action, mocap_pos, mocap_quat, rec, bad
+
+    return tick
+
+
+def init_fn(scenario: Scenario) -> Callable:
+    """(params, data) -> (ctrl_state, env_state) for one simulation."""
+
+    env = scenario.environment
+
+    def init(params, data: SimData):
+        cstate = scenario.controller.init(params, scenario.observe(data))
+        estate = env.init(params, data) if env is not None else jnp.zeros(())
+        return cstate, estate
+
+    return init
+
+
+def model_field_values(scenario: Scenario, params: Params) -> dict[str, np.ndarray]:
+    """The full per-simulation arrays of every swept model field for one simulation
+    (used by the MJX backend; the native backend writes through `Batch.expand`)."""
+    out: dict[str, Any] = {}
+    for f in scenario.model_fields:
+        base = out.get(f.name, jnp.asarray(getattr(scenario.model, f.name)))
+        out[f.name] = base.at[f.index].set(f.value(params))
+    return out

@@ -1,0 +1,251 @@
+"""The simulation layer (`jaxloco.sim`): both backends, per-simulation parameters,
+divergence, gradients, errors. A small standing-quadruped scenario (the leg-grope
+model on a flat box whose height and friction are per-simulation parameters) keeps
+these fast."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+
+from jaxloco.analysis import SpecError
+from jaxloco.robots.leggrope import kinematics as kin
+from jaxloco.robots.leggrope import model as robot_model
+from jaxloco.robots.leggrope.params import default_params
+from jaxloco.sim import terrain as tr
+from jaxloco.sim.rollout import rollout, stack_params
+from jaxloco.sim.scenario import Controller, InitialState, ModelField, Scenario
+
+BODY_HEIGHT = 0.10
+
+
+def _standing_q() -> np.ndarray:
+    """Joint angles (12,) with every toe centre 0.2 m out from its hip on the ground."""
+    params = default_params()
+    hips = np.asarray(params.hips())
+    mounts = np.asarray(params.mount_angles())
+    qs = []
+    for leg in range(4):
+        toe = hips[leg] + 0.2 * np.array([np.cos(mounts[leg]), np.sin(mounts[leg]), 0.0])
+        toe[2] = -BODY_HEIGHT + robot_model.TOE_RADIUS
+        q, reach = kin.inverse_kinematics(params, leg, jnp.asarray(toe))
+        assert float(reach) > 0
+        qs.append(np.asarray(q))
+    return np.concatenate(qs)
+
+
+def standing_scenario(horizon: int = 10, substeps: int = 5, record_every: int = 1) -> Scenario:
+    """Stand on a flat box (top at params['ground'] m), joint targets = standing pose plus
+    params['offset'] on every knee, with a 2 Hz wiggle of the L1 yaw joint; params
+    ['kick'] is added to the initial vertical body velocity."""
+    spec = robot_model.load_spec()
+    ground = tr.flat(half_extent=2.0, half_depth=0.2)
+    ground.add_to(spec)
+    m = spec.compile()
+    geom = m.geom(ground.body_names()[0]).id
+    q0 = jnp.asarray(_standing_q())
+    knees = np.arange(2, 12, 3)
+
+    def initial_state(p, key):
+        pos, quat = ground.place({"height": p["ground"]})
+        qpos = jnp.concatenate([jnp.array([0.0, 0.0, BODY_HEIGHT]) + jnp.array([0, 0, 1.0]) * p["ground"],
+                                jnp.array([1.0, 0, 0, 0]), q0])
+        qvel = jnp.zeros(m.nv).at[2].set(p["kick"])
+        return InitialState(qpos=qpos, qvel=qvel, ctrl=q0, mocap_pos=pos, mocap_quat=quat)
+
+    def init(p, obs):
+        return jnp.zeros(())
+
+    def step(p, t, obs):
+        action = q0.at[knees].add(p["offset"]).at[0].add(0.2 * jnp.sin(2 * jnp.pi * 2.0 * obs["time"]))
+        return t + 1, action
+
+    def observe(data):
+        return {"time": data.time, "q": data.qpos[7:]}
+
+    def record(p, data, obs, c, e):
+        return {"qpos": data.qpos, "height": data.qpos[2]}
+
+    def summarize(p, r, final):
+        return {"final_height": final.data.qpos[2], "mean_height": jnp.mean(r["height"])}
+
+    return Scenario(
+        name="test.standing",
+        model=m,
+        controller=Controller(init, step),
+        initial_state=initial_state,
+        observe=observe,
+        record=record,
+        summarize=summarize,
+        horizon=horizon,
+        substeps=substeps,
+        record_every=record_every,
+        model_fields=(ModelField("geom_friction", (np.array([geom]), 0), lambda p: p["mu"][None]),),
+    )
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return standing_scenario(horizon=20, substeps=5)
+
+
+def _params(n=1, **kw):
+    base = {"ground": 0.0, "offset": 0.0, "mu": 1.0, "kick": 0.0}
+    rows = [{k: kw.get(k, [base[k]] * n)[i] for k in base} for i in range(n)]
+    return stack_params(rows)
+
+
+def test_native_is_identical_for_one_and_two_threads(scenario):
+    p = _params(3, offset=[0.0, 0.05, -0.05], ground=[0.0, 0.1, -0.2])
+    a = rollout(scenario, p, nthread=1)
+    b = rollout(scenario, p, nthread=2)
+    np.testing.assert_array_equal(a.records["qpos"], b.records["qpos"])
+    np.testing.assert_array_equal(a.metrics["final_height"], b.metrics["final_height"])
+
+
+def test_per_simulation_parameters_differ_and_match_single_runs(scenario):
+    grounds, offsets, mus = [0.0, 0.1, -0.2], [0.0, 0.05, -0.05], [1.0, 0.3, 0.6]
+    batch = rollout(scenario, _params(3, ground=grounds, offset=offsets, mu=mus), seeds=[0, 1, 2])
+    # the ground height really moves the robot: heights differ by the ground offsets
+    h = batch.metrics["mean_height"]
+    assert abs((h[1] - h[0]) - 0.1) < 0.02 and abs((h[2] - h[0]) + 0.2) < 0.02
+    for i in range(3):
+        single = rollout(scenario, _params(1, ground=[grounds[i]], offset=[offsets[i]], mu=[mus[i]]), seeds=[i])
+        np.testing.assert_array_equal(batch.records["qpos"][i], single.records["qpos"][0])
+
+
+def test_friction_is_per_simulation():
+    """Expanded geom_friction reaches each simulation (native) / each vmapped model (mjx)."""
+    sc = standing_scenario(horizon=2, substeps=1)
+    from jaxloco.sim import native
+    p = _params(2, mu=[0.2, 0.9])
+    batch = native.make_batch(sc, p, 2, 1)
+    gid = sc.model_fields[0].index[0][0]
+    np.testing.assert_allclose(batch.expanded("geom_friction")[:, gid, 0], [0.2, 0.9])
+
+
+def test_diverging_simulation_is_flagged_and_does_not_spoil_neighbours(scenario):
+    p = _params(3, kick=[0.0, 1e6, 0.0], offset=[0.0, 0.0, 0.05])
+    out = rollout(scenario, p, seeds=[0, 1, 2])
+    assert list(out.status) == ["ok", "diverged", "ok"]
+    assert np.isfinite(out.t_diverged[1]) and out.t_diverged[1] <= scenario.horizon * scenario.control_dt
+    assert np.isnan(out.t_diverged[[0, 2]]).all()
+    for i in (0, 2):
+        single = rollout(scenario, _params(1, offset=[[0.0, 0.0, 0.05][i]]), seeds=[i])
+        np.testing.assert_array_equal(out.records["qpos"][i], single.records["qpos"][0])
+
+
+@pytest.fixture(scope="module")
+def short_scenario():
+    return standing_scenario(horizon=10, substeps=2)
+
+
+def test_backends_agree_on_a_short_rollout(short_scenario):
+    """Same model and controller for 40 ms (20 physics steps). MJX and MuJoCo C use the
+    same formulation, but their collision routines (MJX: GJK-style convex vs. C's
+    analytic box-sphere), solver loops and float summation orders differ: contact forces
+    differ at solver-tolerance level, which moves the toes by far less than a millimetre
+    over this window. 1 mm / 10 mrad bounds that; a real model mismatch (e.g. one
+    backend ignoring the per-simulation ground height, 0.1 m) fails it."""
+    p = _params(2, ground=[0.0, 0.1], offset=[0.0, 0.05])
+    a = rollout(short_scenario, p, backend="native")
+    b = rollout(short_scenario, p, backend="mjx")
+    assert list(b.status) == ["ok", "ok"]
+    np.testing.assert_allclose(b.records["qpos"][..., :3], a.records["qpos"][..., :3], atol=1e-3)
+    np.testing.assert_allclose(b.records["qpos"][..., 7:], a.records["qpos"][..., 7:], atol=1e-2)
+    np.testing.assert_allclose(b.times, a.times)
+
+
+def test_mjx_gradient_matches_finite_differences(short_scenario):
+    """d(mean body height)/d(knee offset) through the MJX rollout (forward mode)
+    against central differences, in float64, with the robot in the air (ground 1 m
+    below): controller, actuators and multibody dynamics, no contact. (Through these
+    stiff, nearly hard toe contacts forward-mode and finite differences disagreed, even
+    in sign, over 40 ms: contact gradients need softer contacts or smoothing; see the
+    note in `jaxloco.sim.mjx`.)"""
+    from jaxloco.sim import mjx as mjx_backend
+
+    run = mjx_backend.rollout_fn(short_scenario)
+    key = jax.random.PRNGKey(0)
+
+    @jax.jit
+    def height(offset):
+        p = {"ground": jnp.float64(-1.0), "offset": offset, "mu": jnp.float64(1.0), "kick": jnp.float64(0.0),
+             "key": key}
+        return run(p, key)[0]["qpos"][-1, 9]  # L1 knee at the last record
+
+    x = jnp.float64(0.02)
+    g = jax.jacfwd(height)(x)
+    h = 1e-4
+    fd = (height(x + h) - height(x - h)) / (2 * h)
+    assert np.isfinite(g) and abs(g) > 1e-3  # the knee target moves the knee
+    np.testing.assert_allclose(g, fd, rtol=0.05, atol=1e-5)
+
+
+def test_mjx_refuses_mass_fields():
+    from jaxloco.sim import mjx as mjx_backend
+
+    sc = standing_scenario(horizon=2, substeps=1)
+    sc = sc.with_(model_fields=(ModelField("body_mass", (np.array([1]),), lambda p: p["mu"][None]),))
+    with pytest.raises(ValueError, match="body_mass"):
+        mjx_backend.rollout_fn(sc)
+
+
+def test_native_mass_field_recomputes_derived_constants():
+    sc = standing_scenario(horizon=2, substeps=1)
+    sc = sc.with_(model_fields=(ModelField("body_mass", (np.array([1]),), lambda p: 4.54 + p["mu"][None]),))
+    from jaxloco.sim import native
+    batch = native.make_batch(sc, _params(2, mu=[0.0, 1.0]), 2, 1)
+    sub = batch.expanded("body_subtreemass")
+    assert sub is not None
+    np.testing.assert_allclose(sub[1, 1] - sub[0, 1], 1.0)
+
+
+def test_broken_model_file_gives_one_line_error(tmp_path):
+    with pytest.raises(SpecError, match="model file not found"):
+        robot_model.load_spec(tmp_path / "missing.xml")
+    bad = tmp_path / "bad.xml"
+    bad.write_text("<mujoco><worldbody><body><geom type='sphere'/></worldbody></mujoco>")
+    with pytest.raises(SpecError, match="broken MJCF") as err:
+        robot_model.load_spec(bad)
+    assert "\n" not in str(err.value)
+
+
+def test_invalid_terrain_parameter_is_rejected():
+    with pytest.raises(SpecError, match="theta"):
+        tr.slope().check({"theta": 2.0})
+    with pytest.raises(SpecError, match="unknown"):
+        tr.slope().check({"tilt": 0.1})
+
+
+def test_scenario_validates_its_shape():
+    sc = standing_scenario(horizon=4, substeps=1)
+    with pytest.raises(ValueError, match="multiple"):
+        sc.with_(record_every=3)
+
+
+def test_model_file_matches_generator_and_table_1():
+    assert robot_model.MODEL_PATH.read_text() == robot_model.xml_text()
+    m = robot_model.load_spec().compile()
+    np.testing.assert_allclose(m.body_subtreemass[m.body("torso").id], float(default_params().total_mass))
+    assert m.nu == 12 and mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, "L1_force") >= 0
+
+
+def test_model_toe_sites_match_kinematics():
+    """MuJoCo's own toe-site positions equal `kinematics.foot_position` (robot frame)."""
+    m = robot_model.load_spec().compile()
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(0)
+    params = default_params()
+    for _ in range(5):
+        q = rng.uniform(-0.8, 0.8, 12) + np.tile([0.0, 0.3, -1.2], 4)
+        d.qpos[:7] = [0, 0, 0, 1, 0, 0, 0]
+        d.qpos[7:] = q
+        mujoco.mj_kinematics(m, d)
+        for leg in range(4):
+            site = d.site_xpos[m.site(f"L{leg + 1}_toe").id]
+            ref = np.asarray(kin.foot_position(params, leg, jnp.asarray(q[3 * leg:3 * leg + 3])))
+            np.testing.assert_allclose(site, ref, atol=1e-6)  # the MJCF stores 6 significant digits
