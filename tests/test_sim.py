@@ -15,76 +15,10 @@ from jaxloco.analysis import SpecError
 from jaxloco.robots.leggrope import kinematics as kin
 from jaxloco.robots.leggrope import model as robot_model
 from jaxloco.robots.leggrope.params import default_params
+from jaxloco.robots.leggrope.scenarios import standing_scenario
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.rollout import rollout, stack_params
-from jaxloco.sim.scenario import Controller, InitialState, ModelField, Scenario
-
-BODY_HEIGHT = 0.10
-
-
-def _standing_q() -> np.ndarray:
-    """Joint angles (12,) with every toe centre 0.2 m out from its hip on the ground."""
-    params = default_params()
-    hips = np.asarray(params.hips())
-    mounts = np.asarray(params.mount_angles())
-    qs = []
-    for leg in range(4):
-        toe = hips[leg] + 0.2 * np.array([np.cos(mounts[leg]), np.sin(mounts[leg]), 0.0])
-        toe[2] = -BODY_HEIGHT + robot_model.TOE_RADIUS
-        q, reach = kin.inverse_kinematics(params, leg, jnp.asarray(toe))
-        assert float(reach) > 0
-        qs.append(np.asarray(q))
-    return np.concatenate(qs)
-
-
-def standing_scenario(horizon: int = 10, substeps: int = 5, record_every: int = 1) -> Scenario:
-    """Stand on a flat box (top at params['ground'] m), joint targets = standing pose plus
-    params['offset'] on every knee, with a 2 Hz wiggle of the L1 yaw joint; params
-    ['kick'] is added to the initial vertical body velocity."""
-    spec = robot_model.load_spec()
-    ground = tr.flat(half_extent=2.0, half_depth=0.2)
-    ground.add_to(spec)
-    m = spec.compile()
-    geom = m.geom(ground.body_names()[0]).id
-    q0 = jnp.asarray(_standing_q())
-    knees = np.arange(2, 12, 3)
-
-    def initial_state(p, key):
-        pos, quat = ground.place({"height": p["ground"]})
-        qpos = jnp.concatenate([jnp.array([0.0, 0.0, BODY_HEIGHT]) + jnp.array([0, 0, 1.0]) * p["ground"],
-                                jnp.array([1.0, 0, 0, 0]), q0])
-        qvel = jnp.zeros(m.nv).at[2].set(p["kick"])
-        return InitialState(qpos=qpos, qvel=qvel, ctrl=q0, mocap_pos=pos, mocap_quat=quat)
-
-    def init(p, obs):
-        return jnp.zeros(())
-
-    def step(p, t, obs):
-        action = q0.at[knees].add(p["offset"]).at[0].add(0.2 * jnp.sin(2 * jnp.pi * 2.0 * obs["time"]))
-        return t + 1, action
-
-    def observe(data):
-        return {"time": data.time, "q": data.qpos[7:]}
-
-    def record(p, data, obs, c, e):
-        return {"qpos": data.qpos, "height": data.qpos[2]}
-
-    def summarize(p, r, final):
-        return {"final_height": final.data.qpos[2], "mean_height": jnp.mean(r["height"])}
-
-    return Scenario(
-        name="test.standing",
-        model=m,
-        controller=Controller(init, step),
-        initial_state=initial_state,
-        observe=observe,
-        record=record,
-        summarize=summarize,
-        horizon=horizon,
-        substeps=substeps,
-        record_every=record_every,
-        model_fields=(ModelField("geom_friction", (np.array([geom]), 0), lambda p: p["mu"][None]),),
-    )
+from jaxloco.sim.scenario import ModelField
 
 
 @pytest.fixture(scope="module")

@@ -76,7 +76,9 @@ def run(
         batch.bind(name)[...] = np.asarray(getattr(init_state, name))
     batch.forward()
     cstate, estate = jax.jit(jax.vmap(init_fn(scenario)))(params, simdata.from_native(bound))
-    tick = _jitted_tick(scenario)
+    layout = _layout(bound)
+    tick = _jitted_tick(scenario, layout)
+    nu, nmocap = scenario.model.nu, scenario.model.nmocap
     warn_idx = np.array([int(w) for w in DIVERGENCE_WARNINGS])
     warnings0 = batch.warning[:, warn_idx, 1].sum(axis=1).copy()
 
@@ -87,18 +89,27 @@ def run(
     t_setup = time.perf_counter() - t0
     try:
         for t in range(scenario.horizon):
-            data = simdata.from_native(bound)
-            cstate, estate, ctrl, mocap_pos, mocap_quat, rec, bad = tick(params, cstate, estate, data)
+            # one packed array in, one packed array out: per-call overhead is per array
+            flat = np.concatenate([bound[name].reshape(nsim, -1) for name, _, _ in layout], axis=1)
+            cstate, estate, out, rec = tick(params, cstate, estate, flat)
             if t % scenario.record_every == 0:
                 _store(records, rec, t // scenario.record_every, scenario.n_records)
-            newly = np.asarray(bad) & alive
-            _mark(alive, t_div, newly, data.time)
+            out = np.asarray(out)
+            ctrl, mocap_pos = out[:, :nu], out[:, nu:nu + 3 * nmocap].reshape(nsim, nmocap, 3)
+            mocap_quat = out[:, nu + 3 * nmocap:nu + 7 * nmocap].reshape(nsim, nmocap, 4)
+            newly = (out[:, -1] > 0.5) & alive
+            _mark(alive, t_div, newly, bound["time"])
             ids = np.flatnonzero(alive)
             if not ids.size:
                 break
-            batch.ctrl[ids] = np.asarray(ctrl)[ids]
-            batch.mocap_pos[ids] = np.asarray(mocap_pos)[ids]
-            batch.mocap_quat[ids] = np.asarray(mocap_quat)[ids]
+            if ids.size == nsim:
+                batch.ctrl[...] = ctrl
+                batch.mocap_pos[...] = mocap_pos
+                batch.mocap_quat[...] = mocap_quat
+            else:
+                batch.ctrl[ids] = ctrl[ids]
+                batch.mocap_pos[ids] = mocap_pos[ids]
+                batch.mocap_quat[ids] = mocap_quat[ids]
             _step(batch, ids, scenario.substeps, alive, t_div)
             warned = (batch.warning[:, warn_idx, 1].sum(axis=1) > warnings0) & alive
             _mark(alive, t_div, warned, batch.time)
@@ -124,14 +135,40 @@ def run(
     }
 
 
-_TICKS: dict[int, Any] = {}
+_TICKS: dict[tuple, Any] = {}
 
 
-def _jitted_tick(scenario: Scenario):
-    """One jitted, vmapped tick per scenario object (reused across calls)."""
-    key = id(scenario)
+def _layout(bound: dict[str, np.ndarray]) -> tuple[tuple[str, int, tuple[int, ...]], ...]:
+    """(field, width, per-simulation shape) of each SimData field in the packed array."""
+    return tuple((name, int(np.prod(bound[name].shape[1:], dtype=int)), bound[name].shape[1:])
+                 for name in simdata.FIELDS)
+
+
+def _unpack(flat, layout) -> simdata.SimData:
+    out, start = {}, 0
+    for name, width, shape in layout:
+        out[name] = flat[start:start + width].reshape(shape)
+        start += width
+    out["site_xmat"] = out["site_xmat"].reshape(-1, 3, 3)
+    return simdata.SimData(**out)
+
+
+def _jitted_tick(scenario: Scenario, layout):
+    """One jitted, vmapped tick per scenario object (reused across calls), on the packed
+    data; it returns (ctrl_state, env_state, [ctrl | mocap_pos | mocap_quat | bad], record)."""
+    key = (id(scenario), layout)
     if key not in _TICKS or _TICKS[key][0] is not scenario:
-        _TICKS[key] = (scenario, jax.jit(jax.vmap(tick_fn(scenario))))
+        tick = tick_fn(scenario)
+
+        def packed(params, cstate, estate, flat):
+            data = _unpack(flat, layout)
+            cstate, estate, ctrl, mocap_pos, mocap_quat, rec, bad = tick(params, cstate, estate, data)
+            dtype = flat.dtype
+            out = jnp.concatenate([ctrl.astype(dtype), mocap_pos.reshape(-1).astype(dtype),
+                                   mocap_quat.reshape(-1).astype(dtype), bad.astype(dtype)[None]])
+            return cstate, estate, out, rec
+
+        _TICKS[key] = (scenario, jax.jit(jax.vmap(packed)))
     return _TICKS[key][1]
 
 

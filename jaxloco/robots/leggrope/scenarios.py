@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.robots.leggrope import control, model
+from jaxloco.robots.leggrope import control, kinematics, model
 from jaxloco.robots.leggrope.params import LEG_NAMES, G, default_params
 from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
@@ -233,6 +233,76 @@ def make_scenario(
         model_fields=(ModelField("geom_friction", (terrain_geoms, 0), mu_values),),
         statuses=control.STATUSES,
     )
+
+
+# ------------------------------------------------------------------ standing (tests, benchmarks)
+STAND_HEIGHT = 0.10  # [m] body height of `standing_scenario`
+
+
+def _standing_q() -> np.ndarray:
+    """Joint angles (12,) with every toe centre 0.2 m out from its hip on the ground."""
+    params = default_params()
+    hips = np.asarray(params.hips())
+    mounts = np.asarray(params.mount_angles())
+    qs = []
+    for leg in range(4):
+        toe = hips[leg] + 0.2 * np.array([np.cos(mounts[leg]), np.sin(mounts[leg]), 0.0])
+        toe[2] = -STAND_HEIGHT + model.TOE_RADIUS
+        q, reach = kinematics.inverse_kinematics(params, leg, jnp.asarray(toe))
+        assert float(reach) > 0
+        qs.append(np.asarray(q))
+    return np.concatenate(qs)
+
+
+def standing_scenario(horizon: int = 10, substeps: int = 5, record_every: int = 1) -> Scenario:
+    """A small scenario for tests and benchmarks: stand on a flat box (top at params['ground'] m), joint targets = standing pose plus
+    params['offset'] on every knee, with a 2 Hz wiggle of the L1 yaw joint; params
+    ['kick'] is added to the initial vertical body velocity."""
+    spec = model.load_spec()
+    ground = tr.flat(half_extent=2.0, half_depth=0.2)
+    ground.add_to(spec)
+    m = spec.compile()
+    geom = m.geom(ground.body_names()[0]).id
+    q0 = jnp.asarray(_standing_q())
+    knees = np.arange(2, 12, 3)
+
+    def initial_state(p, key):
+        pos, quat = ground.place({"height": p["ground"]})
+        qpos = jnp.concatenate([jnp.array([0.0, 0.0, STAND_HEIGHT]) + jnp.array([0, 0, 1.0]) * p["ground"],
+                                jnp.array([1.0, 0, 0, 0]), q0])
+        qvel = jnp.zeros(m.nv).at[2].set(p["kick"])
+        return InitialState(qpos=qpos, qvel=qvel, ctrl=q0, mocap_pos=pos, mocap_quat=quat)
+
+    def init(p, obs):
+        return jnp.zeros(())
+
+    def step(p, t, obs):
+        action = q0.at[knees].add(p["offset"]).at[0].add(0.2 * jnp.sin(2 * jnp.pi * 2.0 * obs["time"]))
+        return t + 1, action
+
+    def observe(data):
+        return {"time": data.time, "q": data.qpos[7:]}
+
+    def record(p, data, obs, c, e):
+        return {"qpos": data.qpos, "height": data.qpos[2]}
+
+    def summarize(p, r, final):
+        return {"final_height": final.data.qpos[2], "mean_height": jnp.mean(r["height"])}
+
+    return Scenario(
+        name="test.standing",
+        model=m,
+        controller=Controller(init, step),
+        initial_state=initial_state,
+        observe=observe,
+        record=record,
+        summarize=summarize,
+        horizon=horizon,
+        substeps=substeps,
+        record_every=record_every,
+        model_fields=(ModelField("geom_friction", (np.array([geom]), 0), lambda p: p["mu"][None]),),
+    )
+
 
 
 def _moved_legs(k):

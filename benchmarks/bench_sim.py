@@ -1,0 +1,97 @@
+"""Physics steps per second of the leg-grope quadruped (12 joints, 4 toe contacts on a
+box), native `mujoco.batch` open loop and closed loop (jitted JAX controller every
+control period) and MJX, at several batch sizes; compile times of the MJX rollout.
+
+    python benchmarks/bench_sim.py                     # batch 1, 64, 1024
+    python benchmarks/bench_sim.py --mjx-batches 1 64  # MJX is slow on CPU
+
+Closed loop uses `scenarios.standing_scenario` (a joint-space controller, records and
+metrics: the rollout API's full per-period overhead) and, with --walk, the leg-grope
+walk controller. Run it twice to see MJX compile time with a cold and a warm JAX cache
+(`JAXLOCO_CACHE_DIR=/tmp/empty-cache python ...` for a cold one).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+
+def native_open_loop(model, batch: int, steps: int, nthread: int) -> float:
+    import mujoco.batch
+
+    b = mujoco.batch.Batch(model, batch, nthread)
+    b.reset()
+    b.step(nstep=10)  # warm up
+    t = time.perf_counter()
+    b.step(nstep=steps)
+    return batch * steps / (time.perf_counter() - t)
+
+
+def closed_loop(scenario, params, backend: str, nthread: int = 0) -> tuple[float, float]:
+    """(steps/s of the second call, first-call seconds)."""
+    from jaxloco.sim.rollout import rollout
+
+    n = len(next(iter(params.values())))
+    t0 = time.perf_counter()
+    rollout(scenario, params, backend=backend, nthread=nthread)
+    first = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    out = rollout(scenario, params, backend=backend, nthread=nthread)
+    wall = time.perf_counter() - t0
+    loop = out.timing.get("loop_s", wall)
+    return n * scenario.physics_steps / loop, first
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--batches", type=int, nargs="+", default=[1, 64, 1024])
+    ap.add_argument("--mjx-batches", type=int, nargs="+", default=[1, 64])
+    ap.add_argument("--periods", type=int, default=100, help="control periods per closed-loop rollout")
+    ap.add_argument("--substeps", type=int, default=10, help="physics steps per control period")
+    ap.add_argument("--nthread", type=int, default=0)
+    ap.add_argument("--walk", action="store_true", help="also time the leg-grope walk controller")
+    args = ap.parse_args()
+
+    from jaxloco import runtime
+
+    runtime.configure(x64=True, cache_dir=True)
+    import jax
+
+    from jaxloco.robots.leggrope import scenarios
+    from jaxloco.sim.rollout import stack_params
+
+    sc = scenarios.standing_scenario(horizon=args.periods, substeps=args.substeps, record_every=10)
+    print(f"devices: {jax.device_count()} x {jax.devices()[0].platform}; physics dt {sc.model.opt.timestep} s; "
+          f"{args.substeps} steps per control period; {args.periods} periods")
+
+    def params(n):
+        rng = np.random.default_rng(0)
+        return stack_params([{"ground": 0.0, "offset": float(rng.uniform(-0.05, 0.05)), "mu": 1.0, "kick": 0.0}
+                             for _ in range(n)])
+
+    print(f"{'batch':>6} {'native open':>14} {'native closed':>14} {'closed/open':>12}")
+    for n in args.batches:
+        steps = max(200, 200_000 // n)
+        open_ = native_open_loop(sc.model, n, steps, args.nthread)
+        closed, _ = closed_loop(sc, params(n), "native", args.nthread)
+        print(f"{n:>6} {open_:>14,.0f} {closed:>14,.0f} {closed / open_:>12.2f}")
+
+    if args.walk:
+        walk = scenarios.make_scenario(horizon_s=args.periods * 0.02, record_every=5)
+        for n in args.batches:
+            rate, first = closed_loop(walk, scenarios.params_batch(n), "native", args.nthread)
+            print(f"walk controller, batch {n}: {rate:,.0f} steps/s (first call {first:.1f} s incl. compile)")
+
+    short = scenarios.standing_scenario(horizon=max(10, args.periods // 5), substeps=args.substeps, record_every=10)
+    print(f"\nMJX on {jax.devices()[0].platform} ({short.physics_steps} physics steps per rollout)")
+    print(f"{'batch':>6} {'steps/s':>12} {'first call [s]':>15}")
+    for n in args.mjx_batches:
+        rate, first = closed_loop(short, params(n), "mjx")
+        print(f"{n:>6} {rate:>12,.0f} {first:>15.1f}")
+
+
+if __name__ == "__main__":
+    main()
