@@ -11,6 +11,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxloco import stability
+from jaxloco.sim.terrain import quat_z_axis
 
 Array = jax.Array
 
@@ -25,23 +26,11 @@ def quat_to_rpy(q: Array) -> Array:
     return jnp.stack([roll, pitch, yaw], axis=-1)
 
 
-def quat_to_matrix(q: Array) -> Array:
-    """Rotation matrix (3, 3) of a unit quaternion (w, x, y, z)."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    return jnp.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
 def tilt_change(quats: Array, reference: Array) -> Array:
     """Angle (T,) [rad] between each attitude's z axis and the reference attitude's z
     axis: the attitude change an IMU sees, independent of heading."""
-    z_ref = quat_to_matrix(reference)[:, 2]
-    z = jax.vmap(lambda q: quat_to_matrix(q)[:, 2])(quats)
+    z_ref = quat_z_axis(reference)
+    z = quat_z_axis(quats)
     return jnp.arccos(jnp.clip(z @ z_ref, -1.0, 1.0))
 
 

@@ -70,12 +70,13 @@ def run(
     t0 = time.perf_counter()
     batch = make_batch(scenario, params, nsim, nthread)
     bound = simdata.bind_native(batch)  # before any call: outputs bound later read zero until the next call
-    init_state = jax.jit(jax.vmap(scenario.initial_state))(params, keys)
+    jitted = _jitted_inits(scenario)
+    init_state = jitted["initial_state"](params, keys)
     batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
     for name in ("qpos", "qvel", "ctrl", "mocap_pos", "mocap_quat"):
         batch.bind(name)[...] = np.asarray(getattr(init_state, name))
     batch.forward()
-    cstate, estate = jax.jit(jax.vmap(init_fn(scenario)))(params, simdata.from_native(bound))
+    cstate, estate = jitted["init"](params, simdata.from_native(bound))
     layout = _layout(bound)
     tick = _jitted_tick(scenario, layout)
     nu, nmocap = scenario.model.nu, scenario.model.nmocap
@@ -124,7 +125,7 @@ def run(
     t_loop = time.perf_counter() - t0 - t_setup
     final_data = simdata.from_native(bound)
     final = Final(final_data, cstate, estate, jnp.asarray(alive), jnp.asarray(t_div))
-    metrics = jax.jit(jax.vmap(scenario.summarize))(params, records, final)
+    metrics = jitted["summarize"](params, records, final)
     return {
         "records": records,
         "metrics": {k: np.asarray(v) for k, v in metrics.items()},
@@ -136,6 +137,21 @@ def run(
 
 
 _TICKS: dict[tuple, Any] = {}
+_INITS: dict[int, Any] = {}
+
+
+def _jitted_inits(scenario: Scenario) -> dict[str, Any]:
+    """The jitted, vmapped initial_state, controller/environment init and summarize of a
+    scenario, cached per scenario object so repeated rollouts do not re-trace them."""
+    key = id(scenario)
+    if key not in _INITS or _INITS[key][0] is not scenario:
+        fns = {
+            "initial_state": jax.jit(jax.vmap(scenario.initial_state)),
+            "init": jax.jit(jax.vmap(init_fn(scenario))),
+            "summarize": jax.jit(jax.vmap(scenario.summarize)),
+        }
+        _INITS[key] = (scenario, fns)
+    return _INITS[key][1]
 
 
 def _layout(bound: dict[str, np.ndarray]) -> tuple[tuple[str, int, tuple[int, ...]], ...]:

@@ -17,7 +17,7 @@ load exceeds a threshold). It owns the mocap bodies' poses.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import jax
@@ -150,8 +150,6 @@ class Scenario:
         return self.horizon * self.substeps
 
     def with_(self, **changes) -> Scenario:
-        from dataclasses import replace
-
         return replace(self, **changes)
 
 

@@ -313,8 +313,6 @@ def _moved_legs(k):
 
 def _matrix_to_quat(R):
     """Unit quaternion (w, x, y, z) of a rotation matrix (robust for any angle)."""
-    import jax.numpy as jnp
-
     m00, m11, m22 = R[0, 0], R[1, 1], R[2, 2]
     w = jnp.sqrt(jnp.maximum(0.0, 1 + m00 + m11 + m22)) / 2
     x = jnp.sqrt(jnp.maximum(0.0, 1 + m00 - m11 - m22)) / 2
