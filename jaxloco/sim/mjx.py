@@ -18,15 +18,20 @@ Gradients (`rollout_fn` is differentiable end to end):
     `while_loop`, which JAX cannot reverse-differentiate otherwise);
   * use float64 for gradient checks; contacts make the dynamics piecewise smooth, so
     finite differences need steps well inside one contact mode. Through the leg-grope
-    robot's stiff, nearly hard toe contacts (solref 0.004, solimp 0.99) forward-mode
-    and central differences disagreed over 40 ms (tests/test_sim.py checks the
-    contact-free case): tune through contacts with softer contact parameters or a
-    smoothed objective.
+    robot's earlier stiff, nearly hard toe contacts (solref 0.004, solimp 0.99)
+    forward-mode and central differences disagreed over 40 ms (tests/test_sim.py
+    checks the contact-free case): tune through contacts with soft contact parameters
+    or a smoothed objective.
+
+MJX has no no-slip post-solver: a model with `opt.noslip_iterations > 0` (the leg-grope
+robot) runs without it here, with a warning, and its loaded contacts creep a little as
+MuJoCo's soft friction does.
 """
 
 from __future__ import annotations
 
 import time
+import warnings
 from typing import Any
 
 import jax
@@ -45,6 +50,13 @@ def check_supported(scenario: Scenario) -> None:
         raise ValueError(
             f"mjx backend: per-simulation {', '.join(stale)} would leave derived constants stale; "
             "use the native backend for mass/inertia sweeps"
+        )
+    if scenario.model.opt.noslip_iterations > 0:
+        warnings.warn(
+            f"mjx backend: {scenario.name} uses MuJoCo's no-slip solver "
+            f"(noslip_iterations={scenario.model.opt.noslip_iterations}), which MJX does not have; "
+            "its contacts will creep more than on the native backend",
+            stacklevel=3,
         )
 
 

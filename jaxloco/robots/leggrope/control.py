@@ -11,12 +11,22 @@ For each groping leg g in the order L2, L1, L3, L4 (phases as `PHASES`):
   C*    then lower it along the normal until it touches (normal force > f_touch);
   D'-1  move the body to the COG position for the grope (from `gait.plan_cycle`): the
         groping leg's normal force grows as the COG approaches;
-  D'-2  push toe g down along the normal until its normal force exceeds R_ref.
+  D'-2  push toe g down along the normal until its normal force exceeds R_ref (the
+        push pauses while another leg is unloaded), while the body creeps (`v_creep`) towards the groped foothold, at most `grope_blend`
+        of the way from the COG target to it. Why the creep: the legs are stiff servos
+        and the body is rigid, so pushing one toe of a four-leg stance loads it and its
+        diagonal and unloads the other two (a twist); once one of them lifts off, more
+        push only tilts the body. From the plan's COG (margin -1.7 mm: the paper's
+        regions leave no room at R_ref = M g / 2) the groping leg stalls near
+        0.9 R_ref in simulation; moving the COG all the way at D'-1 instead puts it
+        outside the triangle of the other three legs, so that a collapse tips the
+        robot over. Creeping only while pushing moves the COG no farther than needed,
+        and pausing the push keeps the stance from twisting off a leg.
 If the normal force of the groping leg collapses during C*/D'-1/D'-2 (it falls below
 `collapse_fraction` of its peak, or the toe finds nothing within `probe_depth`), the
 foothold is taken as collapsed: the robot stays on its three other legs, moves its body
-back to the A' position and gropes a fallback foothold `fallback_fraction` of a stride
-short of the target (one retry; a second collapse stops the walk, status
+back to the A' position and gropes a fallback foothold `fallback_distance` from the
+target (`FALLBACK_DIRECTIONS`) (one retry; a second collapse stops the walk, status
 "no_foothold"). COG targets of every primary/fallback combination are planned at init
 (16 plans), so the step function has fixed shapes and no search.
 
@@ -45,6 +55,17 @@ PHASES = ("A'", "B'", "C", "C*", "D'-1", "D'-2", "done", "stopped")
 A, B, C, TOUCH, D1, D2, DONE, STOPPED = range(8)
 STATUSES = ("ok", "no_foothold", "timeout")
 ORDER = (1, 0, 2, 3)  # L2, L1, L3, L4
+# Where each leg gropes next when its target foothold fails: `fallback_distance` from the
+# target in these directions of the walking frame (u forward, v left), legs L1..L4. A
+# fixed-pattern crawl is sensitive to this: a fallback that merely shortens the stride
+# (what we tried first) leaves the *next* gropes infeasible (plan margins -28 to -30 mm
+# for L4 after L1 falls back, L1 after L2), because the later COG targets are planned
+# from the footholds actually taken. A search over offsets of 40 mm (pads must not
+# overlap) at theta 0, pi/12, 0.35 and psi 0, pi/2 (`benchmarks/leggrope_fallbacks.py`)
+# gives these directions: worst plan margin with one leg on its fallback -7.5 mm (L1),
+# -9.3 mm (L2), -3.5 mm (L3) and the primary plan's -1.7 mm (L4, nothing after it); with
+# two or three fallbacks in one cycle down to -19.8 mm.
+FALLBACK_DIRECTIONS = ((0.0, 1.0), (0.0, -1.0), (0.7071067811865476, 0.7071067811865476), (-1.0, 0.0))
 
 
 @dataclass(frozen=True)
@@ -59,11 +80,12 @@ class GropeSettings:
     clearance: float = 0.01  # C: the swing ends this far above the target [m]
     probe_depth: float = 0.03  # C*: give up (no foothold) this far below the target [m]
     v_push: float = 0.01  # D'-2: toe push speed [m/s]
+    v_creep: float = 0.005  # D'-2: body creep speed towards `body_reach` [m/s]
     push_depth: float = 0.03  # D'-2: deepest push below the touchdown point [m]
     swing_time: float = 0.8  # C [s]
     settle: float = 0.2  # pause at the end of A' and D'-1 [s]
     collapse_fraction: float = 0.3  # normal force below this fraction of its peak: collapsed
-    grope_tolerance: float = 0.05  # D'-2 ends at (1 - tolerance) R_ref (sensing tolerance; see below)
+    grope_tolerance: float = 0.05  # D'-2 ends at (1 - tolerance) R_ref: force-sensing tolerance (0.02 stalls the L1 grope: module doc)
     phase_timeout: float = 4.0  # any phase longer than this stops the walk [s]
     force_filter: float = 0.05  # time constant of the toe-force low-pass filter [s]
     collapse_min_peak: float = 0.15  # collapse detection needs a peak above this, fraction of M g
@@ -78,6 +100,8 @@ class WalkTargets:
     (4, 2, 3); normals0, cand_normals: their unit normals; body0: initial body origin;
     body_grope/body_safe: body origin for D'-1 / A' of grope k (0..3) under each of the
     16 primary/fallback combinations (bit g set: leg g used its fallback), (16, 4, 3);
+    body_reach: the farthest the body creeps during D'-2 (COG `grope_blend` of the way
+    from the grope's COG target towards the groped foothold), (16, 4, 3);
     R_GR: body attitude (parallel to the slope); r_ref [N]; margin: the plan's smallest
     geometric margin [m] (primary footholds)."""
 
@@ -88,6 +112,7 @@ class WalkTargets:
     body0: Array
     body_grope: Array
     body_safe: Array
+    body_reach: Array
     R_GR: Array
     r_ref: Array
     margin: Array
@@ -120,30 +145,37 @@ def robot_params(p: dict) -> LegGropeParams:
 
 def walk_targets(p: dict, key: Array) -> WalkTargets:
     """Plan the cycle for one simulation's parameters `p` (theta, psi, stride,
-    swing_height, facet_spread, fallback_fraction, safe_blend, r_ref_factor, mu) and
+    swing_height, facet_spread, fallback_distance, safe_blend, grope_blend, r_ref_factor, mu)
+    and
     terrain key."""
     robot = robot_params(p)
     walk = gait.WalkParams(stride=p["stride"], swing_height=p["swing_height"])
     terrain = terrain_of(p, key)
     dtype = jnp.asarray(p["theta"]).dtype
     primary = jnp.stack([jnp.full(4, walk.stride, dtype), jnp.asarray(walk.lateral, dtype)], axis=1)
-    fallback = primary.at[:, 0].multiply(1.0 - p["fallback_fraction"])
+    fallback = primary + p["fallback_distance"] * jnp.asarray(FALLBACK_DIRECTIONS, dtype)
     combos = np.array([[(c >> g) & 1 for g in range(4)] for c in range(16)], bool)
     steps = jnp.where(jnp.asarray(combos)[:, :, None], fallback[None], primary[None])  # (16, 4, 2)
     plans = jax.vmap(lambda s: gait.plan_cycle(robot, walk, terrain, steps=s))(steps)
 
-    def safe_bodies(plan):
+    def blended_bodies(plan):
+        """Body origins (4, 3) for A' (COG towards the centroid of the three stance feet)
+        and D'-1 (COG towards the groped foothold) of each grope."""
+
         def one(k):
             g = jnp.asarray(ORDER)[k]
             feet = plan.feet[k]
             others = jnp.where((jnp.arange(4) == g)[:, None], 0.0, feet)
             centroid = jnp.sum(others, axis=0)[:2] / 3.0
-            cog = plan.cog_target[k + 1] + p["safe_blend"] * (centroid - plan.cog_target[k + 1])
-            return gait.place_body(robot, terrain, plan.R_GR, feet, cog, 5)
+            cog = plan.cog_target[k + 1]
+            safe = cog + p["safe_blend"] * (centroid - cog)
+            reach = cog + p["grope_blend"] * (plan.feet[k + 1, g, :2] - cog)
+            return (gait.place_body(robot, terrain, plan.R_GR, feet, safe, 5),
+                    gait.place_body(robot, terrain, plan.R_GR, plan.feet[k + 1], reach, 5))
 
         return jax.vmap(one)(jnp.arange(4))
 
-    body_safe = jax.vmap(safe_bodies)(plans)
+    body_safe, body_reach = jax.vmap(blended_bodies)(plans)
     full = plans.feet[15, 4]  # every leg on its fallback
     cand = jnp.stack([plans.feet[0, 4], full], axis=1)  # (4, 2, 3)
     normals0 = terrain.normals[0]
@@ -155,6 +187,7 @@ def walk_targets(p: dict, key: Array) -> WalkTargets:
         cand_normals=cand_normals,
         body0=plans.body[0, 0],
         body_grope=plans.body[:, 1:],
+        body_reach=body_reach,
         body_safe=body_safe,
         R_GR=plans.R_GR[0],
         r_ref=robot.r_ref_factor * robot.total_mass * G * jnp.cos(p["theta"]),
@@ -200,7 +233,7 @@ def make_controller(settings: GropeSettings = GropeSettings()):
         kk = jnp.minimum(s.k, 3)
         g = order[kk]
         combo = s.bits | (s.cand << g)
-        b_safe, b_grope = t.body_safe[combo, kk], t.body_grope[combo, kk]
+        b_safe, b_grope, b_reach = t.body_safe[combo, kk], t.body_grope[combo, kk], t.body_reach[combo, kk]
         n_tgt = t.cand_normals[g, s.cand]
         n_now = jnp.where(s.phase <= B, t.normals0[g], n_tgt)  # the foothold toe g is on / aims at
         target = t.cand[g, s.cand] + TOE_RADIUS * n_tgt
@@ -216,16 +249,22 @@ def make_controller(settings: GropeSettings = GropeSettings()):
         # the commanded body and groping toe in each phase, and whether the phase is over
         body_a, t_a = _move(s.body_from, b_safe, tau, *robot_a)
         body_d1, t_d1 = _move(s.body_from, b_grope, tau, *robot_a)
+        creep = b_reach - s.body_cmd
+        creep_len = jnp.linalg.norm(creep)
+        body_d2 = s.body_cmd + creep * jnp.minimum(1.0, s_.v_creep * dt / jnp.where(creep_len > 0, creep_len, 1.0))
         toe_b = s.toe_cmd[g] + s_.v_lift * dt * n_now
         frac = jnp.clip(tau / s_.swing_time, 0.0, 1.0)
         lift = p["swing_height"] * jnp.sin(jnp.pi * frac)
         toe_c = s.toe_from + (above - s.toe_from) * gait.min_jerk(frac) + lift * n_tgt
         toe_touch = s.toe_cmd[g] - s_.v_touch * dt * n_tgt
-        toe_push = s.toe_cmd[g] - s_.v_push * dt * n_tgt
+        # D'-2 pushes only while the other three legs all carry load: once one lifts
+        # off, more push would only tilt the body, and the body's creep does the rest
+        others_loaded = jnp.min(jnp.where(jnp.arange(4) == g, jnp.inf, force @ n_now)) > s_.f_zero * mg
+        toe_push = s.toe_cmd[g] - jnp.where(others_loaded, s_.v_push * dt, 0.0) * n_tgt
         depth = jnp.dot(above - s.toe_cmd[g], n_tgt)  # how far below `above` the toe is commanded
 
         ph = s.phase
-        body = jnp.select([ph == A, ph == D1], [body_a, body_d1], s.body_cmd)
+        body = jnp.select([ph == A, ph == D1, ph == D2], [body_a, body_d1, body_d2], s.body_cmd)
         toe_g = jnp.select([ph == B, ph == C, ph == TOUCH, ph == D2], [toe_b, toe_c, toe_touch, toe_push], s.toe_cmd[g])
         f_peak = jnp.where((ph == D1) | (ph == D2) | (ph == TOUCH), jnp.maximum(s.f_peak, f_n), 0.0)
 

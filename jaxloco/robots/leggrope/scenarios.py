@@ -13,7 +13,7 @@ the target pads, Mg U(r_break_lo, r_break_hi) with probability p_weak (else infi
 
 Parameters (one dict per simulation, see `PARAM_DEFAULTS`): theta, psi [rad]; mu;
 r_ref_factor (R_ref = factor M g cos theta); stride, swing_height [m]; facet_spread
-[rad]; fallback_fraction; p_weak; r_break_lo, r_break_hi [M g]; weak_leg (int, -1 none).
+[rad]; fallback_distance [m]; safe_blend, grope_blend; p_weak; r_break_lo, r_break_hi [M g]; weak_leg (int, -1 none).
 """
 
 from __future__ import annotations
@@ -53,8 +53,9 @@ PARAM_DEFAULTS: dict[str, float] = {
     "stride": 0.06,
     "swing_height": 0.03,
     "facet_spread": 0.0,
-    "fallback_fraction": 0.5,
+    "fallback_distance": 0.04,
     "safe_blend": 0.25,
+    "grope_blend": 0.1,
     "p_weak": 0.0,
     "r_break_lo": 0.35,
     "r_break_hi": 0.45,
@@ -254,11 +255,20 @@ def _standing_q() -> np.ndarray:
     return np.concatenate(qs)
 
 
-def standing_scenario(horizon: int = 10, substeps: int = 5, record_every: int = 1) -> Scenario:
+def standing_scenario(horizon: int = 10, substeps: int = 5, record_every: int = 1, mjx_contacts: bool = True
+                      ) -> Scenario:
     """A small scenario for tests and benchmarks: stand on a flat box (top at params['ground'] m), joint targets = standing pose plus
     params['offset'] on every knee, with a 2 Hz wiggle of the L1 yaw joint; params
-    ['kick'] is added to the initial vertical body velocity."""
+    ['kick'] is added to the initial vertical body velocity.
+
+    mjx_contacts: contacts that both backends simulate alike (pyramidal cone, no
+    no-slip solver; MJX has no no-slip solver, and its elliptic cone gives NaN
+    forward-mode derivatives even with no contact active, measured with mujoco-mjx
+    3.x); False keeps the robot model's own contact options."""
     spec = model.load_spec()
+    if mjx_contacts:
+        spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+        spec.option.noslip_iterations = 0
     ground = tr.flat(half_extent=2.0, half_depth=0.2)
     ground.add_to(spec)
     m = spec.compile()
