@@ -1,0 +1,343 @@
+"""The MJCF model of the e-OCTOPUS (Table 3, Fig. 3): `models/octopus.xml`.
+
+Generated from `params.py` by `python -m jaxloco.robots.octopus.model --write`; a test
+checks that the committed file is in sync. `load_spec` / `load_model` read it back (a
+scenario adds its terrain to the spec).
+
+Structure ({R} = the `chassis` body frame, see `params.py`; 100 kg in all):
+  * chassis: free joint `root`; a colliding box (500 x 300 x 360 mm, 123 mm ground
+    clearance) and non-colliding battery, arm deck and crawler side frames carrying most
+    of the mass low (COG 210 mm below {R}, 273 mm above flat ground); the `imu` site at
+    the origin with `imu_quat` (framequat), `imu_gyro`, `imu_acc`;
+  * two main crawlers (y = +-250 mm), each a row of MAIN_WHEELS = 6 sphere wheels of
+    radius 90 mm over the 500 mm body length, and four flippers `flipper_fl/fr/rl/rr`
+    pivoting on the crawler end axles, each carrying FLIPPER_WHEELS = 3 sphere wheels
+    tapering from 78 to 55 mm up to the tip at 250 mm (flipper length, Table 3); flipper
+    angle 0 continues the crawler's bottom line, > 0 lifts the tip, limits +-85 deg;
+  * arms `arm1..4` (1 LF, 2 RF, 3 LR, 4 RR) at (+-m/2, +-n/2, 0): hinges `arm{i}_swing`
+    (z), `arm{i}_boom` (y; > 0 lowers the boom), `arm{i}_elbow` (y, d3 to the right of the
+    boom end), the forearm (l2 to the roller centre), then the passive two-axis roller:
+    hinges `arm{i}_roller_a` (forearm z) and `arm{i}_roller_b` (y) and a sphere of radius
+    50 mm. The site `arm{i}_tip` at the roller centre is the EPRA of Eqs. 1-6;
+  * contact-point sites for the stability margin: `crawler_{l,r}_{front,rear}` under the
+    main crawler end axles and `flipper_*_tip` under the flipper tip wheels (the contact
+    points when the crawler / flipper bottom line rests on a plane);
+  * actuators (ctrl order `params.ACTUATOR_NAMES`): `crawler_l`, `crawler_r` velocity
+    servos [m/s, +-63 mm/s] on a tendon per side; position servos [rad] on the four
+    flippers and twelve arm joints, with torque limits; sensors: joint encoders
+    `<joint>_pos`, `<actuator>_torque` (actuatorfrc), crawler encoders `crawler_*_pos`,
+    `crawler_*_vel` (tendon, [m]);
+  * keyframes `home` (Table 2 start pose, standing on flat ground z = 0) and `envelope`
+    (the Table 3 envelope pose, `params.ENVELOPE_POSE`).
+
+How faithful the crawlers are: a track is modelled as a row of driven sphere wheels. The
+wheels of one side (main crawler and both flippers) are coupled by joint equalities so
+that their rims move at one speed, like one belt, and one velocity servo per side drives
+them through a fixed tendon whose length is the mean rim travel [m]: ctrl is the track
+speed and the tendon force the total traction of that side. Spheres give one contact each
+(cheap, robust on box terrain); the wheels overlap, so the underside has only 6 mm deep
+notches between main wheels (with 4 wheels per side, 17 mm notches caught step edges
+and the robot stalled on a 200 mm step). No grousers, no belt over the top, flipper
+pivots on the end axles as on most flipper robots. Measured with the arms held level and
+a scripted flipper sequence (flippers raised 1.2-1.3 rad while approaching, lowered to 0
+once the front stalls at the edge): 150 and 200 mm steps are climbed at 63 mm/s; at 250
+and 300 mm the robot turns over backwards, and 400 mm is out of reach, as the paper
+reports for its crawler-only mode (steps < 250 mm, "the length of flippers").
+Collision bits follow `jaxloco.sim.terrain` (robot contype 1 / conaffinity 2, terrain
+2 / 1): the robot collides with terrain pieces, never with itself. Robot friction is
+lower than the terrain's default so that MuJoCo's max rule lets the terrain decide.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from jaxloco.analysis import SpecError
+from jaxloco.robots.octopus import params as P
+
+MODEL_PATH = Path(__file__).resolve().parents[3] / "models" / "octopus.xml"
+TIMESTEP = 0.002  # [s]
+ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 2  # = jaxloco.sim.terrain.ROBOT_* (tested)
+
+# Arm servos (swing, boom, elbow): stiffness [N m/rad], damping [N m s/rad], torque limit
+# [N m]. The boom carries most of the load when the arms lift the body (Eq. 28).
+ARM_KP = (1000.0, 3000.0, 2000.0)
+ARM_KV = (60.0, 120.0, 80.0)
+ARM_TAU = (150.0, 400.0, 300.0)
+ARM_RANGE = ((-3.1, 3.1), (-0.5 * math.pi - 0.1, 1.3), (-0.5, 2.8))  # [rad]
+ARM_ARMATURE = 0.2  # reflected rotor inertia [kg m^2]
+FLIPPER_KP, FLIPPER_KV, FLIPPER_TAU = 2000.0, 60.0, 200.0
+FLIPPER_ARMATURE = 0.2
+CRAWLER_KV = 10000.0  # track velocity servo gain [N/(m/s)]
+CRAWLER_FORCE = 600.0  # traction limit per side [N]
+WHEEL_ARMATURE = 0.01
+ROLLER_DAMPING, ROLLER_ARMATURE = 0.01, 0.002
+FRICTION = (0.8, 0.005, 0.0001)
+BOOM_RADIUS, FOREARM_RADIUS = 0.030, 0.025
+CHASSIS_HALF = (0.25, 0.15, 0.18)  # colliding chassis box half sizes [m]
+CHASSIS_Z = -0.18  # its centre in {R}: bottom at -0.36 m, ground clearance 0.123 m
+VISUAL = {"contype": 0, "conaffinity": 0, "group": 1}
+COLLIDE = {"contype": ROBOT_CONTYPE, "conaffinity": ROBOT_CONAFFINITY, "condim": 3, "friction": list(FRICTION)}
+
+_SPHERE, _CAPSULE, _BOX = mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_CAPSULE, mujoco.mjtGeom.mjGEOM_BOX
+_HINGE = mujoco.mjtJoint.mjJNT_HINGE
+_LIMITED = mujoco.mjtLimited.mjLIMITED_TRUE
+
+
+def main_wheel_x() -> np.ndarray:
+    """x of the main crawler axles in {R} [m], rear to front."""
+    return np.linspace(-P.MAIN_AXLE_X, P.MAIN_AXLE_X, P.MAIN_WHEELS)
+
+
+def flipper_wheels() -> tuple[np.ndarray, np.ndarray]:
+    """Distances of the flipper wheels from the pivot along the flipper [m] and their
+    radii [m] (linear taper from the main wheel to the tip wheel, so all are tangent to
+    the flipper's bottom line)."""
+    s = np.linspace(0.0, P.FLIPPER_LENGTH, P.FLIPPER_WHEELS + 1)[1:]
+    radius = P.MAIN_WHEEL_RADIUS + (P.FLIPPER_TIP_RADIUS - P.MAIN_WHEEL_RADIUS) * s / P.FLIPPER_LENGTH
+    return s, radius
+
+
+def wheel_names(side: str) -> list[str]:
+    """Wheel joint names of one side ("l" or "r"): main wheels rear to front, then the
+    front and rear flipper wheels."""
+    main = [f"wheel_{side}{k + 1}" for k in range(P.MAIN_WHEELS)]
+    flips = [f"flipper_{fr}{side}_w{k + 1}" for fr in ("f", "r") for k in range(P.FLIPPER_WHEELS)]
+    return main + flips
+
+
+def home_arm_angles() -> np.ndarray:
+    """Arm joint angles (4, 3) [rad] of the Table 2 start pose (closed-form IK in NumPy,
+    the same formulas as `kinematics.inverse_kinematics`; tested equal)."""
+    out = np.zeros((4, 3))
+    for k in range(4):
+        base = np.array([P.ARM_SIGNS[k, 0] * 0.5 * P.ARM_BASE_M, P.ARM_SIGNS[k, 1] * 0.5 * P.ARM_BASE_N, 0.0])
+        x, y, z = P.TABLE2_INIT[k] - base
+        r = math.sqrt(x * x + y * y - P.D3 ** 2)
+        t1 = math.atan2(y, x) + math.atan2(P.D3, r)
+        dist2 = r * r + z * z
+        t3 = math.acos((dist2 - P.L1 ** 2 - P.L2 ** 2) / (2 * P.L1 * P.L2))
+        t2 = math.atan2(-z, r) - math.atan2(P.L2 * math.sin(t3), P.L1 + P.L2 * math.cos(t3))
+        out[k] = [math.atan2(math.sin(t1), math.cos(t1)), t2, t3]
+    return np.round(out, 6)
+
+
+def build_spec() -> mujoco.MjSpec:
+    """The robot alone (no terrain) as an MjSpec, from the constants in `params.py`."""
+    spec = mujoco.MjSpec()
+    spec.modelname = "octopus"
+    spec.compiler.degree = False
+    spec.option.timestep = TIMESTEP
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+    spec.option.iterations = 20
+    spec.option.ls_iterations = 10
+
+    chassis = spec.worldbody.add_body(name="chassis", pos=[0, 0, P.BASE_HEIGHT])
+    chassis.add_freejoint(name="root")
+    chassis.add_geom(name="chassis", type=_BOX, size=list(CHASSIS_HALF), pos=[0, 0, CHASSIS_Z],
+                     mass=P.MASS_CHASSIS, rgba=[0.85, 0.65, 0.15, 1], **COLLIDE)
+    chassis.add_geom(name="battery", type=_BOX, size=[0.20, 0.12, 0.05], pos=[0, 0, -0.30], mass=P.MASS_BATTERY,
+                     rgba=[0.2, 0.2, 0.2, 1], **VISUAL)
+    chassis.add_geom(name="deck", type=_BOX, size=[0.28, 0.28, 0.025], pos=[0, 0, -0.025], mass=P.MASS_DECK,
+                     rgba=[0.85, 0.65, 0.15, 1], **VISUAL)
+    axle_z = P.MAIN_WHEEL_RADIUS - P.BASE_HEIGHT
+    for side, sy in (("l", 1.0), ("r", -1.0)):
+        chassis.add_geom(name=f"frame_{side}", type=_BOX, size=[P.MAIN_AXLE_X, 0.03, 0.06],
+                         pos=[0, sy * P.CRAWLER_Y, axle_z], mass=P.MASS_SIDE_FRAME, rgba=[0.25, 0.25, 0.25, 1],
+                         **VISUAL)
+        for end, sx in (("front", 1.0), ("rear", -1.0)):
+            chassis.add_site(name=f"crawler_{side}_{end}", pos=[sx * P.MAIN_AXLE_X, sy * P.CRAWLER_Y, -P.BASE_HEIGHT],
+                             size=[0.01, 0, 0])
+        for k, x in enumerate(main_wheel_x()):
+            wheel = chassis.add_body(name=f"wheel_{side}{k + 1}", pos=[float(x), sy * P.CRAWLER_Y, axle_z])
+            wheel.add_joint(name=f"wheel_{side}{k + 1}", type=_HINGE, axis=[0, 1, 0], armature=WHEEL_ARMATURE)
+            wheel.add_geom(name=f"wheel_{side}{k + 1}", type=_SPHERE, size=[P.MAIN_WHEEL_RADIUS, 0, 0],
+                           mass=P.MASS_MAIN_WHEEL, rgba=[0.1, 0.1, 0.1, 1], **COLLIDE)
+    chassis.add_site(name="imu", size=[0.01, 0, 0])
+
+    dist, radii = flipper_wheels()
+    for name, (sf, sy) in zip(P.FLIPPER_NAMES, P.FLIPPER_SIGNS):
+        side = "l" if sy > 0 else "r"
+        direction = np.array([sf * math.cos(P.FLIPPER_DIP), 0.0, -math.sin(P.FLIPPER_DIP)])
+        flipper = chassis.add_body(name=name, pos=[sf * P.MAIN_AXLE_X, sy * P.CRAWLER_Y, axle_z])
+        flipper.add_joint(name=name, type=_HINGE, axis=[0, -sf, 0], range=[-P.FLIPPER_LIMIT, P.FLIPPER_LIMIT],
+                          limited=_LIMITED, armature=FLIPPER_ARMATURE, damping=1.0)
+        tip = P.FLIPPER_LENGTH * direction
+        flipper.add_geom(name=f"{name}_frame", type=_CAPSULE, size=[0.02, 0, 0], fromto=[0, 0, 0, *tip.tolist()],
+                         mass=P.MASS_FLIPPER_FRAME, rgba=[0.25, 0.25, 0.25, 1], **VISUAL)
+        flipper.add_site(name=f"{name}_tip", pos=(tip - np.array([0, 0, P.FLIPPER_TIP_RADIUS])).tolist(),
+                         size=[0.01, 0, 0])
+        for k, (s, rad) in enumerate(zip(dist, radii)):
+            wname = f"flipper_{'f' if sf > 0 else 'r'}{side}_w{k + 1}"
+            wheel = flipper.add_body(name=wname, pos=(s * direction).tolist())
+            wheel.add_joint(name=wname, type=_HINGE, axis=[0, 1, 0], armature=WHEEL_ARMATURE)
+            wheel.add_geom(name=wname, type=_SPHERE, size=[float(rad), 0, 0], mass=P.MASS_FLIPPER_WHEEL,
+                           rgba=[0.1, 0.1, 0.1, 1], **COLLIDE)
+
+    for k, arm in enumerate(P.ARM_NAMES):
+        base = [P.ARM_SIGNS[k, 0] * 0.5 * P.ARM_BASE_M, P.ARM_SIGNS[k, 1] * 0.5 * P.ARM_BASE_N, 0.0]
+        swing = chassis.add_body(name=f"{arm}_swing", pos=base)
+        _arm_joint(swing, f"{arm}_swing", [0, 0, 1], 0)
+        swing.add_geom(name=f"{arm}_shoulder", type=_SPHERE, size=[0.06, 0, 0], mass=P.MASS_SHOULDER,
+                       rgba=[0.3, 0.3, 0.35, 1], **VISUAL)
+        boom = swing.add_body(name=f"{arm}_boom")
+        _arm_joint(boom, f"{arm}_boom", [0, 1, 0], 1)
+        boom.add_geom(name=f"{arm}_boom", type=_CAPSULE, size=[BOOM_RADIUS, 0, 0], fromto=[0, 0, 0, P.L1, 0, 0],
+                      mass=P.MASS_BOOM, rgba=[0.85, 0.65, 0.15, 1], **COLLIDE)
+        fore = boom.add_body(name=f"{arm}_forearm", pos=[P.L1, -P.D3, 0])
+        _arm_joint(fore, f"{arm}_elbow", [0, 1, 0], 2)
+        fore.add_geom(name=f"{arm}_forearm", type=_CAPSULE, size=[FOREARM_RADIUS, 0, 0],
+                      fromto=[0, 0, 0, P.L2 - P.ROLLER_RADIUS, 0, 0], mass=P.MASS_FOREARM,
+                      rgba=[0.85, 0.65, 0.15, 1], **COLLIDE)
+        fore.add_site(name=f"{arm}_tip", pos=[P.L2, 0, 0], size=[0.01, 0, 0])
+        roller = fore.add_body(name=f"{arm}_roller", pos=[P.L2, 0, 0])
+        for jname, axis in (("roller_a", [0, 0, 1]), ("roller_b", [0, 1, 0])):
+            roller.add_joint(name=f"{arm}_{jname}", type=_HINGE, axis=axis, damping=ROLLER_DAMPING,
+                             armature=ROLLER_ARMATURE)
+        roller.add_geom(name=f"{arm}_roller", type=_SPHERE, size=[P.ROLLER_RADIUS, 0, 0], mass=P.MASS_ROLLER,
+                        rgba=[0.1, 0.1, 0.1, 1], **COLLIDE)
+
+    # Tracks: joint equalities tie every wheel of a side to its first main wheel (equal rim
+    # speeds), and a tendon (mean rim travel [m]) carries the side's velocity servo.
+    for side in ("l", "r"):
+        names = wheel_names(side)
+        rad = _wheel_radii()
+        tendon = spec.add_tendon(name=f"crawler_{side}")
+        for jn in names:
+            tendon.wrap_joint(jn, rad[jn] / len(names))
+        for jn in names[1:]:
+            eq = spec.add_equality(name=f"track_{jn}", type=mujoco.mjtEq.mjEQ_JOINT, name1=jn, name2=names[0],
+                                   objtype=mujoco.mjtObj.mjOBJ_JOINT)
+            data = np.array(eq.data)
+            data[:5] = [0.0, rad[names[0]] / rad[jn], 0.0, 0.0, 0.0]
+            eq.data = data
+            eq.solref = [0.01, 1.0]
+
+    for side in ("l", "r"):
+        act = spec.add_actuator(name=f"crawler_{side}", target=f"crawler_{side}", trntype=mujoco.mjtTrn.mjTRN_TENDON)
+        act.set_to_velocity(kv=CRAWLER_KV)
+        _limits(act, (-P.CRAWLER_MAX_SPEED, P.CRAWLER_MAX_SPEED), CRAWLER_FORCE)
+    for name in P.FLIPPER_NAMES:
+        act = spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        act.set_to_position(kp=FLIPPER_KP, kv=FLIPPER_KV)
+        _limits(act, (-P.FLIPPER_LIMIT, P.FLIPPER_LIMIT), FLIPPER_TAU)
+    for arm in P.ARM_NAMES:
+        for j, joint in enumerate(P.ARM_JOINTS):
+            act = spec.add_actuator(name=f"{arm}_{joint}", target=f"{arm}_{joint}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+            act.set_to_position(kp=ARM_KP[j], kv=ARM_KV[j])
+            _limits(act, ARM_RANGE[j], ARM_TAU[j])
+
+    sens = mujoco.mjtSensor
+    for name in P.FLIPPER_NAMES + tuple(f"{a}_{j}" for a in P.ARM_NAMES for j in P.ARM_JOINTS):
+        spec.add_sensor(name=f"{name}_pos", type=sens.mjSENS_JOINTPOS, objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=name)
+    for name in P.FLIPPER_NAMES + tuple(f"{a}_{j}" for a in P.ARM_NAMES for j in P.ARM_JOINTS):
+        spec.add_sensor(name=f"{name}_torque", type=sens.mjSENS_ACTUATORFRC, objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
+                        objname=name)
+    for side in ("l", "r"):
+        for kind, stype in (("pos", sens.mjSENS_TENDONPOS), ("vel", sens.mjSENS_TENDONVEL)):
+            spec.add_sensor(name=f"crawler_{side}_{kind}", type=stype, objtype=mujoco.mjtObj.mjOBJ_TENDON,
+                            objname=f"crawler_{side}")
+        spec.add_sensor(name=f"crawler_{side}_force", type=sens.mjSENS_ACTUATORFRC,
+                        objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=f"crawler_{side}")
+    for name, stype in (("imu_quat", sens.mjSENS_FRAMEQUAT), ("imu_gyro", sens.mjSENS_GYRO),
+                        ("imu_acc", sens.mjSENS_ACCELEROMETER)):
+        spec.add_sensor(name=name, type=stype, objtype=mujoco.mjtObj.mjOBJ_SITE, objname="imu")
+
+    model = spec.compile()
+    for key, arms in (("home", home_arm_angles()), ("envelope", P.ENVELOPE_POSE)):
+        qpos, ctrl = pose_qpos_ctrl(model, arms)
+        spec.add_key(name=key, qpos=qpos.tolist(), ctrl=ctrl.tolist())
+    return spec
+
+
+def pose_qpos_ctrl(model: mujoco.MjModel, arms: np.ndarray, flippers: np.ndarray | None = None,
+                   base_height: float = P.BASE_HEIGHT) -> tuple[np.ndarray, np.ndarray]:
+    """qpos (chassis level at `base_height`, arms (4, 3) and flippers (4,) [rad], wheels
+    and rollers 0) and the matching ctrl (crawlers stopped, servos holding the pose)."""
+    flippers = np.zeros(4) if flippers is None else np.asarray(flippers, float)
+    qpos = model.qpos0.copy()
+    qpos[:7] = [0, 0, base_height, 1, 0, 0, 0]
+    ctrl = np.zeros(model.nu)
+    for k, name in enumerate(P.FLIPPER_NAMES):
+        qpos[model.joint(name).qposadr[0]] = flippers[k]
+        ctrl[model.actuator(name).id] = flippers[k]
+    for k, arm in enumerate(P.ARM_NAMES):
+        for j, joint in enumerate(P.ARM_JOINTS):
+            qpos[model.joint(f"{arm}_{joint}").qposadr[0]] = arms[k][j]
+            ctrl[model.actuator(f"{arm}_{joint}").id] = arms[k][j]
+    return qpos, ctrl
+
+
+def _wheel_radii() -> dict[str, float]:
+    out = {}
+    _, radii = flipper_wheels()
+    for side in ("l", "r"):
+        for k in range(P.MAIN_WHEELS):
+            out[f"wheel_{side}{k + 1}"] = P.MAIN_WHEEL_RADIUS
+        for fr in ("f", "r"):
+            for k in range(P.FLIPPER_WHEELS):
+                out[f"flipper_{fr}{side}_w{k + 1}"] = float(radii[k])
+    return out
+
+
+def _arm_joint(body: mujoco.MjsBody, name: str, axis: list[float], j: int) -> None:
+    body.add_joint(name=name, type=_HINGE, axis=axis, range=list(ARM_RANGE[j]), limited=_LIMITED,
+                   armature=ARM_ARMATURE, damping=1.0)
+
+
+def _limits(act: mujoco.MjsActuator, ctrlrange: tuple[float, float], force: float) -> None:
+    act.ctrllimited = _LIMITED
+    act.ctrlrange = list(ctrlrange)
+    act.forcelimited = _LIMITED
+    act.forcerange = [-force, force]
+
+
+def load_spec(path: str | Path | None = None) -> mujoco.MjSpec:
+    """The robot MJCF (default `models/octopus.xml`) as an MjSpec; SpecError (one line)
+    for a missing or broken file."""
+    path = Path(path) if path is not None else MODEL_PATH
+    if not path.is_file():
+        raise SpecError(f"model file not found: {path}")
+    try:
+        return mujoco.MjSpec.from_file(str(path))
+    except (ValueError, RuntimeError) as exc:  # mujoco: ValueError with a multi-line message
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise SpecError(f"broken MJCF {path}: {first}") from None
+
+
+def load_model(path: str | Path | None = None) -> mujoco.MjModel:
+    """`load_spec(path)` compiled; SpecError (one line) if it does not compile."""
+    spec = load_spec(path)
+    try:
+        return spec.compile()
+    except (ValueError, RuntimeError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise SpecError(f"MJCF {path or MODEL_PATH} does not compile: {first}") from None
+
+
+def xml_text() -> str:
+    spec = build_spec()
+    spec.compile()
+    return spec.to_xml()
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--write", action="store_true", help=f"write {MODEL_PATH}")
+    args = parser.parse_args(argv)
+    text = xml_text()
+    if args.write:
+        MODEL_PATH.write_text(text)
+        print(f"wrote {MODEL_PATH}")
+    else:
+        print(text)
+
+
+if __name__ == "__main__":
+    main()
