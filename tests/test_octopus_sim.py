@@ -1,0 +1,63 @@
+"""OCTOPUS step scenarios (native backend) and the CCM baseline controller: per-simulation
+terrain, driving speed on flat ground, and the crawler-only climbing limit (paper: CCM
+fails the 400 mm step)."""
+
+import numpy as np
+import pytest
+
+from jaxloco.robots.octopus import ccm, scenarios
+from jaxloco.robots.octopus import params as P
+from jaxloco.sim import terrain as tr
+from jaxloco.sim.rollout import rollout
+
+
+def test_step_height_differs_per_simulation():
+    sc = scenarios.make_scenario("step1", horizon_s=0.5, record_every=5)
+    heights = np.array([0.15, 0.4])
+    r = rollout(sc, scenarios.params_batch(2, height=heights, mu=np.array([0.6, 1.0])), nthread=2)
+    assert (r.status != "diverged").all()
+    _, terrain = scenarios.build_model("step1")
+    rows = tr.mocap_ids(sc.model, terrain)
+    mocap = np.asarray(r.final.data.mocap_pos)[:, rows]
+    # pieces: floor, left0, right0; the terrace tops rise with the height
+    half_z = terrain.pieces[1].half_size[2]
+    np.testing.assert_allclose(mocap[:, 1, 2] + half_z, heights, atol=1e-9)
+    np.testing.assert_allclose(mocap[:, 2, 2] + half_z, heights, atol=1e-9)
+    # records and metrics have their shapes; the robot stands on the floor with its
+    # crawlers (4 end sites) and rear flippers in contact, stable
+    assert r.records["rpy"].shape == (2, sc.n_records, 3)
+    assert r.records["flipper_q"].shape == (2, sc.n_records, 4)
+    assert r.records["contact"][:, -1].sum(-1).min() >= 6
+    assert (r.metrics["min_margin"] > 0.03).all()
+    assert not r.metrics["success"].any()
+
+
+def test_ccm_drives_at_commanded_speed_on_flat_ground():
+    sc = scenarios.make_scenario("flat", horizon_s=4.0, record_every=25)
+    speed = 0.05
+    r = rollout(sc, scenarios.params_batch(1, speed=speed), nthread=1)
+    x, t = r.records["pos"][0, :, 0], r.times
+    v = (x[-1] - x[2]) / (t[-1] - t[2])
+    assert v == pytest.approx(speed, rel=0.05)
+    assert r.metrics["max_abs_roll"][0] < 0.01 and abs(r.metrics["max_pitch"][0]) < 0.01
+    # flippers held by the policy: front raised, rear level
+    np.testing.assert_allclose(r.records["flipper_q"][0, -1], [1.2, 1.2, 0.0, 0.0], atol=0.03)
+
+
+def test_ccm_climbs_150mm_and_fails_400mm():
+    """The automatic CCM policy climbs a 150 mm step; 400 mm is beyond the flippers (the
+    paper: crawler-only climbing < 250 mm, CCM success 0% on 400 mm)."""
+    sc = scenarios.make_scenario("step1", horizon_s=22.0, record_every=25)
+    r = rollout(sc, scenarios.params_batch(2, height=np.array([0.15, 0.4]), distance=0.5), nthread=2)
+    assert (r.status != "diverged").all()
+    low, high = r.row(0), r.row(1)
+    assert low["success"] and low["status"] == "ok"
+    assert 0.0 < low["climb_time"] < 22.0
+    assert low["final_z"] > 0.15 + 0.2  # the COG on the step
+    assert 0.1 < low["max_pitch"] < 0.6 and low["max_abs_roll"] < 0.05
+    assert np.isfinite(low["min_margin"])
+    # the policy went through its phases: obstacle seen, climbed, levelled
+    assert {ccm.LOWER, ccm.PUSH, ccm.LEVEL} <= set(r.records["phase"][0].tolist())
+    assert not high["success"] and high["status"] == "failed"
+    assert high["final_x"] < 0.5  # stuck at the riser
+    assert P.CRAWLER_MAX_SPEED == pytest.approx(scenarios.PARAM_DEFAULTS["speed"])
