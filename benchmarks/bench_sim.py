@@ -19,15 +19,26 @@ import time
 import numpy as np
 
 
-def native_open_loop(model, batch: int, steps: int, nthread: int) -> float:
-    import mujoco.batch
+def native_open_loop(scenario, params, steps: int, nthread: int) -> float:
+    """Physics steps/s of the scenario's batch with no controller: the same model, model
+    fields and initial state as the closed loop (robots standing, toes loaded), the
+    initial joint targets held, all `steps` in one `Batch.step` call."""
+    import jax
+    import mujoco
 
-    b = mujoco.batch.Batch(model, batch, nthread)
-    b.reset()
+    from jaxloco.sim import native
+
+    n = len(next(iter(params.values())))
+    b = native.make_batch(scenario, params, n, nthread)
+    init = jax.jit(jax.vmap(scenario.initial_state))(params, jax.random.split(jax.random.PRNGKey(0), n))
+    b.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
+    for name in ("qpos", "qvel", "ctrl", "mocap_pos", "mocap_quat"):
+        b.bind(name)[...] = np.asarray(getattr(init, name))
+    b.forward()
     b.step(nstep=10)  # warm up
     t = time.perf_counter()
     b.step(nstep=steps)
-    return batch * steps / (time.perf_counter() - t)
+    return n * steps / (time.perf_counter() - t)
 
 
 def closed_loop(scenario, params, backend: str, nthread: int = 0) -> tuple[float, float]:
@@ -74,8 +85,7 @@ def main() -> None:
 
     print(f"{'batch':>6} {'native open':>14} {'native closed':>14} {'closed/open':>12}")
     for n in args.batches:
-        steps = max(200, 200_000 // n)
-        open_ = native_open_loop(sc.model, n, steps, args.nthread)
+        open_ = native_open_loop(sc, params(n), sc.physics_steps, args.nthread)
         closed, _ = closed_loop(sc, params(n), "native", args.nthread)
         print(f"{n:>6} {open_:>14,.0f} {closed:>14,.0f} {closed / open_:>12.2f}")
 

@@ -70,6 +70,8 @@ def run(
     t0 = time.perf_counter()
     batch = make_batch(scenario, params, nsim, nthread)
     bound = simdata.bind_native(batch)  # before any call: outputs bound later read zero until the next call
+    # the inputs written every period, bound once (attribute access re-binds each time)
+    inputs = {name: batch.bind(name) for name in ("ctrl", "mocap_pos", "mocap_quat")}
     jitted = _jitted_inits(scenario)
     init_state = jitted["initial_state"](params, keys)
     batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
@@ -104,13 +106,13 @@ def run(
             if not ids.size:
                 break
             if ids.size == nsim:
-                batch.ctrl[...] = ctrl
-                batch.mocap_pos[...] = mocap_pos
-                batch.mocap_quat[...] = mocap_quat
+                inputs["ctrl"][...] = ctrl
+                inputs["mocap_pos"][...] = mocap_pos
+                inputs["mocap_quat"][...] = mocap_quat
             else:
-                batch.ctrl[ids] = ctrl[ids]
-                batch.mocap_pos[ids] = mocap_pos[ids]
-                batch.mocap_quat[ids] = mocap_quat[ids]
+                inputs["ctrl"][ids] = ctrl[ids]
+                inputs["mocap_pos"][ids] = mocap_pos[ids]
+                inputs["mocap_quat"][ids] = mocap_quat[ids]
             _step(batch, ids, scenario.substeps, alive, t_div)
             warned = (batch.warning[:, warn_idx, 1].sum(axis=1) > warnings0) & alive
             _mark(alive, t_div, warned, batch.time)
