@@ -155,6 +155,7 @@ class Analysis:
 _BUILTIN: dict[str, str] = {
     "leggrope.slope_cycle": "jaxloco.robots.leggrope.analysis:SLOPE_CYCLE",
     "leggrope.fragile_walk": "jaxloco.robots.leggrope.sim_analysis:FRAGILE_WALK",
+    "octopus.terrain_classification": "jaxloco.robots.octopus.analysis:TERRAIN_CLASSIFICATION",
 }
 _REGISTERED: dict[str, Analysis] = {}
 
