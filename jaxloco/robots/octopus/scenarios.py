@@ -41,7 +41,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.robots.octopus import ccm
+from jaxloco.robots.octopus import ccm, clm
 from jaxloco.robots.octopus import model as octo_model
 from jaxloco.robots.octopus import params as P
 from jaxloco.sim import metrics as sm
@@ -72,8 +72,9 @@ PARAM_DEFAULTS: dict[str, float] = {
     "pass_distance": 0.3,  # [m] the COG beyond the last riser (paper: S = 0.3 m)
     "roll_limit": 0.5,  # [rad]
     "pitch_limit": 1.2,  # [rad] nose up
-    # controller
+    # controllers (the CCM baseline and the CLM; their keys do not overlap)
     **ccm.PARAM_DEFAULTS,
+    **clm.PARAM_DEFAULTS,
 }
 
 
@@ -158,12 +159,23 @@ def make_scenario(
     controller: Controller | None = None,
     horizon_s: float = 60.0,
     record_every: int = 5,
+    initial_pose: str | None = None,
 ) -> Scenario:
     """The OCTOPUS on terrain `kind` (see the module docstring), driven by `controller`
     (default: the CCM baseline `ccm.make_controller()`), for `horizon_s` seconds at the
-    50 Hz control rate, recording every `record_every` control periods."""
+    50 Hz control rate, recording every `record_every` control periods.
+
+    initial_pose: "ccm" (arms stowed clear of the ground, `ccm.ARMS_STOWED`, front
+    flippers at params["front_up"]) or "clm" (arms on the ground in the Table 2 initial
+    pose, `clm.start_pose`, front flippers at params["front_start"]); default: the one
+    of the controller (by its name; "ccm" for any other controller)."""
     m, terrain = build_model(kind)
     controller = controller or ccm.make_controller()
+    pose = initial_pose or ("clm" if controller.name == "clm" else "ccm")
+    if pose not in ("ccm", "clm"):
+        raise ValueError(f"initial_pose: expected 'ccm' or 'clm', got {initial_pose!r}")
+    arms0 = clm.start_pose()[0] if pose == "clm" else ccm.ARMS_STOWED
+    front_key = "front_start" if pose == "clm" else "front_up"
     substeps = round(ccm.CONTROL_DT / m.opt.timestep)
     horizon = max(record_every, round(horizon_s / ccm.CONTROL_DT))
     horizon -= horizon % record_every
@@ -180,7 +192,7 @@ def make_scenario(
     sites = np.array([m.site(n).id for n in CONTACT_SITES])
     lift = np.zeros(len(CONTACT_SITES))
     lift[-N_ARM_SITES:] = P.ROLLER_RADIUS
-    qpos0, ctrl0 = octo_model.pose_qpos_ctrl(m, ccm.ARMS_STOWED, [PARAM_DEFAULTS["front_up"]] * 2 + [0.0, 0.0])
+    qpos0, ctrl0 = octo_model.pose_qpos_ctrl(m, arms0, [PARAM_DEFAULTS[front_key]] * 2 + [0.0, 0.0])
     qpos0, ctrl0 = jnp.asarray(qpos0), jnp.asarray(ctrl0)
     flip_adr = np.array([m.joint(n).qposadr[0] for n in P.FLIPPER_NAMES])
     flip_act = np.array([m.actuator(n).id for n in P.FLIPPER_NAMES])
@@ -189,7 +201,8 @@ def make_scenario(
         pos, quat = terrain.place(terrain_values(kind, p))
         full_pos = jnp.zeros((m.nmocap, 3), pos.dtype).at[rows].set(pos)
         full_quat = jnp.zeros((m.nmocap, 4), pos.dtype).at[rows].set(quat)
-        flips = jnp.stack([p["front_up"], p["front_up"], 0.0 * p["front_up"], 0.0 * p["front_up"]])
+        front = p[front_key]
+        flips = jnp.stack([front, front, 0.0 * front, 0.0 * front])
         qpos = qpos0.astype(pos.dtype).at[3:7].set(tr.quat_z(p["yaw"])).at[flip_adr].set(flips)
         ctrl = ctrl0.astype(pos.dtype).at[flip_act].set(flips)
         return InitialState(qpos=qpos, qvel=jnp.zeros(m.nv, pos.dtype), ctrl=ctrl, mocap_pos=full_pos,

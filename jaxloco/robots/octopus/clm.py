@@ -1,0 +1,483 @@
+"""The compound locomotion mode (CLM) controller of OCTOPUS (paper, "Control system design
+for CLM" and "Arms and crawlers control in getting over obstacle", Figs. 7, 9, 14): the
+crawlers drive, the front flippers follow the terrain by their torque, and the four arms
+walk beside the crawlers in a crawl gait, grope the terrain and lift the body over steps.
+Pure JAX, one simulation, fixed shapes, 50 Hz; every switch is a mask (`jnp.where`,
+`jnp.select`); the rollout vmaps it. It composes the rules of `clm_rules` and the
+kinematics of `kinematics`, and senses only what the real robot senses: joint angles and
+torques, the IMU (attitude, and the heading for the heading hold), the crawler encoders
+(travel). Never the terrain parameters. Every gain is a params entry (`PARAM_DEFAULTS`).
+
+Robot phases (`PHASE_NAMES`; Fig. 9 a-h and the phases A-F of Fig. 14):
+  WALK 0 (Fig. 9a-c, Fig. 14 A-C): crawlers at `clm_speed` (heading hold); front flippers
+    by the torque rule (`clm_rules.flipper_rule`, Cases 1-3: T0, flip_delta_a, A0,
+    flip_delta_b), rear flippers 0. Arms: the support arms hold their ground contacts
+    (Eqs. 22-27, `predict_contacts` with the crawler-encoder travel, then inverse
+    kinematics); one arm at a time transfers (`transfer_step`, Eqs. 19-21: lift to A_B,
+    swing to A_S, over the target, lower until contact) to its Table 2 target, in
+    `CRAWL_ORDER` (RR, RF, LR, LF) with `gait_pause` between transfers: at least three
+    arms support the robot at any time (while any arm is IDLE the crawlers wait). Where a
+    transfer stopped is classified by `arm_stop_case` (delta_c, delta_d).
+    Step detection: a front arm stops on an obstacle (STOP_ON_OBSTACLE, dz > delta_d) ->
+    the other front arm transfers next (the rear arms wait, Fig. 14 C); both front arms
+    on it and H_EST (Eq. 9, `explore_terrain` on the contact points) > sigma1 -> the step
+    is confirmed, the gait stops and the crawlers drive on until a front flipper touches
+    the riser (flipper rule Case 2; with stop_on_touch = 0: Case 3, A' > A0) or the
+    encoders stall (`stall_s`) -> PREPARE.
+  PREPARE 1 (Fig. 9d, Fig. 14 D: "RR arm adjusting its posture for climbing"): crawlers
+    stopped, front flippers up to A0; the rear arms (RR, then LR) are transferred to their
+    Table 2 *start* points on the ground (farther back than the targets: from there the
+    rear rollers reached the riser before the body had travelled L); the front arms stay
+    on the step top. Both placed -> CLIMB.
+  CLIMB 2 (Fig. 9e, Fig. 14 E): Eq. 28 in task space: the pushing arms lower their EPRAs
+    by delta_e * l1 per period along the world vertical (inverse kinematics), lifting the
+    body level (front / rear and left / right arms take turns to stay within level_band),
+    while the front crawler ends are below the step top (from the front EPRAs resting on
+    it: the reading of "H < H_EST" that lets the crawlers onto the step). Eq. 29: the
+    flippers turn down by delta_f (rear at once, to rear_flip_min; front once the front
+    is lifted, to flip_min, onto the step top). The crawlers drive once the front is
+    lifted. S (Eq. 18, crawler encoders) starts when the front flippers touch down on the
+    step top (torque beyond T0) at minus their reach: S is the front flipper pivots'
+    distance past the edge (Fig. 5). H - H(CLIMB start) > H_EST and S > L (0.3 m) and the
+    pitch below release_pitch -> RELEASE.
+  RELEASE 3 (Fig. 9f-h, Fig. 14 F): crawlers stopped; every EPRA rises by delta_e * l1
+    per period (body down evenly onto the crawlers) until back at the Table 2 height in
+    {R} (the authors' "theta_2' > 0"); flippers +delta_f while A' < 0. All done -> DONE.
+  DONE 4: the arms go to a carrying pose (booms up first), the crawlers drive on; after
+    `done_distance` -> WALK with every arm IDLE: the arms are placed again one at a time
+    (crawlers waiting), so that the next terrace is met the same way.
+
+Arm phases (per arm, `ARM_PHASE_NAMES`): the transfer phases of `clm_rules` (LIFT, SWING,
+OVER, LOWER), PLACED = in support, IDLE = holding its last command, waiting for a
+transfer.
+
+Readings resolved here (the paper's text is ambiguous or not physically consistent):
+  * theta' and A' in the rules are the previous *commands*, not the encoders: the joints
+    are position servos that lag and sag under load; feeding the encoders back makes a
+    held joint drift. The encoders give the EPRAs (forward kinematics) for the contact
+    points, H_EST, H, the stop cases and the contact signal.
+  * the "down arm" period ends on contact: the torque-based collision signal
+    (`collision`, a joint torque rising by more than collision_threshold in a period),
+    or the boom / elbow held more than contact_lag short of the command of two periods
+    before (a blocked arm), or the boom at its joint limit (deep pit). Only LOWER watches
+    it (in OVER the fast free motion gives torque jumps of the same size). The joints aim
+    transfer_press below the target, so the roller meets the ground before the command
+    stops, and past the target angles the boom creeps down by Delta_B per period.
+  * A_B, A_S: our joint zeros differ from the authors' (see `clm_rules.transfer_step`):
+    A_B = lift_boom (rear) / lift_boom_front (front arms, higher: their rollers must
+    pass over a 400 mm step top), or lift_min above the current boom if that is already
+    higher; A_S from inverse kinematics of the target; the target is passed over from
+    clearance_front / clearance_rear above it.
+  * Eq. 28 turns only the booms: with the elbows held the EPRAs sweep arcs and, once the
+    robot pitches, push it backwards; in the simulation that rolled the robot over its
+    rear flipper tips. We move the EPRAs straight down in the world instead (the boom's
+    Delta_E at the boom end, delta_e * l1) and lift level.
+  * T_P of Eqs. 22-27: the terrain pitch of the contact points (Eq. 7) while the terrain
+    reads flat (Case 1), else the robot's pitch (T_P - R_P = 0): across a step edge Eq. 7
+    gives the slope of the edge, not of the ground the crawlers run on.
+  * A0: Case 3 needs A' > A0, so A0 is a little below the 85 deg joint limit.
+  * step confirmed = both front arms on an obstacle and H_EST > sigma1 (terrain Case 2
+    needs the rear arms too, but a rear arm may be in transfer; its stored contact is
+    used).
+  * the support arms aim at their contact points (press = 0): pressing them 10 mm below
+    unloaded the tracks unevenly and turned the robot by 0.16 rad on flat ground.
+  * heading hold (heading_gain; 0 is the paper's controller, which assumes the yaw does
+    not change): ours turns when one front flipper meets the riser first.
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxloco.robots.octopus import clm_rules as cr
+from jaxloco.robots.octopus import kinematics as kin
+from jaxloco.robots.octopus import model as octo_model
+from jaxloco.robots.octopus import params as P
+from jaxloco.sim.scenario import Controller
+
+Array = jax.Array
+
+WALK, PREPARE, CLIMB, RELEASE, DONE = 0, 1, 2, 3, 4
+PHASE_NAMES = ("walk", "prepare", "climb", "release", "done")
+IDLE = 5  # arm phase after cr.PLACED (4): holding, waiting for a transfer
+ARM_PHASE_NAMES = (*cr.TRANSFER_PHASES, "idle")
+CONTROL_DT = 0.02  # [s] 50 Hz
+FRONT = np.array([True, True, False, False])  # arms 1..4 (LF, RF, LR, RR)
+LEFT = np.array([True, False, True, False])
+FRONT4 = np.array([True, True, False, False])  # flippers fl, fr, rl, rr
+TABLE2_Z = float(P.TABLE2_TARGET[0, 2])
+# the front main crawler axles in {R} [m]
+FRONT_AXLES = np.array([[P.MAIN_AXLE_X, s * P.CRAWLER_Y, P.MAIN_WHEEL_RADIUS - P.BASE_HEIGHT] for s in (1.0, -1.0)])
+CRAWL_ORDER = np.array(cr.CRAWL_ORDER)
+N_PREPARE = 2
+PREPARE_ORDER = np.array([3, 2])  # PREPARE transfers the rear arms only (RR, then LR)
+
+PARAM_DEFAULTS: dict[str, float] = {
+    "clm_speed": 0.03,  # [m/s] crawler speed in CLM (slower than CCM: the arms must follow)
+    # front flipper torque rule (Cases 1-3)
+    "T0": 15.0,  # [N m] torque threshold
+    "flip_delta_a": 0.02,  # [rad/period] Delta_A
+    "A0": math.radians(82.0),  # [rad] flipper limit A0 (just below the 85 deg joint limit)
+    "flip_delta_b": 0.01,  # [rad/period] Delta_B
+    "stop_on_touch": 1.0,  # 1: a confirmed step stops the crawlers at the first front flipper touch
+    # (Case 2) instead of waiting for Case 3; the flippers are then raised to A0 in PREPARE
+    "touch_rise": 0.15,  # [rad] flipper yield that counts as touching the riser
+    "front_start": 0.5,  # [rad] front flipper angle while walking ("a suitable angle")
+    # arm transfer (Eqs. 19-21)
+    "K": 0.04,  # boom gain per period
+    "delta_a": 0.03,  # [rad/period] swing step
+    "delta_b": 0.02,  # [rad/period] elbow / boom step
+    "lift_boom": -0.6,  # [rad] A_B of the rear arms (boom raised)
+    "lift_boom_front": -1.2,  # [rad] A_B of the front arms: their rollers must pass over a 400 mm step top
+    "lift_min": 0.15,  # [rad] the boom turns up at least this much in LIFT
+    "clearance_front": 0.47,  # [m] the front EPRAs pass this far above their target
+    "clearance_rear": 0.2,  # [m] the rear ones
+    "collision_threshold": 50.0,  # [N m] joint torque rise in one period = collision
+    "contact_lag": 0.04,  # [rad] boom / elbow behind its command = blocked (LOWER only)
+    "transfer_press": 0.05,  # [m] a transfer aims this far below its target
+    "carry_elbow": 1.6,  # [rad] elbow of the carrying pose after the release
+    "done_distance": 0.4,  # [m] driven on the top with the arms carried before walking again
+    "gait_pause": 0.3,  # [s] between two transfers
+    "heading_gain": 0.2,  # [m/s per rad] track speed difference per rad of heading error
+    "press": 0.0,  # [m] support arms aim this far below their contact points (> 0 loads the
+    # arms, but unloads the tracks unevenly: 10 mm turned the robot by 0.16 rad on flat ground)
+    # arm stop cases
+    "delta_c": 0.08,  # [m]
+    "delta_d": 0.05,  # [m]
+    # terrain exploration
+    "sigma1": 0.05,  # [m]
+    "stall_s": 1.0,  # [s] crawlers below a third of the command this long = stalled
+    # climbing (Eqs. 28-29)
+    "delta_e": 0.006,  # [rad/period] boom step (the EPRA moves Delta_E l1 per period)
+    "delta_f": 0.01,  # [rad/period] flipper step
+    "settle_distance": 0.3,  # [m] L = 0.6 x 500 mm
+    "release_pitch": 0.35,  # [rad] nose-up pitch below which the robot counts as on top
+    "front_clearance": 0.03,  # [m] the arms lift until the crawler fronts clear the step top by this
+    "level_band": 0.05,  # [rad] pitch / roll band of the level lift
+    "rear_flip_min": -0.8,  # [rad] the rear flippers turn down to this
+    "flip_min": -0.6,  # [rad] the front flippers turn down to this angle at most
+}
+
+_KP = P.default_params()
+BOOM_MAX = octo_model.ARM_RANGE[1][1]
+ARM_LO = np.array([r[0] for r in octo_model.ARM_RANGE])
+ARM_HI = np.array([r[1] for r in octo_model.ARM_RANGE])
+FLIPPER_MAX = P.FLIPPER_LIMIT
+
+
+def start_pose() -> tuple[np.ndarray, np.ndarray]:
+    """The CLM start pose: arms (4, 3) in the Table 2 initial pose (rollers on the
+    ground), flippers (4,) [rad] (front ones at `front_start`)."""
+    flips = np.array([PARAM_DEFAULTS["front_start"]] * 2 + [0.0, 0.0])
+    return octo_model.home_arm_angles(), flips
+
+
+def _yaw(quat: Array) -> Array:
+    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
+    return jnp.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def _wrap(a: Array) -> Array:
+    return jnp.arctan2(jnp.sin(a), jnp.cos(a))
+
+
+def _tips_moved(q: Array, move: Array, dz_level: Array, a_p: Array, a_r: Array) -> Array:
+    """Arm joints (4, 3) that move the EPRAs of the arms with `move` (4,) by dz_level [m]
+    along the vertical of the level frame {C} (inverse kinematics from the current
+    commands `q`); the others, and any out of reach, keep `q`."""
+    tips = kin.arm_tips(_KP, q)
+    d_r = kin.level_rotation(a_p, a_r).T @ jnp.stack([0.0 * dz_level, 0.0 * dz_level, dz_level])
+    q_new, reach = kin.inverse_kinematics_all(_KP, tips + d_r)
+    ok = move & (reach > 0.005)
+    return jnp.where(ok[:, None], q_new, q)
+
+
+def make_controller(control_dt: float = CONTROL_DT) -> Controller:
+    kp = _KP
+    targets0 = jnp.asarray(P.TABLE2_TARGET)
+    order = jnp.asarray(CRAWL_ORDER)
+    front = jnp.asarray(FRONT)
+
+    def measure(obs):
+        dt = jnp.result_type(float)
+        q = obs["arm_q"].reshape(4, 3).astype(dt)
+        att = kin.attitude_from_quat(obs["quat"].astype(dt))
+        tips = kin.arm_tips(kp, q)
+        return q, att, tips
+
+    def init(p, obs):
+        q, _, tips = measure(obs)
+        dt = q.dtype
+        flips = jnp.stack([p["front_start"], p["front_start"], 0.0 * p["front_start"], 0.0 * p["front_start"]])
+        return {
+            "phase": jnp.asarray(WALK, jnp.int32),
+            "t_phase": jnp.zeros((), dt),
+            "arm_phase": jnp.full((4,), cr.PLACED, jnp.int32),
+            "ptr": jnp.zeros((), jnp.int32),  # index into CRAWL_ORDER of the next transfer
+            "active": jnp.asarray(-1, jnp.int32),  # the transferring arm, -1 none
+            "pause": jnp.zeros((), dt),  # [s] since the last transfer ended
+            "contacts": tips,  # (4, 3) contact points in {R}
+            "stop_case": jnp.zeros((4,), jnp.int32),
+            "on_step": jnp.zeros((4,), bool),
+            "confirmed": jnp.asarray(False),
+            "h_est": jnp.zeros((), dt),
+            "placed_n": jnp.zeros((), jnp.int32),  # transfers done in PREPARE
+            "q_cmd": q,
+            "q_cmd2": q,
+            "lift_to": q[:, 1],  # [rad] the boom angle the current LIFT aims at (A_B)
+            "flip": flips.astype(dt),
+            "tau_prev": obs["arm_tau"].reshape(4, 3).astype(dt),
+            "travel": jnp.zeros((), dt),  # S (Eq. 18) since CLIMB began
+            "h0": jnp.zeros((), dt),
+            "touched": jnp.asarray(False),  # CLIMB: the front flippers are down on the step
+            "front_up": jnp.asarray(False),  # CLIMB: the front crawler ends cleared the step top  # [m] COG height H when CLIMB began
+            "stall": jnp.zeros((), dt),
+            "climbed": jnp.zeros((), jnp.int32),
+            "yaw0": _yaw(obs["quat"].astype(dt)),  # [rad] heading to hold (IMU)
+            "flip_case": jnp.zeros((2,), jnp.int32),
+        }
+
+    def step(p, s, obs):
+        q, att, tips = measure(obs)
+        dt = q.dtype
+        a_p, a_r = att[0], att[1]
+        tau = obs["arm_tau"].reshape(4, 3).astype(dt)
+        phase = s["phase"]
+        walk, prepare, climb, release = (phase == WALK), (phase == PREPARE), (phase == CLIMB), (phase == RELEASE)
+        arm_phase = s["arm_phase"]
+        v_meas = jnp.mean(obs["track_speed"]).astype(dt)
+        travel_step = v_meas * control_dt  # L of Eqs. 22-27, from the crawler encoders
+
+        # ---- terrain estimate from the contact points (stored for the arms in transfer)
+        support = arm_phase == cr.PLACED
+        contacts = s["contacts"]
+        est = kin.explore_terrain(kp, contacts, a_p, a_r)
+        t_p = jnp.where(est.case == kin.CASE_FLAT, est.pitch, a_p)
+
+        # ---- crawlers: drive in WALK (unless an arm is idle) and CLIMB
+        any_idle = jnp.any(arm_phase == IDLE)
+        done = phase == DONE
+        drive = (walk & ~any_idle) | (climb & s["front_up"]) | done
+        v_cmd = jnp.where(drive, p["clm_speed"], 0.0)
+
+        # ---- support arms: hold the ground contacts while the body moves (Eqs. 22-27)
+        moved = jnp.where(drive, travel_step, 0.0)
+        contacts_next = jnp.where(support[:, None], cr.predict_contacts(contacts, moved, t_p, a_p), contacts)
+        press = jnp.stack([jnp.zeros_like(p["press"]), jnp.zeros_like(p["press"]), p["press"]])
+        q_hold, reach = kin.inverse_kinematics_all(kp, contacts_next - press)
+        q_hold = jnp.where((reach > 0.005)[:, None], q_hold, s["q_cmd"])  # out of reach: hold
+
+        # ---- the transferring arm (Eqs. 19-21)
+        active = s["active"]
+        is_active = (jnp.arange(4) == active) & (active >= 0)
+        # PREPARE: front arms to their Table 2 targets on the step top (z + H_EST), rear arms
+        # to their Table 2 *start* points, farther back: from the Table 2 targets the rear
+        # rollers reached the riser before the body had travelled L
+        tgt = jnp.where((prepare & ~front)[:, None], jnp.asarray(P.TABLE2_INIT, dt), targets0.astype(dt))
+        tgt = tgt.at[:, 2].add(jnp.where(prepare & front, s["h_est"], 0.0))
+        clear = jnp.where(front, p["clearance_front"], p["clearance_rear"])
+        # the joints aim `transfer_press` below the target, so that the roller meets the
+        # ground before the command stops (the servo then lags: contact)
+        q_tgt, _ = kin.inverse_kinematics_all(kp, tgt.at[:, 2].add(-p["transfer_press"]))
+        q_abv, _ = kin.inverse_kinematics_all(kp, tgt.at[:, 2].add(clear))
+        q_tgt, q_abv = jnp.clip(q_tgt, ARM_LO, ARM_HI), jnp.clip(q_abv, ARM_LO, ARM_HI)
+        # > 0: the boom is held up, short of the command of two periods ago (the servo
+        # follows a free arm's command within a period; the last command may be a step)
+        lag = jnp.max(s["q_cmd2"][:, 1:] - q[:, 1:], axis=-1)  # boom or elbow held up
+        hit = cr.collision(tau, s["tau_prev"], p["collision_threshold"])
+        lower = arm_phase == cr.LOWER
+        at_limit = s["q_cmd"][:, 1] >= BOOM_MAX - 1e-6
+        contact = lower & (hit | (lag > p["contact_lag"]) | at_limit)
+        # A_B: the boom turns up to lift_boom, or by lift_min if it is already higher (a
+        # front arm on a high step stands with its boom near vertical: turning it "up" to
+        # lift_boom would push the roller into the step)
+        lift = jnp.where(arm_phase == cr.LIFT,
+                         jnp.maximum(jnp.minimum(jnp.where(front, p["lift_boom_front"], p["lift_boom"]), s["lift_to"]),
+                                     ARM_LO[1]), s["lift_to"])
+        tr_cmd, tr_next = jax.vmap(
+            lambda qq, ph, c, qt, qa, ab: cr.transfer_step(qq, ph, c, qt, qa, ab, p["K"], p["delta_a"], p["delta_b"])
+        )(s["q_cmd"], arm_phase, contact, q_tgt, q_abv, lift)
+        # past the target's angles the descent goes on by Delta_B per period until contact
+        # (transfer_step returns to the target angles once the command overshot them)
+        creeping = lower & (jnp.abs(s["q_cmd"][:, 2] - q_tgt[:, 2]) < 1e-6) & (s["q_cmd"][:, 1] >= q_tgt[:, 1] - 1e-6)
+        tr_cmd = jnp.where(creeping[:, None], s["q_cmd"].at[:, 1].add(p["delta_b"]), tr_cmd)
+        tr_cmd = tr_cmd.at[:, 1].set(jnp.minimum(tr_cmd[:, 1], BOOM_MAX))
+        transferring = is_active & (arm_phase <= cr.LOWER)
+        just_placed = transferring & (tr_next == cr.PLACED)
+        # a placed arm: its contact is where the encoders put the EPRA
+        stop = cr.arm_stop_case(tips, tgt, p["delta_c"], p["delta_d"])
+        contacts_next = jnp.where(just_placed[:, None], tips, contacts_next)
+        stop_case = jnp.where(just_placed, stop, s["stop_case"])
+        on_step = jnp.where(just_placed, front & (stop == cr.STOP_ON_OBSTACLE), s["on_step"])
+        arm_phase_n = jnp.where(transferring, tr_next, arm_phase)
+
+        # ---- gait sequencing: the next transfer after a pause
+        ended = jnp.any(just_placed)
+        pause = jnp.where(ended | (active >= 0), 0.0, s["pause"] + control_dt)
+        active_n = jnp.where(ended, -1, active)
+        placed_n = s["placed_n"] + jnp.where(ended & prepare, 1, 0)
+        ptr = jnp.where(ended, (s["ptr"] + 1) % 4, s["ptr"])
+        # step detection: one front arm on the step -> the other front arm goes next
+        one_front = jnp.any(on_step & front) & ~jnp.all(on_step[:2])
+        other = jnp.where(on_step[0], 1, 0)
+        other_ptr = jnp.argmax(order == other).astype(jnp.int32)
+        ptr = jnp.where(walk & one_front & ended, other_ptr, ptr)
+        est_n = kin.explore_terrain(kp, contacts_next, a_p, a_r)
+        confirm_now = walk & ~s["confirmed"] & jnp.all(on_step[:2]) & (est_n.step_height > p["sigma1"])
+        confirmed = s["confirmed"] | confirm_now
+        h_est = jnp.where(confirm_now, est_n.step_height, s["h_est"])
+        want_next = (walk & ~confirmed) | (prepare & (placed_n < N_PREPARE))
+        start = want_next & (active_n < 0) & (pause >= p["gait_pause"]) & ~ended
+        nxt_arm = jnp.where(prepare, jnp.asarray(PREPARE_ORDER)[jnp.minimum(placed_n, N_PREPARE - 1)], order[ptr])
+        active_n = jnp.where(start, nxt_arm, active_n)
+        starting = start & (jnp.arange(4) == nxt_arm)
+        arm_phase_n = jnp.where(starting, cr.LIFT, arm_phase_n)
+        lift_to = jnp.where(starting, s["q_cmd"][:, 1] - p["lift_min"], lift)
+
+        # ---- front flippers: the torque rule in WALK
+        flip = s["flip"]
+        f_rule, f_case = cr.flipper_rule(flip[:2], obs["flipper_tau"][:2].astype(dt), p["T0"], p["flip_delta_a"],
+                                         p["A0"], p["flip_delta_b"])
+        f_rule = jnp.clip(f_rule, -FLIPPER_MAX, FLIPPER_MAX)
+        # the riser touched: a front flipper has yielded (Case 2) by touch_rise above its
+        # walking angle (a single Case 2 period also comes from the arm transfers' jolts)
+        touched_riser = jnp.any(f_rule > p["front_start"] + p["touch_rise"])
+        at_a0 = jnp.any(f_case == cr.FLIPPER_LIMIT) | ((p["stop_on_touch"] > 0) & touched_riser)
+        stall = jnp.where(walk & confirmed & (v_meas < p["clm_speed"] / 3.0), s["stall"] + control_dt, 0.0)
+        to_prepare = walk & confirmed & (at_a0 | (stall > p["stall_s"])) & (active_n < 0)
+
+        # ---- climbing and release (Eqs. 28-29): booms and flippers
+        h = kin.cog_height(kp, tips, a_p, a_r)
+        travel = kin.travel_update(s["travel"], travel_step, a_p)
+        rise = h - s["h0"]
+        # the release waits for the body to be back near level (see module docstring)
+        s_eff = jnp.where((a_p < p["release_pitch"]) & s["touched"], travel, -1.0)
+        _, flip_c, on_top = cr.climb_rule(s["q_cmd"][:, 1], flip, rise, s["h_est"], s_eff,
+                                               p["settle_distance"], p["delta_e"], p["delta_f"])
+        # Eq. 28 per arm, a level lift: the arms push the body up while the front crawler
+        # ends are below the step top (estimated from the front EPRAs resting on it:
+        # "H < H_EST"); front and rear (left and right) arms take turns so that the body
+        # stays within level_band of level; once lifted they only keep it level. (Lifting
+        # the nose alone rolls the robot backwards over its rear flipper tips.)
+        axles_c = kin.to_level_frame(jnp.asarray(FRONT_AXLES, dt), a_p, a_r)
+        front_c = kin.to_level_frame(tips[:2], a_p, a_r)
+        clear = jnp.min(axles_c[:, 2] - P.MAIN_WHEEL_RADIUS - (front_c[:, 2] - P.ROLLER_RADIUS))
+        front_low = clear < p["front_clearance"]
+        # the crawlers drive in CLIMB once the front is above the step top (driving while
+        # the arms lift pushes the nose into the riser and twists the robot)
+        front_up = climb & (s["front_up"] | ~front_low)
+        band = p["level_band"]
+        push = jnp.where(front, (front_low & (a_p < band)) | (a_p < -band),
+                         (front_low & (a_p > -band)) | (a_p > band))
+        push = push & jnp.where(LEFT, a_r > -band, a_r < band)
+        # Eq. 28, read in the task space: a boom turning down by Delta_E lowers its EPRA by
+        # about Delta_E l1; we lower the EPRAs of the pushing arms by Delta_E l1 along the
+        # world vertical (inverse kinematics, elbow included), so that the arms lift the
+        # body instead of pushing it backwards when it is pitched
+        dz = p["delta_e"] * P.L1
+        tips_cmd = kin.arm_tips(kp, s["q_cmd"])
+        q_climb = _tips_moved(s["q_cmd"], push & ~on_top, -dz, a_p, a_r)
+        # the front flippers stay raised until the front is above the step top (they
+        # would jam against the riser), then turn down onto it (to flip_min); the rear
+        # ones turn down at once (to rear_flip_min), lifting the tail on their tracks
+        flip_c = jnp.where(FRONT4 & front_low & ~on_top, flip, flip_c)
+        flip_c = jnp.clip(flip_c, jnp.where(FRONT4, p["flip_min"], p["rear_flip_min"]), FLIPPER_MAX)
+        # release (Eqs. 28-29, second branches): every EPRA rises by Delta_E l1 per period
+        # (the body goes down evenly onto the crawlers) until it is back at the Table 2
+        # height in {R} ("theta_2' > 0" of the authors' joint zero); the flippers turn up
+        # to 0
+        high = tips_cmd[:, 2] >= TABLE2_Z - 1e-3
+        q_release = _tips_moved(s["q_cmd"], ~high, dz, a_p, a_r)
+        flip_r = jnp.where(flip < 0, jnp.minimum(flip + p["delta_f"], 0.0), flip)
+        released = release & jnp.all(high) & jnp.all(flip >= 0.0)
+
+        # ---- arm commands
+        q_walk = jnp.where(transferring[:, None], tr_cmd, jnp.where(support[:, None], q_hold, s["q_cmd"]))
+        # DONE: the arms go to the carrying pose (booms up first, then the elbows), clear of
+        # the terrain, while the robot drives on
+        carry = jnp.stack([s["q_cmd"][:, 0], jnp.full(4, p["lift_boom_front"]), jnp.full(4, p["carry_elbow"])], axis=1)
+        booms_up = jnp.all(s["q_cmd"][:, 1] <= p["lift_boom_front"] + 1e-3)
+        step_max = jnp.where(jnp.arange(3) == 2, jnp.where(booms_up, p["delta_b"], 0.0), p["delta_b"])
+        q_done = s["q_cmd"] + jnp.clip(carry - s["q_cmd"], -step_max, step_max)
+        q_cmd = jnp.select([climb, release, done], [q_climb, q_release, q_done], q_walk)
+        q_cmd = jnp.clip(q_cmd, ARM_LO, ARM_HI)
+        # ---- flipper commands
+        flip_walk = jnp.concatenate([f_rule, jnp.zeros(2, dt)])
+        # PREPARE: the front flippers go up to A0 (Fig. 9d)
+        flip_prep = flip.at[:2].set(jnp.minimum(flip[:2] + p["flip_delta_a"], p["A0"]))
+        flip_walk = jnp.where(walk, flip_walk, jnp.where(prepare, flip_prep, flip))
+        flip_n = jnp.select([climb, release, done], [flip_c, flip_r, jnp.zeros(4, dt)], flip_walk)
+
+        # ---- phase transitions
+        to_climb = prepare & (placed_n >= N_PREPARE) & (active_n < 0)
+        # the release also waits for the body to have tipped over the edge onto the top
+        # (IMU pitch back below release_pitch): S from the crawler encoders runs ahead of
+        # the body when the tracks slip on the edge
+        to_release = climb & on_top & (a_p < p["release_pitch"])
+        # DONE -> WALK once the robot has driven done_distance on the top (arms carried):
+        # the arms are placed again one at a time (crawlers waiting), for the next terrace
+        rewalk = done & (s["travel"] > p["done_distance"])
+        nxt = jnp.select([to_prepare, to_climb, to_release, released, rewalk], [PREPARE, CLIMB, RELEASE, DONE, WALK],
+                         phase)
+        changed = nxt != phase
+        # entering PREPARE: restart the gait at RR; entering WALK after a release: every
+        # arm idle, to be placed again (rear arms first)
+        ptr = jnp.where(changed & ((nxt == PREPARE) | (nxt == WALK)), 0, ptr)
+        placed_n = jnp.where(changed, 0, placed_n)
+        arm_phase_n = jnp.where(released, IDLE, arm_phase_n)
+        on_step = jnp.where(released, False, on_step)
+        confirmed = jnp.where(released, False, confirmed)
+        active_n = jnp.where(released, -1, active_n)
+        pause = jnp.where(changed, 0.0, pause)
+        # S (Eq. 18, Fig. 5: the front flipper pivots past the obstacle edge) starts when the
+        # lifted front flippers touch down on the step top (flipper torque beyond T0): the
+        # edge is then just behind their tips, S = -(flipper length x cos A)
+        touch_now = climb & ~s["touched"] & ~front_low & jnp.any(jnp.abs(obs["flipper_tau"][:2]) > p["T0"])
+        reach0 = P.FLIPPER_LENGTH * jnp.mean(jnp.cos(obs["flipper_q"][:2].astype(dt)))
+        touched = (s["touched"] | touch_now) & (nxt == CLIMB)
+        travel = jnp.where(touch_now, -reach0, jnp.where((climb & s["touched"]) | (done & ~rewalk), travel, 0.0))
+        h0 = jnp.where(changed & (nxt == CLIMB), h, s["h0"])
+        # after an IDLE arm is placed it is in support; contacts of idle arms follow the EPRA
+        contacts_next = jnp.where((arm_phase_n == IDLE)[:, None] | (climb | release), tips, contacts_next)
+
+        # heading hold while driving (an addition: the paper assumes the yaw does not change,
+        # ours does when one front flipper meets the riser first); heading_gain = 0 is the
+        # paper's controller
+        dyaw = _wrap(_yaw(obs["quat"].astype(dt)) - s["yaw0"])
+        steer = jnp.where(drive, jnp.clip(p["heading_gain"] * dyaw, -p["clm_speed"], p["clm_speed"]), 0.0)
+        tracks = jnp.stack([v_cmd + steer, v_cmd - steer])
+        action = jnp.concatenate([tracks.astype(dt), flip_n, q_cmd.reshape(-1)])
+        new = {
+            "phase": nxt.astype(jnp.int32),
+            "t_phase": jnp.where(changed, obs["time"], s["t_phase"]).astype(dt),
+            "arm_phase": arm_phase_n.astype(jnp.int32),
+            "ptr": ptr.astype(jnp.int32),
+            "active": active_n.astype(jnp.int32),
+            "pause": pause.astype(dt),
+            "contacts": contacts_next,
+            "stop_case": stop_case.astype(jnp.int32),
+            "on_step": on_step,
+            "confirmed": confirmed,
+            "h_est": h_est.astype(dt),
+            "placed_n": placed_n.astype(jnp.int32),
+            "q_cmd": q_cmd,
+            "q_cmd2": s["q_cmd"],
+            "lift_to": lift_to.astype(dt),
+            "flip": flip_n,
+            "tau_prev": tau,
+            "travel": travel.astype(dt),
+            "h0": h0.astype(dt),
+            "touched": touched,
+            "front_up": front_up,
+            "stall": stall.astype(dt),
+            "climbed": s["climbed"] + jnp.where(released, 1, 0).astype(jnp.int32),
+            "yaw0": s["yaw0"],
+            "flip_case": f_case.astype(jnp.int32),
+        }
+        return new, action
+
+    return Controller(init, step, name="clm")

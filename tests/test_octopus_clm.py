@@ -1,0 +1,138 @@
+"""The OCTOPUS compound locomotion mode (CLM) controller (`clm`) in the step scenarios: the
+start pose, the support arms holding their ground contacts while the crawlers drive,
+step detection (fires on a step, not on flat ground), a climb of a low step through
+every phase, and the controller's pieces as pure functions. The rules themselves are
+tested in test_octopus_clm_rules.py."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxloco.robots.octopus import clm, scenarios
+from jaxloco.robots.octopus import clm_rules as cr
+from jaxloco.robots.octopus import kinematics as kin
+from jaxloco.robots.octopus import model as octo_model
+from jaxloco.robots.octopus import params as P
+from jaxloco.sim.rollout import rollout
+
+TIP_SITES = tuple(f"{a}_tip" for a in P.ARM_NAMES)
+
+
+def _scenario(kind: str, horizon_s: float, record_every: int = 5):
+    """A CLM scenario that also records the controller state and the rollers (world)."""
+    sc = scenarios.make_scenario(kind, clm.make_controller(), horizon_s=horizon_s, record_every=record_every)
+    base = sc.record
+    tips = np.array([sc.model.site(n).id for n in TIP_SITES])
+
+    def record(p, data, obs, c, e):
+        r = base(p, data, obs, c, e)
+        r.update(arm_phase=c["arm_phase"], active=c["active"], confirmed=c["confirmed"], h_est=c["h_est"],
+                 on_step=c["on_step"], rollers=data.site_xpos[tips])
+        return r
+
+    return sc.with_(record=record)
+
+
+def test_clm_params_merge_and_start_pose():
+    for k in clm.PARAM_DEFAULTS:
+        assert k in scenarios.PARAM_DEFAULTS
+    batch = scenarios.params_batch(2, clm_speed=0.02, T0=np.array([10.0, 20.0]))
+    assert batch["clm_speed"].shape == (2,) and float(batch["T0"][1]) == 20.0
+    assert float(batch["speed"][0]) == pytest.approx(P.CRAWLER_MAX_SPEED)  # CCM keys unchanged
+    with pytest.raises(KeyError):
+        scenarios.params_batch(1, not_a_gain=1.0)
+    arms, flips = clm.start_pose()
+    np.testing.assert_allclose(arms, octo_model.home_arm_angles())
+    tips = np.asarray(kin.arm_tips(P.default_params(), jnp.asarray(arms)))
+    np.testing.assert_allclose(tips, P.TABLE2_INIT, atol=1e-5)
+    assert flips[0] == flips[1] == clm.PARAM_DEFAULTS["front_start"] and flips[2] == flips[3] == 0.0
+    with pytest.raises(ValueError):
+        scenarios.make_scenario("flat", initial_pose="walking")
+
+
+def test_controller_is_pure_jax_with_fixed_shapes():
+    """init/step trace under jit and vmap (no Python branches on traced values) and the
+    action has the actuator layout (2 crawlers, 4 flippers, 12 arm joints)."""
+    ctrl = clm.make_controller()
+    p = {k: jnp.asarray(v) for k, v in scenarios.PARAM_DEFAULTS.items()}
+    q = jnp.asarray(clm.start_pose()[0].reshape(-1))
+    obs = {"time": jnp.zeros(()), "quat": jnp.array([1.0, 0.0, 0.0, 0.0]), "flipper_q": jnp.array([0.5, 0.5, 0, 0]),
+           "flipper_tau": jnp.zeros(4), "arm_q": q, "arm_tau": jnp.zeros(12), "track_speed": jnp.zeros(2),
+           "contact_points": jnp.zeros((len(scenarios.CONTACT_SITES), 3))}
+    s = ctrl.init(p, obs)
+    batch = jax.tree_util.tree_map(lambda x: jnp.stack([x, x]), (p, s, obs))
+    s2, actions = jax.jit(jax.vmap(ctrl.step))(*batch)
+    assert actions.shape == (2, len(P.ACTUATOR_NAMES))
+    assert jax.tree_util.tree_structure(s2) == jax.tree_util.tree_structure(s)
+    for a, b in zip(jax.tree_util.tree_leaves(s), jax.tree_util.tree_leaves(s2)):
+        assert b.shape == (2, *a.shape) and a.dtype == b.dtype
+    # standing on flat ground, all arms in support: the first transfer (RR, CRAWL_ORDER)
+    # starts after the gait pause and the arms hold the Table 2 pose
+    np.testing.assert_allclose(actions[0, 6:], q, atol=1e-6)
+
+
+def test_tips_move_along_the_world_vertical():
+    """The climbing rule moves the EPRAs of the pushing arms straight down in the level
+    frame {C}, whatever the attitude (Eq. 28 in task space), and leaves the others."""
+    prm = P.default_params()
+    q = jnp.asarray(octo_model.home_arm_angles())
+    move = jnp.array([True, False, True, True])
+    for a_p, a_r in ((0.0, 0.0), (0.3, -0.1)):
+        q2 = clm._tips_moved(q, move, jnp.asarray(-0.01), jnp.asarray(a_p), jnp.asarray(a_r))
+        d = kin.to_level_frame(kin.arm_tips(prm, q2) - kin.arm_tips(prm, q), a_p, a_r)
+        np.testing.assert_allclose(np.asarray(d)[move], [[0.0, 0.0, -0.01]] * 3, atol=1e-9)
+        np.testing.assert_allclose(q2[1], q[1])
+
+
+def test_support_arms_hold_their_ground_contacts_while_driving():
+    """On flat ground the arms walk in the crawl gait (one transfer at a time, at least
+    three arms in support) and a support arm's roller stays within a few cm of its
+    ground point while the crawlers carry the body on (Eqs. 22-27 + inverse kinematics);
+    the robot drives straight and no step is detected."""
+    sc = _scenario("flat", horizon_s=24.0)
+    r = rollout(sc, scenarios.params_batch(1), nthread=2)
+    assert r.status[0] != "diverged"
+    R = {k: v[0] for k, v in r.records.items()}
+    support = R["arm_phase"] == cr.PLACED
+    assert support.sum(axis=1).min() >= 3
+    assert (R["active"] >= 0).any()
+    moved = R["pos"][-1, 0] - R["pos"][0, 0]
+    assert moved > 0.4
+    # every support interval: the roller's horizontal drift on the ground
+    worst = 0.0
+    for arm in range(4):
+        runs = np.flatnonzero(np.diff(np.concatenate([[0], support[:, arm].astype(int), [0]])))
+        for a, b in zip(runs[::2], runs[1::2]):
+            a += 2  # the roller settles after touch-down
+            if b - a > 10:
+                xy = R["rollers"][a:b, arm, :2]
+                worst = max(worst, float(np.max(np.linalg.norm(xy - xy[0], axis=1))))
+    assert worst < 0.04
+    assert abs(R["rpy"][-1, 2]) < 0.05 and r.metrics["max_abs_roll"][0] < 0.05
+    assert not R["confirmed"].any() and not R["on_step"].any()
+    assert set(R["phase"].tolist()) == {clm.WALK}
+
+
+def test_clm_climbs_a_low_step_through_every_phase():
+    """200 mm step: a front arm stops on the step top (arm stop case: obstacle on the
+    target), the other front arm follows, H_EST is confirmed, the crawlers stop, the rear
+    arms are placed, the arms lift the body level, the flippers pull it onto the top, the
+    release lowers it and it drives on (WALK, PREPARE, CLIMB, RELEASE, DONE)."""
+    height = 0.2
+    sc = _scenario("step1", horizon_s=84.0, record_every=10)
+    r = rollout(sc, scenarios.params_batch(1, height=height), nthread=2)
+    row = r.row(0)
+    assert row["status"] == "ok" and row["success"], row
+    R = {k: v[0] for k, v in r.records.items()}
+    assert set(R["phase"].tolist()) == {clm.WALK, clm.PREPARE, clm.CLIMB, clm.RELEASE, clm.DONE}
+    h_est = R["h_est"][-1]
+    assert h_est == pytest.approx(height, abs=0.05)
+    # the step is confirmed before PREPARE; no detection before the front arms reach it
+    first_prepare = np.argmax(R["phase"] == clm.PREPARE)
+    assert R["confirmed"][first_prepare] and not R["confirmed"][0]
+    assert row["max_pitch"] < 0.3 and row["max_abs_roll"] < 0.1
+    assert row["min_margin"] > 0.0
+    assert row["final_z"] > height + 0.2
