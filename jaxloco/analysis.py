@@ -156,6 +156,7 @@ _BUILTIN: dict[str, str] = {
     "leggrope.slope_cycle": "jaxloco.robots.leggrope.analysis:SLOPE_CYCLE",
     "leggrope.fragile_walk": "jaxloco.robots.leggrope.sim_analysis:FRAGILE_WALK",
     "octopus.terrain_classification": "jaxloco.robots.octopus.analysis:TERRAIN_CLASSIFICATION",
+    "octopus.step_climb": "jaxloco.robots.octopus.sim_analysis:STEP_CLIMB",
 }
 _REGISTERED: dict[str, Analysis] = {}
 
