@@ -136,3 +136,41 @@ def test_clm_climbs_a_low_step_through_every_phase():
     assert row["max_pitch"] < 0.3 and row["max_abs_roll"] < 0.1
     assert row["min_margin"] > 0.0
     assert row["final_z"] > height + 0.2
+
+
+def test_prepare_approach_squares_up_on_a_high_step():
+    """PREPARE on a high step (H_EST > approach_min_h), front flippers up at A0: both
+    crawlers drive towards the riser; the side whose raised front flipper is pressed back
+    by the riser (torque beyond approach_tau for approach_touch_s) stops while the other
+    drives on (square-up); no rear arm transfer starts before both sides are blocked. On a
+    low step the approach is skipped (crawlers stopped)."""
+    ctrl = clm.make_controller()
+    step = jax.jit(ctrl.step)
+    p = {k: jnp.asarray(v) for k, v in scenarios.PARAM_DEFAULTS.items()}
+    a0 = float(p["A0"])
+    q = jnp.asarray(clm.start_pose()[0].reshape(-1))
+    obs = {"time": jnp.zeros(()), "quat": jnp.array([1.0, 0.0, 0.0, 0.0]),
+           "flipper_q": jnp.array([a0, a0, 0.0, 0.0]), "flipper_tau": jnp.zeros(4), "arm_q": q,
+           "arm_tau": jnp.zeros(12), "track_speed": jnp.full(2, float(p["clm_speed"])),
+           "contact_points": jnp.zeros((len(scenarios.CONTACT_SITES), 3))}
+    s0 = ctrl.init(p, obs)
+    s0 = {**s0, "phase": jnp.asarray(clm.PREPARE, jnp.int32), "confirmed": jnp.asarray(True),
+          "flip": jnp.array([a0, a0, 0.0, 0.0]), "h_est": jnp.asarray(0.4), "pause": jnp.asarray(1.0)}
+    s, a = step(p, s0, obs)
+    np.testing.assert_allclose(a[:2], [p["clm_speed"]] * 2)  # both crawlers drive
+    pressed = {**obs, "flipper_tau": jnp.array([0.0, -2.0 * float(p["approach_tau"]), 0.0, 0.0])}
+    n = int(np.ceil(float(p["approach_touch_s"]) / clm.CONTROL_DT)) + 2
+    for _ in range(n):
+        s, a = step(p, s, pressed)
+    np.testing.assert_allclose(a[:2], [p["clm_speed"], 0.0])  # the right side is at the riser
+    assert bool(s["blocked"][1]) and not bool(s["blocked"][0]) and not bool(s["squared"])
+    assert int(s["active"]) == -1  # no transfer yet
+    both = {**obs, "flipper_tau": jnp.array([-2.0, -2.0, 0.0, 0.0]) * float(p["approach_tau"])}
+    for _ in range(n):
+        s, a = step(p, s, both)
+    assert bool(s["squared"]) and int(s["phase"]) == clm.PREPARE
+    np.testing.assert_allclose(a[:2], [0.0, 0.0])
+    # a low step: no approach
+    s, a = step(p, {**s0, "h_est": jnp.asarray(0.2)}, obs)
+    assert bool(s["squared"])
+    np.testing.assert_allclose(a[:2], [0.0, 0.0])

@@ -25,17 +25,24 @@ Robot phases (`PHASE_NAMES`; Fig. 9 a-h and the phases A-F of Fig. 14):
     the riser (flipper rule Case 2; with stop_on_touch = 0: Case 3, A' > A0) or the
     encoders stall (`stall_s`) -> PREPARE.
   PREPARE 1 (Fig. 9d, Fig. 14 D: "RR arm adjusting its posture for climbing"): crawlers
-    stopped, front flippers up to A0; the rear arms (RR, then LR) are transferred to their
-    Table 2 *start* points on the ground (farther back than the targets: from there the
-    rear rollers reached the riser before the body had travelled L); the front arms stay
-    on the step top. Both placed -> CLIMB.
+    stopped, front flippers up to A0. On a high step (H_EST > approach_min_h; an
+    addition) the robot then approaches and squares up: each crawler drives on until the
+    riser blocks it (its raised front flipper pressed back, flipper torque beyond
+    approach_tau, or its encoder stalled), a blocked side stops while the other one
+    drives on, the arms rolling along with their commands held; both sides blocked (or
+    approach_max driven) -> the heading to hold becomes the current one. (Without it, at
+    400 mm the first flipper touch left the crawler fronts about 0.15 m short of the
+    riser, and the lifted front flippers did not reach the top: 0/8.) Then the rear arms
+    (RR, then LR) are transferred to their Table 2 *start* points on the ground (farther
+    back than the targets: from there the rear rollers reached the riser before the body
+    had travelled L); the front arms stay on the step top. Both placed -> CLIMB.
   CLIMB 2 (Fig. 9e, Fig. 14 E): Eq. 28 in task space: the pushing arms lower their EPRAs
     by delta_e * l1 per period along the world vertical (inverse kinematics), lifting the
     body level (front / rear and left / right arms take turns to stay within level_band),
     while the front crawler ends are below the step top (from the front EPRAs resting on
     it: the reading of "H < H_EST" that lets the crawlers onto the step). Eq. 29: the
-    flippers turn down by delta_f (rear at once, to rear_flip_min; front once the front
-    is lifted, to flip_min, onto the step top). The crawlers drive once the front is
+    flippers turn down by delta_f once the front is lifted (front to flip_min, onto the
+    step top; rear to rear_flip_min; with rear_flip_late = 0 the rear ones at once). The crawlers drive once the front is
     lifted. S (Eq. 18, crawler encoders) starts when the front flippers touch down on the
     step top (torque beyond T0) at minus their reach: S is the front flipper pivots'
     distance past the edge (Fig. 5). H - H(CLIMB start) > H_EST and S > L (0.3 m) and the
@@ -160,6 +167,16 @@ PARAM_DEFAULTS: dict[str, float] = {
     "level_band": 0.05,  # [rad] pitch / roll band of the level lift
     "rear_flip_min": -0.8,  # [rad] the rear flippers turn down to this
     "flip_min": -0.6,  # [rad] the front flippers turn down to this angle at most
+    "rear_flip_late": 1.0,  # 1: the rear flippers, too, wait until the front is lifted (turning down
+    # with their tips on the ground they pushed the robot back ~7 cm from the riser); 0: at once
+    # PREPARE approach (an addition, see the module docstring): with the front flippers at
+    # A0 each crawler drives on until it is blocked by the riser (square-up)
+    "approach": 1.0,  # 1: approach and square up before the rear arms are placed; 0: off
+    "approach_min_h": 0.35,  # [m] ... on steps with H_EST above this only (see make_controller)
+    "approach_stall_s": 0.6,  # [s] a crawler below a third of clm_speed this long = at the riser
+    "approach_max": 0.35,  # [m] the approach ends after this travel (encoders) in any case
+    "approach_tau": 6.0,  # [N m] a raised front flipper pressed by the riser: |torque| above this ...
+    "approach_touch_s": 0.1,  # [s] ... this long = that crawler is at the riser
 }
 
 _KP = P.default_params()
@@ -239,6 +256,11 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
             "climbed": jnp.zeros((), jnp.int32),
             "yaw0": _yaw(obs["quat"].astype(dt)),  # [rad] heading to hold (IMU)
             "flip_case": jnp.zeros((2,), jnp.int32),
+            "side_stall": jnp.zeros((2,), dt),  # [s] PREPARE approach: each crawler stalled
+            "side_touch": jnp.zeros((2,), dt),  # [s] PREPARE approach: each front flipper pressed
+            "blocked": jnp.zeros((2,), bool),  # PREPARE approach: crawler (left, right) at the riser
+            "squared": jnp.asarray(False),  # PREPARE: the approach is over (both crawlers at the riser)
+            "approached": jnp.zeros((), dt),  # [m] PREPARE approach travel (encoders)
         }
 
     def step(p, s, obs):
@@ -261,8 +283,38 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
         # ---- crawlers: drive in WALK (unless an arm is idle) and CLIMB
         any_idle = jnp.any(arm_phase == IDLE)
         done = phase == DONE
-        drive = (walk & ~any_idle) | (climb & s["front_up"]) | done
+        # PREPARE approach: once the front flippers are up at A0 (clear of the riser), each
+        # crawler drives on until the riser blocks its front wheel (its encoder stalls for
+        # approach_stall_s); a blocked side stops and the other one drives on alone, so the
+        # robot turns about the blocked corner until both fronts are at the riser (square
+        # up: the yaw failure, one flipper meeting the riser first, needs the lagging side
+        # to catch up, which a heading hold refuses). The climb then starts with the
+        # crawler fronts at the riser, so the lifted front flippers reach onto the top.
+        # (the encoders too: a flipper still turning up shows a torque like a touch)
+        flips_up = jnp.all(s["flip"][:2] >= p["A0"] - 1e-6) & jnp.all(obs["flipper_q"][:2] >= p["A0"] - 0.02)
+        # Only on high steps (H_EST > approach_min_h): on 200 / 300 mm steps the first touch
+        # stops the robot close enough (the flipper tip meets the riser lower down) and
+        # driving on to the riser made the later climb lose its grip (the lifted front
+        # flippers then rest flat on the top, lightly loaded): 300 mm 0/8 with, 4/8 without
+        use_approach = (p["approach"] > 0) & (s["h_est"] > p["approach_min_h"])
+        approaching = prepare & ~s["squared"] & flips_up & use_approach
+        side_v = obs["track_speed"].astype(dt)
+        side_stall = jnp.where(approaching & (side_v < p["clm_speed"] / 3.0), s["side_stall"] + control_dt, 0.0)
+        # the riser met by a side: its raised front flipper's tip (at A0 it is about as far
+        # forward as the crawler's front wheel) pressed back (the flipper torque, the
+        # paper's touch signal), or its encoder stalled (the tracks slip once the arms carry
+        # the body, so the torque comes first on a high step)
+        f_press = jnp.abs(obs["flipper_tau"][:2].astype(dt)) > p["approach_tau"]
+        side_touch = jnp.where(approaching & f_press, s["side_touch"] + control_dt, 0.0)
+        blocked = approaching & (s["blocked"] | (side_stall > p["approach_stall_s"])
+                                 | (side_touch > p["approach_touch_s"]))
+        approached = jnp.where(approaching, s["approached"] + jnp.mean(side_v) * control_dt, 0.0)
+        squared = s["squared"] | (prepare & ~use_approach) | (
+            approaching & (jnp.all(blocked) | (approached > p["approach_max"])))
+        squared = squared & prepare
+        drive = (walk & ~any_idle) | (climb & s["front_up"]) | done | (approaching & ~squared)
         v_cmd = jnp.where(drive, p["clm_speed"], 0.0)
+        v_side = jnp.where(approaching & ~squared & ~blocked, p["clm_speed"], 0.0)
 
         # ---- support arms: hold the ground contacts while the body moves (Eqs. 22-27)
         moved = jnp.where(drive, travel_step, 0.0)
@@ -330,7 +382,7 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
         confirm_now = walk & ~s["confirmed"] & jnp.all(on_step[:2]) & (est_n.step_height > p["sigma1"])
         confirmed = s["confirmed"] | confirm_now
         h_est = jnp.where(confirm_now, est_n.step_height, s["h_est"])
-        want_next = (walk & ~confirmed) | (prepare & (placed_n < N_PREPARE))
+        want_next = (walk & ~confirmed) | (prepare & squared & (placed_n < N_PREPARE))
         start = want_next & (active_n < 0) & (pause >= p["gait_pause"]) & ~ended
         nxt_arm = jnp.where(prepare, jnp.asarray(PREPARE_ORDER)[jnp.minimum(placed_n, N_PREPARE - 1)], order[ptr])
         active_n = jnp.where(start, nxt_arm, active_n)
@@ -383,8 +435,10 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
         q_climb = _tips_moved(s["q_cmd"], push & ~on_top, -dz, a_p, a_r)
         # the front flippers stay raised until the front is above the step top (they
         # would jam against the riser), then turn down onto it (to flip_min); the rear
-        # ones turn down at once (to rear_flip_min), lifting the tail on their tracks
-        flip_c = jnp.where(FRONT4 & front_low & ~on_top, flip, flip_c)
+        # ones (to rear_flip_min) too, or at once with rear_flip_late = 0: turning down with
+        # their tips on the ground they lifted the tail but pushed the robot (on the arms'
+        # free rollers) about 7 cm back from the riser, out of the lifted flippers' reach
+        flip_c = jnp.where((FRONT4 | (p["rear_flip_late"] > 0)) & front_low & ~on_top, flip, flip_c)
         flip_c = jnp.clip(flip_c, jnp.where(FRONT4, p["flip_min"], p["rear_flip_min"]), FLIPPER_MAX)
         # release (Eqs. 28-29, second branches): every EPRA rises by Delta_E l1 per period
         # (the body goes down evenly onto the crawlers) until it is back at the Table 2
@@ -396,7 +450,13 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
         released = release & jnp.all(high) & jnp.all(flip >= 0.0)
 
         # ---- arm commands
-        q_walk = jnp.where(transferring[:, None], tr_cmd, jnp.where(support[:, None], q_hold, s["q_cmd"]))
+        # the PREPARE approach holds the arm commands: the passive rollers roll along with
+        # the body. Holding the contacts by the encoder travel (Eqs. 22-27) there loaded
+        # the arms more as the tracks slipped at the riser, until the tracks were off the
+        # ground and the robot stood still on its arms. (The same in WALK once the step is
+        # confirmed made the later climbs less reliable: 2/8 instead of 6/8 at 400 mm.)
+        hold = support & ~(approaching & ~squared)
+        q_walk = jnp.where(transferring[:, None], tr_cmd, jnp.where(hold[:, None], q_hold, s["q_cmd"]))
         # DONE: the arms go to the carrying pose (booms up first, then the elbows), clear of
         # the terrain, while the robot drives on
         carry = jnp.stack([s["q_cmd"][:, 0], jnp.full(4, p["lift_boom_front"]), jnp.full(4, p["carry_elbow"])], axis=1)
@@ -442,14 +502,18 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
         travel = jnp.where(touch_now, -reach0, jnp.where((climb & s["touched"]) | (done & ~rewalk), travel, 0.0))
         h0 = jnp.where(changed & (nxt == CLIMB), h, s["h0"])
         # after an IDLE arm is placed it is in support; contacts of idle arms follow the EPRA
-        contacts_next = jnp.where((arm_phase_n == IDLE)[:, None] | (climb | release), tips, contacts_next)
+        # ... and so do those of the arms rolling along in the PREPARE approach
+        rolling = (support & ~hold)[:, None]
+        contacts_next = jnp.where((arm_phase_n == IDLE)[:, None] | (climb | release) | rolling, tips, contacts_next)
 
         # heading hold while driving (an addition: the paper assumes the yaw does not change,
         # ours does when one front flipper meets the riser first); heading_gain = 0 is the
         # paper's controller
         dyaw = _wrap(_yaw(obs["quat"].astype(dt)) - s["yaw0"])
-        steer = jnp.where(drive, jnp.clip(p["heading_gain"] * dyaw, -p["clm_speed"], p["clm_speed"]), 0.0)
-        tracks = jnp.stack([v_cmd + steer, v_cmd - steer])
+        steer = jnp.where(drive & ~prepare, jnp.clip(p["heading_gain"] * dyaw, -p["clm_speed"], p["clm_speed"]), 0.0)
+        tracks = jnp.where(prepare, v_side, jnp.stack([v_cmd + steer, v_cmd - steer]))
+        # squared up at the riser: the heading to hold from now on is the riser's normal
+        yaw0 = jnp.where(squared & ~s["squared"], _yaw(obs["quat"].astype(dt)), s["yaw0"])
         action = jnp.concatenate([tracks.astype(dt), flip_n, q_cmd.reshape(-1)])
         new = {
             "phase": nxt.astype(jnp.int32),
@@ -475,8 +539,13 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
             "front_up": front_up,
             "stall": stall.astype(dt),
             "climbed": s["climbed"] + jnp.where(released, 1, 0).astype(jnp.int32),
-            "yaw0": s["yaw0"],
+            "yaw0": yaw0.astype(dt),
             "flip_case": f_case.astype(jnp.int32),
+            "side_stall": side_stall.astype(dt),
+            "side_touch": side_touch.astype(dt),
+            "blocked": blocked,
+            "squared": squared,
+            "approached": approached.astype(dt),
         }
         return new, action
 
