@@ -12,8 +12,9 @@ For each groping leg g in the order L2, L1, L3, L4 (phases as `PHASES`):
   D'-1  move the body to the COG position for the grope (from `gait.plan_cycle`): the
         groping leg's normal force grows as the COG approaches;
   D'-2  push toe g down along the normal until its normal force exceeds R_ref (the
-        push pauses while another leg is unloaded), while the body creeps (`v_creep`) towards the groped foothold, at most `grope_blend`
-        of the way from the COG target to it. Why the creep: the legs are stiff servos
+        push pauses while another leg is unloaded), while the body creeps (`v_creep`)
+        towards the groped foothold, at most `grope_blend` of the way from the COG
+        target to it. Why the creep: the legs are stiff servos
         and the body is rigid, so pushing one toe of a four-leg stance loads it and its
         diagonal and unloads the other two (a twist); once one of them lifts off, more
         push only tilts the body. From the plan's COG (margin -1.7 mm: the paper's
@@ -85,7 +86,9 @@ class GropeSettings:
     swing_time: float = 0.8  # C [s]
     settle: float = 0.2  # pause at the end of A' and D'-1 [s]
     collapse_fraction: float = 0.3  # normal force below this fraction of its peak: collapsed
-    grope_tolerance: float = 0.05  # D'-2 ends at (1 - tolerance) R_ref: force-sensing tolerance (0.02 stalls the L1 grope: module doc)
+    # D'-2 ends at (1 - tolerance) R_ref: a force-sensing tolerance (at 0.02 the L1 grope
+    # times out: from the plan's COG the leg stalls just under R_ref, see D'-2 above)
+    grope_tolerance: float = 0.05
     phase_timeout: float = 4.0  # any phase longer than this stops the walk [s]
     force_filter: float = 0.05  # time constant of the toe-force low-pass filter [s]
     collapse_min_peak: float = 0.15  # collapse detection needs a peak above this, fraction of M g
@@ -145,9 +148,8 @@ def robot_params(p: dict) -> LegGropeParams:
 
 def walk_targets(p: dict, key: Array) -> WalkTargets:
     """Plan the cycle for one simulation's parameters `p` (theta, psi, stride,
-    swing_height, facet_spread, fallback_distance, safe_blend, grope_blend, r_ref_factor, mu)
-    and
-    terrain key."""
+    swing_height, facet_spread, fallback_distance, safe_blend, grope_blend, r_ref_factor,
+    mu) and terrain key."""
     robot = robot_params(p)
     walk = gait.WalkParams(stride=p["stride"], swing_height=p["swing_height"])
     terrain = terrain_of(p, key)
