@@ -27,15 +27,14 @@ friction, which scenarios sweep.
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from jaxloco.analysis import SpecError
 from jaxloco.robots.leggrope.params import LEG_NAMES, LegGropeParams, default_params
+from jaxloco.sim import mjcf
 
 MODEL_PATH = Path(__file__).resolve().parents[3] / "models" / "leggrope.xml"
 TOE_RADIUS = 0.008  # [m]
@@ -129,32 +128,15 @@ def _yaw_quat(angle: float) -> list[float]:
 def load_spec(path: str | Path | None = None) -> mujoco.MjSpec:
     """The robot MJCF (default `models/leggrope.xml`) as an MjSpec; SpecError (one line)
     for a missing or broken file."""
-    path = Path(path) if path is not None else MODEL_PATH
-    if not path.is_file():
-        raise SpecError(f"model file not found: {path}")
-    try:
-        return mujoco.MjSpec.from_file(str(path))
-    except Exception as exc:  # mujoco raises ValueError with a multi-line message
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise SpecError(f"broken MJCF {path}: {first}") from None
+    return mjcf.load_spec(path if path is not None else MODEL_PATH)
 
 
 def xml_text(params: LegGropeParams | None = None) -> str:
-    spec = build_spec(params)
-    spec.compile()
-    return spec.to_xml()
+    return mjcf.xml_text(build_spec(params))
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--write", action="store_true", help=f"write {MODEL_PATH}")
-    args = parser.parse_args(argv)
-    text = xml_text()
-    if args.write:
-        MODEL_PATH.write_text(text)
-        print(f"wrote {MODEL_PATH}")
-    else:
-        print(text)
+    mjcf.write_main(__doc__.splitlines()[0], MODEL_PATH, xml_text, argv)
 
 
 if __name__ == "__main__":

@@ -50,15 +50,14 @@ lower than the terrain's default so that MuJoCo's max rule lets the terrain deci
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from jaxloco.analysis import SpecError
 from jaxloco.robots.octopus import params as P
+from jaxloco.sim import mjcf
 
 MODEL_PATH = Path(__file__).resolve().parents[3] / "models" / "octopus.xml"
 TIMESTEP = 0.002  # [s]
@@ -301,42 +300,20 @@ def _limits(act: mujoco.MjsActuator, ctrlrange: tuple[float, float], force: floa
 def load_spec(path: str | Path | None = None) -> mujoco.MjSpec:
     """The robot MJCF (default `models/octopus.xml`) as an MjSpec; SpecError (one line)
     for a missing or broken file."""
-    path = Path(path) if path is not None else MODEL_PATH
-    if not path.is_file():
-        raise SpecError(f"model file not found: {path}")
-    try:
-        return mujoco.MjSpec.from_file(str(path))
-    except (ValueError, RuntimeError) as exc:  # mujoco: ValueError with a multi-line message
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise SpecError(f"broken MJCF {path}: {first}") from None
+    return mjcf.load_spec(path if path is not None else MODEL_PATH)
 
 
 def load_model(path: str | Path | None = None) -> mujoco.MjModel:
     """`load_spec(path)` compiled; SpecError (one line) if it does not compile."""
-    spec = load_spec(path)
-    try:
-        return spec.compile()
-    except (ValueError, RuntimeError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise SpecError(f"MJCF {path or MODEL_PATH} does not compile: {first}") from None
+    return mjcf.load_model(path if path is not None else MODEL_PATH)
 
 
 def xml_text() -> str:
-    spec = build_spec()
-    spec.compile()
-    return spec.to_xml()
+    return mjcf.xml_text(build_spec())
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--write", action="store_true", help=f"write {MODEL_PATH}")
-    args = parser.parse_args(argv)
-    text = xml_text()
-    if args.write:
-        MODEL_PATH.write_text(text)
-        print(f"wrote {MODEL_PATH}")
-    else:
-        print(text)
+    mjcf.write_main(__doc__.splitlines()[0], MODEL_PATH, xml_text, argv)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,61 @@
+"""Loading and writing the robots' MJCF files (`models/*.xml`), with one-line errors.
+
+Each robot's `model.py` builds its MJCF from its parameters as an MjSpec, writes it with
+`write_main` (`python -m jaxloco.robots.<robot>.model --write`) and reads it back with
+`load_spec` / `load_model`, to which scenarios add their terrain.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+
+import mujoco
+
+from jaxloco.analysis import SpecError
+
+
+def _first_line(exc: Exception) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def load_spec(path: str | Path) -> mujoco.MjSpec:
+    """The MJCF file `path` as an MjSpec; SpecError (one line) if it is missing or broken."""
+    path = Path(path)
+    if not path.is_file():
+        raise SpecError(f"model file not found: {path}")
+    try:
+        return mujoco.MjSpec.from_file(str(path))
+    except (ValueError, RuntimeError) as exc:  # mujoco: ValueError with a multi-line message
+        raise SpecError(f"broken MJCF {path}: {_first_line(exc)}") from None
+
+
+def load_model(path: str | Path) -> mujoco.MjModel:
+    """`load_spec(path)` compiled; SpecError (one line) if it does not compile."""
+    spec = load_spec(path)
+    try:
+        return spec.compile()
+    except (ValueError, RuntimeError) as exc:
+        raise SpecError(f"MJCF {path} does not compile: {_first_line(exc)}") from None
+
+
+def xml_text(spec: mujoco.MjSpec) -> str:
+    """The MJCF text of a spec (compiled first, as MjSpec.to_xml requires)."""
+    spec.compile()
+    return spec.to_xml()
+
+
+def write_main(description: str, path: Path, text: Callable[[], str], argv: list[str] | None = None) -> None:
+    """Command line of a robot's model module: print its MJCF, or write it to `path`
+    with --write."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--write", action="store_true", help=f"write {path}")
+    args = parser.parse_args(argv)
+    out = text()
+    if args.write:
+        path.write_text(out)
+        print(f"wrote {path}")
+    else:
+        print(out)
