@@ -109,3 +109,10 @@ def test_interrupted_simulation_sweep_resumes(tmp_path):
     for name in ("max_abs_roll", "max_attitude_change", "status", "mu", "theta"):
         np.testing.assert_array_equal(resumed.table.column(name).to_numpy(zero_copy_only=False),
                                       full.table.column(name).to_numpy(zero_copy_only=False))
+
+
+def test_params_batch_rejects_unknown_parameters():
+    p = scenarios.params_batch(3, theta=np.array([0.0, 0.1, 0.2]), weak_leg=1)
+    assert p["theta"].shape == (3,) and p["weak_leg"].dtype == np.int32
+    with pytest.raises(KeyError, match="thetta"):
+        scenarios.params_batch(2, thetta=0.1)

@@ -208,3 +208,16 @@ def model_field_values(scenario: Scenario, params: Params) -> dict[str, np.ndarr
         base = out.get(f.name, jnp.asarray(getattr(scenario.model, f.name)))
         out[f.name] = base.at[f.index].set(f.value(params))
     return out
+
+
+def params_batch(defaults: Mapping[str, float], n: int, overrides: Mapping[str, Any],
+                 int_keys: tuple[str, ...] = ()) -> dict[str, jax.Array]:
+    """A batch of n parameter dicts for a scenario: `defaults` with `overrides` (scalars,
+    or arrays of length n to vary a parameter), every leaf of shape (n,); float, except
+    `int_keys`. KeyError naming any override that is not a parameter (a typo would
+    otherwise silently leave the default in place)."""
+    unknown = set(overrides) - set(defaults)
+    if unknown:
+        raise KeyError(f"params_batch: unknown parameters {sorted(unknown)}")
+    return {k: jnp.broadcast_to(jnp.asarray(v, jnp.int32 if k in int_keys else jnp.result_type(float)), (n,))
+            for k, v in {**defaults, **overrides}.items()}

@@ -37,6 +37,7 @@ from jaxloco.sim.scenario import (
     ModelField,
     Scenario,
 )
+from jaxloco.sim.scenario import params_batch as sim_params_batch
 
 PAD_THICKNESS = 0.04  # [m] pads stand this far out of the slope
 PAD_HALF = 0.018  # [m] pad half side
@@ -338,8 +339,4 @@ def _matrix_to_quat(R):
 def params_batch(n: int = 1, **overrides) -> dict[str, jax.Array]:
     """A batch of n identical parameter dicts (defaults with `overrides`); overrides may
     be arrays of length n to vary one parameter."""
-    out = {}
-    for k, v in {**PARAM_DEFAULTS, **overrides}.items():
-        dtype = jnp.int32 if k == "weak_leg" else None
-        out[k] = jnp.broadcast_to(jnp.asarray(v, dtype), (n,))
-    return out
+    return sim_params_batch(PARAM_DEFAULTS, n, overrides, int_keys=("weak_leg",))

@@ -48,6 +48,7 @@ from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.data import SimData, sensor_slice
 from jaxloco.sim.scenario import Controller, InitialState, ModelField, Scenario
+from jaxloco.sim.scenario import params_batch as sim_params_batch
 
 KINDS = ("step1", "step2_front", "step2_side", "flat")
 TERRACE_DEPTH = 0.8  # [m] depth of the first terrace of the two-terrace steps
@@ -293,8 +294,4 @@ def make_scenario(
 def params_batch(n: int = 1, **overrides) -> dict[str, jax.Array]:
     """A batch of n identical parameter dicts (defaults with `overrides`); overrides may
     be arrays of length n to vary one parameter."""
-    unknown = set(overrides) - set(PARAM_DEFAULTS)
-    if unknown:
-        raise KeyError(f"params_batch: unknown parameters {sorted(unknown)}")
-    return {k: jnp.broadcast_to(jnp.asarray(v, jnp.result_type(float)), (n,))
-            for k, v in {**PARAM_DEFAULTS, **overrides}.items()}
+    return sim_params_batch(PARAM_DEFAULTS, n, overrides)
