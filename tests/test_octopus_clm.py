@@ -117,13 +117,14 @@ def test_support_arms_hold_their_ground_contacts_while_driving():
 
 
 def test_clm_climbs_a_low_step_through_every_phase():
-    """200 mm step: a front arm stops on the step top (arm stop case: obstacle on the
-    target), the other front arm follows, H_EST is confirmed, the crawlers stop, the rear
-    arms are placed, the arms lift the body level, the flippers pull it onto the top, the
-    release lowers it and it drives on (WALK, PREPARE, CLIMB, RELEASE, DONE)."""
+    """200 mm step, the arm climb forced (crawl_max_h = 0): a front arm stops on the step
+    top (arm stop case: obstacle on the target), the other front arm follows, H_EST is
+    confirmed, the crawlers stop, the rear arms are placed, the arms lift the body level,
+    the flippers pull it onto the top, the release lowers it and it drives on (WALK,
+    PREPARE, CLIMB, RELEASE, DONE)."""
     height = 0.2
     sc = _scenario("step1", horizon_s=84.0, record_every=10)
-    r = rollout(sc, scenarios.params_batch(1, height=height), nthread=2)
+    r = rollout(sc, scenarios.params_batch(1, height=height, crawl_max_h=0.0), nthread=2)
     row = r.row(0)
     assert row["status"] == "ok" and row["success"], row
     R = {k: v[0] for k, v in r.records.items()}
@@ -136,6 +137,46 @@ def test_clm_climbs_a_low_step_through_every_phase():
     assert row["max_pitch"] < 0.3 and row["max_abs_roll"] < 0.1
     assert row["min_margin"] > 0.0
     assert row["final_z"] > height + 0.2
+
+
+def test_clm_crawls_up_a_two_terrace_staircase():
+    """Two 200 mm terraces from the front (H_EST <= crawl_max_h): the arms grope the first
+    riser, the step is confirmed, and the robot climbs it in CRAWL with the arms carried;
+    blocked again by the second riser right after (DONE, stalled) it climbs that one in
+    CRAWL too, and ends on the top. The arms are in the carrying pose (booms up) while
+    crawling, and the robot never tips."""
+    sc = _scenario("step2_front", horizon_s=90.0, record_every=10)
+    r = rollout(sc, scenarios.params_batch(1, height=0.4), nthread=2)
+    row = r.row(0)
+    assert row["status"] == "ok" and row["success"], row
+    R = {k: v[0] for k, v in r.records.items()}
+    ph = R["phase"]
+    assert clm.PREPARE not in ph and clm.CLIMB not in ph  # no arm climb
+    assert R["h_est"][np.argmax(ph == clm.CRAWL)] == pytest.approx(0.2, abs=0.05)
+    # two CRAWL climbs, the second straight from DONE (no groping in between)
+    entries = np.flatnonzero((ph[1:] == clm.CRAWL) & (ph[:-1] != clm.CRAWL)) + 1
+    assert ph[0] == clm.WALK and len(entries) == 2 and ph[entries[1] - 1] == clm.DONE
+    assert row["max_pitch"] < 0.5 and row["max_abs_roll"] < 0.1
+    assert row["final_z"] > 0.4 + 0.2
+
+
+def test_clm_walks_past_a_block_beside_its_right_side():
+    """Rough ground (paper, Figs. 19-20): a 500 mm block 10 mm beside the right crawler.
+    A right arm lands on the block top (stopped on an obstacle, Case 2 of the arm stop
+    rules), the left front arm finds the floor, so no step is confirmed: the robot walks
+    on past the block in WALK without tipping."""
+    sc = _scenario("block", horizon_s=60.0, record_every=10)
+    r = rollout(sc, scenarios.params_batch(1, height=0.5), nthread=2)
+    row = r.row(0)
+    assert row["status"] == "ok" and row["success"], row
+    R = {k: v[0] for k, v in r.records.items()}
+    assert set(R["phase"].tolist()) == {clm.WALK} and not R["confirmed"].any()
+    right = np.array([not left for left in clm.LEFT])
+    on_block = R["on_step"][:, right].any(axis=1)
+    assert on_block.any() and not R["on_step"][:, ~right].any()
+    tips = R["rollers"][:, right]
+    assert np.max(tips[..., 2]) > 0.5  # a right roller up on the block top
+    assert row["max_abs_roll"] < 0.3
 
 
 def test_prepare_approach_squares_up_on_a_high_step():

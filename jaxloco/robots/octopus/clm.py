@@ -23,7 +23,7 @@ Robot phases (`PHASE_NAMES`; Fig. 9 a-h and the phases A-F of Fig. 14):
     on it and H_EST (Eq. 9, `explore_terrain` on the contact points) > sigma1 -> the step
     is confirmed, the gait stops and the crawlers drive on until a front flipper touches
     the riser (flipper rule Case 2; with stop_on_touch = 0: Case 3, A' > A0) or the
-    encoders stall (`stall_s`) -> PREPARE.
+    encoders stall (`stall_s`) -> PREPARE, or CRAWL if H_EST <= crawl_max_h.
   PREPARE 1 (Fig. 9d, Fig. 14 D: "RR arm adjusting its posture for climbing"): crawlers
     stopped, front flippers up to A0. On a high step (H_EST > approach_min_h; an
     addition) the robot then approaches and squares up: each crawler drives on until the
@@ -51,8 +51,20 @@ Robot phases (`PHASE_NAMES`; Fig. 9 a-h and the phases A-F of Fig. 14):
     per period (body down evenly onto the crawlers) until back at the Table 2 height in
     {R} (the authors' "theta_2' > 0"); flippers +delta_f while A' < 0. All done -> DONE.
   DONE 4: the arms go to a carrying pose (booms up first), the crawlers drive on; after
-    `done_distance` -> WALK with every arm IDLE: the arms are placed again one at a time
-    (crawlers waiting), so that the next terrace is met the same way.
+    `done_distance`, or blocked (encoders stalled `stall_s`) -> WALK with every arm IDLE:
+    the arms are placed again one at a time (crawlers waiting), so that the next terrace
+    is met the same way. Blocked right after a CRAWL climb -> CRAWL again (the next
+    terrace of a staircase).
+  CRAWL 5 (an addition): a confirmed step no higher than crawl_max_h (0.25 m, the
+    flipper length: the paper, "Tasks setting": OCTOPUS "can climb the step which height
+    is lower than 250 mm without using arms") is climbed by the crawlers and flippers
+    with the arms carried, as the CCM baseline does (`_crawl_step`: front flippers up,
+    down onto the edge while driving at crawl_speed, rear flippers push, level) -> DONE.
+    Why: on a two-terrace step (terraces TERRACE_DEPTH = 0.8 m deep, shorter than the
+    robot with its flippers) the arm climb of the second riser placed the rear arms down
+    the first edge, and the robot rolled back off the terrace (0/8); the paper's "two
+    edges provide additional support" is the crawlers spanning both risers. The arms
+    still grope and measure every riser (H_EST) and decide how it is climbed.
 
 Arm phases (per arm, `ARM_PHASE_NAMES`): the transfer phases of `clm_rules` (LIFT, SWING,
 OVER, LOWER), PLACED = in support, IDLE = holding its last command, waiting for a
@@ -108,8 +120,11 @@ from jaxloco.sim.scenario import Controller
 
 Array = jax.Array
 
-WALK, PREPARE, CLIMB, RELEASE, DONE = 0, 1, 2, 3, 4
-PHASE_NAMES = ("walk", "prepare", "climb", "release", "done")
+WALK, PREPARE, CLIMB, RELEASE, DONE, CRAWL = 0, 1, 2, 3, 4, 5
+PHASE_NAMES = ("walk", "prepare", "climb", "release", "done", "crawl")
+# CRAWL sub-phases: front flippers up (arms to the carrying pose), front flippers down
+# onto the edge while driving, rear flippers push, level on the top
+RAISE, LOWER_F, PUSH, LEVEL = 0, 1, 2, 3
 IDLE = 5  # arm phase after cr.PLACED (4): holding, waiting for a transfer
 ARM_PHASE_NAMES = (*cr.TRANSFER_PHASES, "idle")
 CONTROL_DT = 0.02  # [s] 50 Hz
@@ -162,6 +177,16 @@ PARAM_DEFAULTS: dict[str, float] = {
     "delta_e": 0.006,  # [rad/period] boom step (the EPRA moves Delta_E l1 per period)
     "delta_f": 0.01,  # [rad/period] flipper step
     "settle_distance": 0.3,  # [m] L = 0.6 x 500 mm
+    # CRAWL (an addition, see the module docstring): low steps climbed by crawlers and flippers
+    "crawl_max_h": 0.25,  # [m] confirmed steps up to this height (paper: < 250 mm without arms)
+    "crawl_speed": 0.063,  # [m/s] crawler speed in CRAWL (the CCM baseline's)
+    "crawl_front_up": 1.2,  # [rad] front flippers raised onto the edge first
+    "crawl_rate": 0.3,  # [rad/s] flipper rate in CRAWL
+    "crawl_rear_push": -0.6,  # [rad] rear flippers push the tail up
+    "crawl_pitch_push": 0.3,  # [rad] nose-up pitch that starts the rear push
+    "crawl_pitch_rise": 0.1,  # [rad] ... or this with the front flippers down
+    "crawl_pitch_level": 0.05,  # [rad] after the push, back below this: on top
+    "crawl_level_s": 2.0,  # [s] the rear flippers keep pushing this long once level
     "release_pitch": 0.35,  # [rad] nose-up pitch below which the robot counts as on top
     "front_clearance": 0.03,  # [m] the arms lift until the crawler fronts clear the step top by this
     "level_band": 0.05,  # [rad] pitch / roll band of the level lift
@@ -213,6 +238,39 @@ def _tips_moved(q: Array, move: Array, dz_level: Array, a_p: Array, a_r: Array) 
     return jnp.where(ok[:, None], q_new, q)
 
 
+def _crawl_step(p, s, flip: Array, pitch: Array, t: Array, stalled: Array, control_dt: float):
+    """One period of CRAWL (a low step climbed by crawlers and flippers, as the CCM
+    baseline does, `ccm`): RAISE the front flippers to crawl_front_up while the arms go to
+    the carrying pose (crawlers stopped); LOWER_F them onto the edge at crawl_rate while
+    driving (the tracks on the edge pull the nose up); PUSH with the rear flippers once
+    the nose-up pitch passes crawl_pitch_push, or crawl_pitch_rise with the front flippers
+    down (a low riser pitches the robot less: at 200 mm it stayed at 0.23 rad, the tracks
+    slipping on the edge); LEVEL once it falls back below crawl_pitch_level, the rear
+    flippers pushing on for crawl_level_s. Crawlers stalled in LOWER_F or PUSH (`stalled`;
+    on a shallow terrace the front meets the next riser while the tail is still on the
+    last edge, pitched): RAISE again, the rear flippers holding, and climb on (groping
+    with the arms there, pitched on an edge, tipped the robot over: 5 of 8 runs).
+    Returns the flipper commands, the next sub-phase, its start time and whether CRAWL
+    is over."""
+    sub, t0 = s["crawl"], s["t_crawl"]
+    booms_up = jnp.all(s["q_cmd"][:, 1] <= p["lift_boom_front"] + 1e-3)
+    raised = jnp.all(flip[:2] >= p["crawl_front_up"] - 1e-6) & booms_up
+    nxt = jnp.where((sub == RAISE) & raised, LOWER_F, sub)
+    down = jnp.all(flip[:2] <= 0.05)
+    nxt = jnp.where((sub == LOWER_F) & ((pitch > p["crawl_pitch_push"]) | (down & (pitch > p["crawl_pitch_rise"]))),
+                    PUSH, nxt)
+    nxt = jnp.where((sub == PUSH) & (pitch < p["crawl_pitch_level"]), LEVEL, nxt)
+    nxt = jnp.where(((sub == LOWER_F) | (sub == PUSH)) & stalled, RAISE, nxt)
+    over = (sub == LEVEL) & (t - t0 > p["crawl_level_s"])
+    front = jnp.where(sub == RAISE, p["crawl_front_up"], 0.0)
+    rear = jnp.where((sub == PUSH) | (sub == LEVEL), p["crawl_rear_push"], jnp.where(sub == RAISE, flip[2:], 0.0))
+    target = jnp.concatenate([jnp.stack([front, front]), jnp.broadcast_to(rear, (2,))]).astype(flip.dtype)
+    rate = p["crawl_rate"] * control_dt
+    flip_n = flip + jnp.clip(target - flip, -rate, rate)
+    t_n = jnp.where(nxt != sub, t, t0)
+    return flip_n, nxt, t_n, over
+
+
 def make_controller(control_dt: float = CONTROL_DT) -> Controller:
     kp = _KP
     targets0 = jnp.asarray(P.TABLE2_TARGET)
@@ -261,6 +319,9 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
             "blocked": jnp.zeros((2,), bool),  # PREPARE approach: crawler (left, right) at the riser
             "squared": jnp.asarray(False),  # PREPARE: the approach is over (both crawlers at the riser)
             "approached": jnp.zeros((), dt),  # [m] PREPARE approach travel (encoders)
+            "crawl": jnp.asarray(RAISE, jnp.int32),  # CRAWL sub-phase
+            "crawled_last": jnp.asarray(False),  # the last step was climbed in CRAWL
+            "t_crawl": jnp.zeros((), dt),  # [s] time the CRAWL sub-phase began
         }
 
     def step(p, s, obs):
@@ -283,6 +344,7 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
         # ---- crawlers: drive in WALK (unless an arm is idle) and CLIMB
         any_idle = jnp.any(arm_phase == IDLE)
         done = phase == DONE
+        crawl = phase == CRAWL
         # PREPARE approach: once the front flippers are up at A0 (clear of the riser), each
         # crawler drives on until the riser blocks its front wheel (its encoder stalls for
         # approach_stall_s); a blocked side stops and the other one drives on alone, so the
@@ -312,8 +374,9 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
         squared = s["squared"] | (prepare & ~use_approach) | (
             approaching & (jnp.all(blocked) | (approached > p["approach_max"])))
         squared = squared & prepare
-        drive = (walk & ~any_idle) | (climb & s["front_up"]) | done | (approaching & ~squared)
-        v_cmd = jnp.where(drive, p["clm_speed"], 0.0)
+        drive = ((walk & ~any_idle) | (climb & s["front_up"]) | done | (approaching & ~squared)
+                 | (crawl & (s["crawl"] > RAISE)))
+        v_cmd = jnp.where(drive, jnp.where(crawl, p["crawl_speed"], p["clm_speed"]), 0.0)
         v_side = jnp.where(approaching & ~squared & ~blocked, p["clm_speed"], 0.0)
 
         # ---- support arms: hold the ground contacts while the body moves (Eqs. 22-27)
@@ -399,8 +462,11 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
         # walking angle (a single Case 2 period also comes from the arm transfers' jolts)
         touched_riser = jnp.any(f_rule > p["front_start"] + p["touch_rise"])
         at_a0 = jnp.any(f_case == cr.FLIPPER_LIMIT) | ((p["stop_on_touch"] > 0) & touched_riser)
-        stall = jnp.where(walk & confirmed & (v_meas < p["clm_speed"] / 3.0), s["stall"] + control_dt, 0.0)
+        # crawlers stalled: at the riser (WALK, step confirmed), or blocked by the next riser
+        # while driving on with the arms carried (DONE, CRAWL)
+        stall = jnp.where(((walk & confirmed) | done | (crawl & (s["crawl"] > RAISE))) & (v_meas < p["clm_speed"] / 3.0), s["stall"] + control_dt, 0.0)
         to_prepare = walk & confirmed & (at_a0 | (stall > p["stall_s"])) & (active_n < 0)
+        low_step = h_est <= p["crawl_max_h"]
 
         # ---- climbing and release (Eqs. 28-29): booms and flippers
         h = kin.cog_height(kp, tips, a_p, a_r)
@@ -449,6 +515,12 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
         flip_r = jnp.where(flip < 0, jnp.minimum(flip + p["delta_f"], 0.0), flip)
         released = release & jnp.all(high) & jnp.all(flip >= 0.0)
 
+        # ---- CRAWL: a low step climbed by the crawlers and flippers, arms carried
+        flip_cr, crawl_n, t_crawl, crawled = _crawl_step(p, s, flip, a_p, obs["time"], stall > p["stall_s"],
+                                                                         control_dt)
+        crawl_n = jnp.where(crawl, crawl_n, RAISE)
+        crawled = crawl & crawled
+
         # ---- arm commands
         # the PREPARE approach holds the arm commands: the passive rollers roll along with
         # the body. Holding the contacts by the encoder travel (Eqs. 22-27) there loaded
@@ -463,14 +535,14 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
         booms_up = jnp.all(s["q_cmd"][:, 1] <= p["lift_boom_front"] + 1e-3)
         step_max = jnp.where(jnp.arange(3) == 2, jnp.where(booms_up, p["delta_b"], 0.0), p["delta_b"])
         q_done = s["q_cmd"] + jnp.clip(carry - s["q_cmd"], -step_max, step_max)
-        q_cmd = jnp.select([climb, release, done], [q_climb, q_release, q_done], q_walk)
+        q_cmd = jnp.select([climb, release, done | crawl], [q_climb, q_release, q_done], q_walk)
         q_cmd = jnp.clip(q_cmd, ARM_LO, ARM_HI)
         # ---- flipper commands
         flip_walk = jnp.concatenate([f_rule, jnp.zeros(2, dt)])
         # PREPARE: the front flippers go up to A0 (Fig. 9d)
         flip_prep = flip.at[:2].set(jnp.minimum(flip[:2] + p["flip_delta_a"], p["A0"]))
         flip_walk = jnp.where(walk, flip_walk, jnp.where(prepare, flip_prep, flip))
-        flip_n = jnp.select([climb, release, done], [flip_c, flip_r, jnp.zeros(4, dt)], flip_walk)
+        flip_n = jnp.select([climb, release, done, crawl], [flip_c, flip_r, jnp.zeros(4, dt), flip_cr], flip_walk)
 
         # ---- phase transitions
         to_climb = prepare & (placed_n >= N_PREPARE) & (active_n < 0)
@@ -480,18 +552,24 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
         to_release = climb & on_top & (a_p < p["release_pitch"])
         # DONE -> WALK once the robot has driven done_distance on the top (arms carried):
         # the arms are placed again one at a time (crawlers waiting), for the next terrace
-        rewalk = done & (s["travel"] > p["done_distance"])
-        nxt = jnp.select([to_prepare, to_climb, to_release, released, rewalk], [PREPARE, CLIMB, RELEASE, DONE, WALK],
+        # ... but blocked again right after a CRAWL climb: the next low terrace of a
+        # staircase, climbed the same way (groping it with the arms while pitched on the
+        # last edge tipped the robot over)
+        recrawl = done & s["crawled_last"] & (stall > p["stall_s"])
+        rewalk = done & ~recrawl & ((s["travel"] > p["done_distance"]) | (stall > p["stall_s"]))
+        finished = released | crawled
+        nxt = jnp.select([to_prepare & low_step, to_prepare, to_climb, to_release, finished, recrawl, rewalk],
+                         [CRAWL, PREPARE, CLIMB, RELEASE, DONE, CRAWL, WALK],
                          phase)
         changed = nxt != phase
         # entering PREPARE: restart the gait at RR; entering WALK after a release: every
         # arm idle, to be placed again (rear arms first)
         ptr = jnp.where(changed & ((nxt == PREPARE) | (nxt == WALK)), 0, ptr)
         placed_n = jnp.where(changed, 0, placed_n)
-        arm_phase_n = jnp.where(released, IDLE, arm_phase_n)
-        on_step = jnp.where(released, False, on_step)
-        confirmed = jnp.where(released, False, confirmed)
-        active_n = jnp.where(released, -1, active_n)
+        arm_phase_n = jnp.where(finished | (changed & (nxt == CRAWL)), IDLE, arm_phase_n)
+        on_step = jnp.where(finished, False, on_step)
+        confirmed = jnp.where(finished, False, confirmed)
+        active_n = jnp.where(finished, -1, active_n)
         pause = jnp.where(changed, 0.0, pause)
         # S (Eq. 18, Fig. 5: the front flipper pivots past the obstacle edge) starts when the
         # lifted front flippers touch down on the step top (flipper torque beyond T0): the
@@ -538,7 +616,7 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
             "touched": touched,
             "front_up": front_up,
             "stall": stall.astype(dt),
-            "climbed": s["climbed"] + jnp.where(released, 1, 0).astype(jnp.int32),
+            "climbed": s["climbed"] + jnp.where(finished, 1, 0).astype(jnp.int32),
             "yaw0": yaw0.astype(dt),
             "flip_case": f_case.astype(jnp.int32),
             "side_stall": side_stall.astype(dt),
@@ -546,6 +624,9 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
             "blocked": blocked,
             "squared": squared,
             "approached": approached.astype(dt),
+            "crawl": crawl_n.astype(jnp.int32),
+            "crawled_last": jnp.where(finished, crawled, s["crawled_last"]),
+            "t_crawl": jnp.where(changed & (nxt == CRAWL), obs["time"], t_crawl).astype(dt),
         }
         return new, action
 

@@ -8,6 +8,10 @@ floor at the origin heading +x, yawed by `yaw`):
   * "step2_side": two terraces whose heights differ under the left (y > 0) and right
     crawlers: total `height` on the left, `side_ratio` * `height` on the right (the
     paper's "from the side" task, where the terraces under the two crawlers differ);
+  * "block": rough-ground test of the paper ("Passing through rough road", Figs. 19-20):
+    a concrete block of `height` (paper: 500 mm), `BLOCK_SIZE` long and wide, standing
+    `block_gap` (paper: about 10 mm) beside the robot's right side (its right crawler
+    wheels, `ROBOT_SIDE`), its near face at x = `distance`; the right arms run into it;
   * "flat": the floor only (`tr.flat`).
 Every terrain parameter is per simulation (mocap poses, no recompiling): `height`,
 `distance` (x of the first riser, i.e. horizontal distance from the chassis origin {R}
@@ -50,9 +54,12 @@ from jaxloco.sim.data import SimData, sensor_slice
 from jaxloco.sim.scenario import Controller, InitialState, ModelField, Scenario
 from jaxloco.sim.scenario import params_batch as sim_params_batch
 
-KINDS = ("step1", "step2_front", "step2_side", "flat")
+KINDS = ("step1", "step2_front", "step2_side", "block", "flat")
 TERRACE_DEPTH = 0.8  # [m] depth of the first terrace of the two-terrace steps
 MAX_HEIGHT = 0.6  # [m] highest step the terrain boxes allow
+# the block (the paper gives its height only): a 0.5 m concrete cube
+BLOCK_SIZE = 0.5  # [m] length (x) and width (y)
+ROBOT_SIDE = P.CRAWLER_Y + P.MAIN_WHEEL_RADIUS  # [m] |y| of the crawlers' outer side
 CONTACT_TOL = 0.02  # [m]
 CONTACT_SITES = (
     tuple(f"crawler_{s}_{e}" for s in "lr" for e in ("front", "rear"))
@@ -68,6 +75,7 @@ PARAM_DEFAULTS: dict[str, float] = {
     "distance": 0.7,  # [m] chassis origin to the first riser at t = 0
     "yaw": 0.0,  # [rad] initial heading
     "side_ratio": 0.5,  # step2_side: right rise / left rise
+    "block_gap": 0.01,  # [m] block: gap between the robot's right side and the block
     "mu": 0.8,  # terrain friction
     # success test
     "pass_distance": 0.3,  # [m] the COG beyond the last riser (paper: S = 0.3 m)
@@ -86,6 +94,8 @@ def build_model(kind: str) -> tuple[mujoco.MjModel, tr.Terrain]:
     spec = octo_model.load_spec()
     if kind == "flat":
         terrain = tr.flat(half_extent=10.0, half_depth=0.5)
+    elif kind == "block":
+        terrain = tr.blocks(n=1, half_size=(0.5 * BLOCK_SIZE, 0.5 * BLOCK_SIZE, 0.5 * MAX_HEIGHT))
     elif kind == "step1":
         terrain = tr.steps(n_terraces=1, max_height=MAX_HEIGHT)
     else:
@@ -97,7 +107,7 @@ def build_model(kind: str) -> tuple[mujoco.MjModel, tr.Terrain]:
 def _heights(kind: str, p) -> tuple[jax.Array, jax.Array]:
     """Total rise of the left and right staircases [m]."""
     h = jnp.asarray(p["height"], jnp.result_type(float))
-    if kind == "flat":
+    if kind in ("flat", "block"):  # no steps to climb
         return 0.0 * h, 0.0 * h
     if kind == "step2_side":
         return h, h * p["side_ratio"]
@@ -108,6 +118,10 @@ def terrain_values(kind: str, p) -> dict[str, jax.Array]:
     """The terrain placement values of one simulation's params."""
     if kind == "flat":
         return {"height": 0.0 * jnp.asarray(p["height"], jnp.result_type(float))}
+    if kind == "block":
+        h = jnp.asarray(p["height"], jnp.result_type(float))
+        return {"block0_x": p["distance"] + 0.5 * BLOCK_SIZE, "block0_y": -(ROBOT_SIDE + p["block_gap"] + 0.5 * BLOCK_SIZE),
+                "block0_height": h, "block0_yaw": 0.0 * h}
     left, right = _heights(kind, p)
     return {"height_left": left, "height_right": right, "start": jnp.asarray(p["distance"], left.dtype)}
 
@@ -117,6 +131,11 @@ def terrain_height(kind: str, p, xy: jax.Array) -> jax.Array:
     left, right = _heights(kind, p)
     if kind == "flat":
         return jnp.zeros(xy.shape[:-1], left.dtype)
+    if kind == "block":
+        dx = xy[..., 0] - p["distance"]
+        dy = -(ROBOT_SIDE + p["block_gap"]) - xy[..., 1]
+        inside = (dx >= 0.0) & (dx <= BLOCK_SIZE) & (dy >= 0.0) & (dy <= BLOCK_SIZE)
+        return jnp.where(inside, jnp.asarray(p["height"], left.dtype), 0.0)
     n = 1 if kind == "step1" else 2
     rise = jnp.where(xy[..., 1] >= 0.0, left, right)
     x = xy[..., 0] - p["distance"]
@@ -130,7 +149,7 @@ def edge_contacts(kind: str, p, pts: jax.Array) -> tuple[jax.Array, jax.Array]:
     sites `pts`, `CONTACT_SITES` order) is cut with the vertical plane of every riser;
     a crossing within `CONTACT_TOL` of that terrace's top is a contact. Returns the
     points (2 sides x 3 segments x risers, 3) and their mask (fixed shapes)."""
-    n = {"flat": 1, "step1": 1}.get(kind, 2)
+    n = {"flat": 1, "step1": 1, "block": 1}.get(kind, 2)
     left, right = _heights(kind, p)
     risers = jnp.asarray(p["distance"], pts.dtype) + TERRACE_DEPTH * jnp.arange(n, dtype=pts.dtype)
     # site rows: crawler_l_front 0, crawler_l_rear 1, crawler_r_front 2, crawler_r_rear 3,
@@ -150,8 +169,10 @@ def edge_contacts(kind: str, p, pts: jax.Array) -> tuple[jax.Array, jax.Array]:
 
 
 def top_x(kind: str, p) -> jax.Array:
-    """x of the last riser [m] (the edge the COG must pass)."""
+    """x of the last riser [m] (the edge the COG must pass; block: its far face)."""
     d = jnp.asarray(p["distance"], jnp.result_type(float))
+    if kind == "block":  # passed: beyond the block's far face
+        return d + BLOCK_SIZE
     return d + (TERRACE_DEPTH if kind in ("step2_front", "step2_side") else 0.0)
 
 

@@ -29,8 +29,9 @@ _CLM = clm.PARAM_DEFAULTS
 _SC = scenarios.PARAM_DEFAULTS
 
 PARAMS = (
-    Param("kind", "step1", "terrain: one terrace, two terraces from the front, or from the side", kind="str",
-          choices=("step1", "step2_front", "step2_side"), sweepable=False),
+    Param("kind", "step1", "terrain: one terrace, two terraces from the front, or from the side, or a block "
+          "(height) beside the robot's right side", kind="str",
+          choices=("step1", "step2_front", "step2_side", "block"), sweepable=False),
     Param("controller", "clm", "the CLM controller (crawlers, flippers and arms) or the CCM baseline (crawlers "
           "and flippers only)", kind="str", choices=("clm", "ccm"), sweepable=False),
     # terrain and physics
@@ -38,6 +39,8 @@ PARAMS = (
     Param("distance", _SC["distance"], "chassis origin to the first riser at t = 0", "m", lo=0.4, hi=3.0),
     Param("yaw", _SC["yaw"], "initial heading relative to the step normal", "rad", lo=-0.8, hi=0.8),
     Param("side_ratio", _SC["side_ratio"], "step2_side: right rise / left rise", "", lo=0.0, hi=1.0),
+    Param("block_gap", _SC["block_gap"], "block: gap between the robot's right side and the block", "m",
+          lo=0.0, hi=1.0),
     Param("mu", _SC["mu"], "terrain friction coefficient", "", lo=0.1, hi=2.0),
     Param("distance_jitter", 0.0, "distance + U(-1, 1) x this, from the row's seed (the simulation itself is "
           "deterministic: seeds only matter through the jitters)", "m", lo=0.0, hi=0.5),
@@ -54,6 +57,8 @@ PARAMS = (
     Param("delta_f", _CLM["delta_f"], "CLM: Delta_F, flipper step of the climb / release", "rad/period",
           lo=0.001, hi=0.1),
     Param("clm_speed", _CLM["clm_speed"], "CLM: crawler speed", "m/s", lo=0.005, hi=0.063),
+    Param("crawl_max_h", _CLM["crawl_max_h"], "CLM: steps up to this H_EST are climbed by crawlers and flippers, "
+          "arms carried (CRAWL)", "m", lo=0.0, hi=scenarios.MAX_HEIGHT),
     # the CCM baseline
     Param("speed", ccm.PARAM_DEFAULTS["speed"], "CCM: commanded crawler speed", "m/s", lo=0.005, hi=0.063),
     # run
