@@ -1,0 +1,141 @@
+"""TITAN XI (Hodoshima et al., J. Robot. Mechatron. 19(1), 2007): dimensions, gait
+constants and the values the paper does not give (its figures are missing), each with
+its reference or the reason for the chosen value.
+
+Frames and units: SI, radians.
+  * body frame Sigma_b: origin at the COG, x_b forward, y_b left, z_b up (normal to the
+    slope when standing on it); the body never yaws in this gait (crab gait, Sec. 4.4);
+  * map frame: x, y in the map (base) plane, z normal to it. On flat ground the map
+    frame is the world frame; on a slope it is the slope frame (x up the fall line,
+    y across, z normal to the slope), see `maps.py`.
+
+Leg numbering (array index): 0 LF, 1 RF, 2 LR, 3 RR. The paper's role names f, r,
+f-bar, r-bar are assigned per walking direction by `gait.leg_roles`.
+
+Paper values:
+  * Table 1: size 4.8 x 5.0 x 3.0 m, leg length 3.7 m, mass 7,000 kg, power 41.9 kW.
+    We read "4.8 x 5.0 x 3.0" as length (x_b) x width (y_b) x height, the envelope of
+    the robot standing in its neutral pose, feet included.
+  * Sec. 7 / 8.3 / 8.4: frames 0.2 m and 0.3 m square in section on 2.0 m and 3.0 m
+    grids; test slope 30 deg with 0.2 m frames every 1.5 m.
+
+Chosen values (not in the text):
+  * leg pivots (vertical rotation axes) at the corners of a 2.2 x 2.4 m rectangle,
+    (+-1.1, +-1.2, 0) in Sigma_b; the neutral foot at 1.0 m forward/back and 1.0 m
+    outward of its pivot, so the neutral stance is 4.2 x 4.4 m between foot centres and
+    with 0.30 m foot pads the envelope is 4.8 x 5.0 m (Table 1).
+  * fan-shaped reachable area (Fig. 3): annular sector about the pivot, radius
+    R_in = 0.6 m .. R_out = 2.3 m, opening R_theta = 90 deg centred on the diagonal
+    through the neutral foot (45 deg outward). With the 3.7 m leg and the pivot about
+    2.2 m above the ground the outer radius leaves the leg about 0.6 m of extension.
+  * L_std = 0.5 m (stroke 2 L_std = 1.0 m, so 1.0 m per cycle), W_std = 1.0 m (COG
+    zigzag +-0.5 m about the foot centre line). With H_g = 1.5 m the standard gait has
+    NESM = 0.085 m on flat ground (tests check it in closed form). S_NE^c = 0.03 m leaves
+    0.055 m of it for terrain adaptation: with S_NE^c = 0.05 m the frame maps of Sec. 7
+    and 8.4 deadlock in about one cycle in ten (after a shortened step no foothold keeps
+    the next diagonal clear of the contour), with 0.03 m in about one in sixty.
+  * grid maps with 0.1 m cells (half the narrowest frame), foot pad radius 0.15 m,
+    swing clearance 0.15 m above the highest point under the return path.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+G = 9.81  # [m/s^2]
+
+LEG_NAMES = ("LF", "RF", "LR", "RR")
+LEG_SIGNS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])  # (front +1, left +1)
+
+# --- Table 1
+ENVELOPE = np.array([4.8, 5.0, 3.0])  # length x width x height [m]
+LEG_LENGTH = 3.7  # [m]
+MASS = 7000.0  # [kg]
+POWER = 41.9e3  # [W]
+
+# --- chosen geometry (module docstring)
+PIVOT_X = 1.1  # [m] pivot x offset from the COG, Sigma_b
+PIVOT_Y = 1.2  # [m]
+PIVOTS = np.concatenate([LEG_SIGNS * np.array([PIVOT_X, PIVOT_Y]), np.zeros((4, 1))], axis=1)  # (4, 3)
+NEUTRAL_REACH = 1.0  # [m] neutral foot offset from the pivot along x and y (outward)
+NEUTRAL_FEET = np.concatenate(
+    [LEG_SIGNS * np.array([PIVOT_X + NEUTRAL_REACH, PIVOT_Y + NEUTRAL_REACH]), np.zeros((4, 1))], axis=1
+)  # (4, 3), in Sigma_b at z = 0
+FOOT_RADIUS = 0.15  # [m] foot pad radius
+R_IN = 0.6  # [m] inner radius of the reachable area (Fig. 3)
+R_OUT = 2.3  # [m] outer radius (Fig. 3)
+R_THETA = math.radians(90.0)  # [rad] opening angle of the reachable fan (Fig. 3)
+LEG_AXIS_ANGLES = np.arctan2(LEG_SIGNS[:, 1], LEG_SIGNS[:, 0])  # fan centre directions [rad]
+PIVOT_HEIGHT = 2.2  # [m] pivot above the ground in the neutral pose (model side may refine)
+
+# --- gait (Sections 5-6; chosen values)
+L_STD = 0.5  # [m] standard COG longitudinal shift per half cycle
+W_STD = 1.0  # [m] standard COG lateral shift per half cycle (|W_std|)
+S_NE_C = 0.03  # [m] critical NE stability margin S_NE^c (module docstring)
+H_G = 1.5  # [m] COG height above the virtual contact plane (Sec. 6.3)
+DW = 0.1  # [m] lateral increment of modifications (a), (b) and Sec. 5.5
+N_W = 5  # lateral trials: |W| = W_std + i DW, i < N_W ("a certain value", Sec. 5.2.3)
+N_L = 4  # longitudinal trials: |L| = L_max (N_L - j) / N_L, j < N_L (modification (a)-2)
+SWING_CLEARANCE = 0.15  # [m] above the highest point under the return path (Sec. 6.4.1)
+SWING_MIN_LIFT = 0.2  # [m] minimum lift above the virtual plane
+UNEVEN_MAX = 0.1  # [m] height range under a foot pad that makes a cell forbidden (Sec. 8.2.1)
+
+# --- grid maps and foothold search (Sec. 5.3, 8.2.1)
+CELL = 0.1  # [m] grid cell size
+SEARCH_HALF_ROWS = 8  # rows -1..-8 and +1..+8 about I_u (Sec. 5.3, step 3)
+SEARCH_HALF_COLS = 8  # points 0, +-1 .. +-8 along each row (Sec. 5.3, step 2)
+SEARCH_STEP = CELL  # [m] spacing of the search points
+LOOKAHEAD_HALF = 4  # r-bar landings tried by the D_f look-ahead: (2 k + 1)^2 points, 2 cells apart
+
+# --- frames (Sec. 7, 8.3, 8.4) [m]
+FRAME_SMALL = 0.2
+FRAME_LARGE = 0.3
+GRID_SMALL = 2.0
+GRID_LARGE = 3.0
+SLOPE_ANGLE = math.radians(30.0)
+SLOPE_FRAME = 0.2
+SLOPE_GRID = 1.5
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class TitanParams:
+    """Gait constants as a pytree: every field is a leaf (traceable, sweepable,
+    vmappable). Geometry arrays are in Sigma_b; SI units."""
+
+    l_std: jax.Array = L_STD  # [m]
+    w_std: jax.Array = W_STD  # [m]
+    s_ne_c: jax.Array = S_NE_C  # [m]
+    h_g: jax.Array = H_G  # [m]
+    dw: jax.Array = DW  # [m]
+    r_in: jax.Array = R_IN  # [m]
+    r_out: jax.Array = R_OUT  # [m]
+    r_theta: jax.Array = R_THETA  # [rad]
+    foot_radius: jax.Array = FOOT_RADIUS  # [m]
+    swing_clearance: jax.Array = SWING_CLEARANCE  # [m]
+    swing_min_lift: jax.Array = SWING_MIN_LIFT  # [m]
+    search_step: jax.Array = SEARCH_STEP  # [m]
+    tether: jax.Array = 1.0  # fraction of the slope-parallel gravity offset by the tethers
+
+    def pivots(self) -> jax.Array:
+        """Leg pivots in Sigma_b, (4, 3)."""
+        return jnp.asarray(PIVOTS, jnp.asarray(self.l_std).dtype)
+
+    def neutral_feet(self) -> jax.Array:
+        """Neutral foot positions in Sigma_b (z = 0 plane), (4, 3)."""
+        return jnp.asarray(NEUTRAL_FEET, jnp.asarray(self.l_std).dtype)
+
+    def with_(self, **changes) -> TitanParams:
+        return replace(self, **changes)
+
+    def astype(self, dtype) -> TitanParams:
+        return jax.tree_util.tree_map(lambda x: jnp.asarray(x, dtype), self)
+
+
+def default_params() -> TitanParams:
+    return TitanParams()

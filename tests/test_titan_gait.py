@@ -1,0 +1,342 @@
+"""TITAN XI grid step over intermittent crawl gait (Hodoshima et al. 2007, Sec. 5-6):
+geometry helpers, domain prescribing and foothold search on hand-built maps, the
+standard intermittent crawl gait on flat ground against closed-form margins, the frame
+scenarios of Sec. 7 and 8.4, and vmap == loop."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxloco import stability as stab
+from jaxloco.robots.titan import gait as G
+from jaxloco.robots.titan import maps as M
+from jaxloco.robots.titan import params as P
+
+PAR = P.default_params()
+SHAPE = (130, 130)  # 13 m x 13 m, 0.1 m cells
+ORIGIN = jnp.zeros(2)
+N_CYC = 3
+CELL = jnp.asarray(P.CELL)
+
+
+def _plan(gmap, start, dirs):
+    return G.plan_cycles(PAR, gmap, start, N_CYC, dirs)
+
+
+plan_one = jax.jit(_plan)
+plan_many = jax.jit(jax.vmap(_plan))
+
+# (name, map kind, frame size, interval, frame offset, start xy, directions [deg])
+SCEN = [
+    ("flat", 0.0, 2.0, 1.0, (4.0, 6.5), (0, 0, 0)),
+    ("frames 0.2 m / 2.0 m", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (3.0, 6.0), (0, 0, 0)),
+    ("frames 0.3 m / 3.0 m", P.FRAME_LARGE, P.GRID_LARGE, 1.5, (5.3, 5.5), (0, 0, 0)),
+    ("slope 30 deg, 0.2 m / 1.5 m", P.SLOPE_FRAME, P.SLOPE_GRID, 0.75, (3.0, 6.0), (0, 0, 0)),
+    ("left", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (6.5, 3.0), (90, 90, 90)),
+    ("backwards", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (10.0, 6.5), (180, 180, 180)),
+    ("right", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (6.5, 10.0), (270, 270, 270)),
+    ("turning", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (3.0, 6.0), (0, 15, 0)),
+]
+
+
+def _map(size, interval, off, slope=0.0):
+    return M.frame_grid_map(SHAPE, ORIGIN, CELL, size, interval, jnp.array([off, off]), slope)
+
+
+@pytest.fixture(scope="module")
+def scenarios():
+    maps, starts, dirs = [], [], []
+    for name, size, interval, off, xy, deg in SCEN:
+        g = _map(size, interval, off, P.SLOPE_ANGLE if name.startswith("slope") else 0.0)
+        d = jnp.radians(jnp.array(deg, float))
+        maps.append(g)
+        starts.append(G.standard_start(PAR, g, jnp.array(xy), d[0]))
+        dirs.append(d)
+    stack = lambda xs: jax.tree_util.tree_map(lambda *a: jnp.stack(a), *xs)  # noqa: E731
+    gm, st, dr = stack(maps), stack(starts), jnp.stack(dirs)
+    return gm, st, dr, plan_many(gm, st, dr)
+
+
+def _take(tree, k):
+    return jax.tree_util.tree_map(lambda a: a[k], tree)
+
+
+# ------------------------------------------------------------------------ geometry
+def test_virtual_plane_matches_numpy_lstsq():
+    rng = np.random.default_rng(1)
+    feet = rng.normal(size=(4, 3)) * np.array([2.0, 2.0, 0.2])
+    n, off = G.virtual_plane(jnp.asarray(feet))
+    A = np.c_[np.ones(4), feet[:, :2]]
+    c, *_ = np.linalg.lstsq(A, feet[:, 2], rcond=None)
+    xy = rng.normal(size=(5, 2))
+    np.testing.assert_allclose(G.plane_height(n, off, jnp.asarray(xy)), c[0] + xy @ c[1:], atol=1e-12)
+    assert float(n[2]) > 0
+
+
+def test_fan_exit_distance_matches_ray_marching():
+    rng = np.random.default_rng(2)
+    checked = 0
+    for _ in range(40):
+        leg = int(rng.integers(4))
+        q0 = np.asarray(P.NEUTRAL_FEET[leg, :2] - P.PIVOTS[leg, :2]) + rng.uniform(-0.8, 0.8, 2)
+        u = rng.normal(size=2)
+        u /= np.linalg.norm(u)
+        t = float(G.fan_exit_distance(jnp.asarray(q0), jnp.asarray(u), leg, PAR))
+        ts = np.linspace(0.0, 5.0, 50001)
+        inside = np.asarray(G.in_fan(jnp.asarray(q0[None] + ts[:, None] * u), leg, PAR))
+        if not inside[0]:
+            assert t == 0.0
+            continue
+        t_ref = ts[np.argmin(inside)] if not inside.all() else 5.0
+        assert abs(t - t_ref) < 2e-4
+        checked += 1
+    assert checked > 20
+
+
+def test_search_order_of_section_5_3():
+    offs = G.search_offsets(2, 2)
+    assert offs.shape == (25, 2)
+    # I_u first, then +y / -y equidistantly along the row, then rows in -x, then +x
+    np.testing.assert_array_equal(offs[:6], [[0, 0], [0, 1], [0, -1], [0, 2], [0, -2], [-1, 0]])
+    rows = offs[::5, 0]
+    np.testing.assert_array_equal(rows, [0, -1, -2, 1, 2])
+
+
+def test_leg_roles_follow_section_5_1():
+    feet_b = jnp.asarray(P.NEUTRAL_FEET[:, :2]).at[3, 0].add(-0.3)  # RR farthest back
+    roles, n_r = G.leg_roles(feet_b, jnp.array([1.0, 0.0]))
+    np.testing.assert_array_equal(roles, [3, 1, 2, 0])  # r = RR, f = RF, r-bar = LR, f-bar = LF
+    np.testing.assert_allclose(n_r, [0.0, -1.0])  # W towards the side of r
+    roles, _ = G.leg_roles(feet_b, jnp.array([1.0, 0.0]), prev=2)  # later cycles keep r
+    np.testing.assert_array_equal(roles, [2, 0, 3, 1])
+    roles, n_r = G.leg_roles(jnp.asarray(P.NEUTRAL_FEET[:, :2]), jnp.array([0.0, 1.0]))  # walking left
+    assert set(np.asarray(roles)[[0, 2]].tolist()) == {1, 3}  # the right legs are the rear legs
+
+
+# ------------------------------------------------- standard gait on flat ground (Sec. 4.4)
+def _closed_form_swing_margins(L, w, h):
+    """NESM and longitudinal margin, by hand, of the standard intermittent crawl gait while
+    the first rear leg (LR) swings. Body frame at the COG, flat ground, feet at z = 0:
+    LF at its return start (x - L), RF and RR at mid stroke, all shifted by +w laterally
+    (the COG is w to the right of the foot centre line)."""
+    lf = (2.1 - L, 2.2 + w)
+    rf = (2.1, -2.2 + w)
+    rr = (-2.1, -2.2 + w)
+
+    def rho(a, b):  # horizontal distance from the COG (origin) to the line a-b
+        return abs(a[0] * b[1] - b[0] * a[1]) / math.hypot(b[0] - a[0], b[1] - a[1])
+
+    nesm = min(math.sqrt(rho(a, b) ** 2 + h * h) - h for a, b in ((lf, rf), (rf, rr), (rr, lf)))
+
+    def x_cross(a, b):  # where the edge a-b crosses the travel line y = 0
+        return a[0] - a[1] * (b[0] - a[0]) / (b[1] - a[1])
+
+    lon = min(abs(x_cross(lf, rf)), abs(x_cross(rr, lf)))  # front edge, rear (diagonal) edge
+    return nesm, lon
+
+
+def _closed_form_shift_margins(L, w, h):
+    """Four-leg support during the COG shift G = (L, 2w): the side edges are 2.2 - w from
+    the COG at both ends of the shift (the nearest edges)."""
+    return math.sqrt((2.2 - w) ** 2 + h * h) - h
+
+
+def test_flat_ground_gives_the_standard_intermittent_crawl_gait(scenarios):
+    _, st, _, plans = scenarios
+    plan, start = _take(plans, 0), _take(st, 0)
+    L, W = P.L_STD, P.W_STD
+    assert int(plan.n_failures) == 0 and int(plan.n_modifications) == 0
+    np.testing.assert_allclose(plan.cycle_w, W)
+    np.testing.assert_allclose(plan.cycle_l, L)
+    np.testing.assert_array_equal(plan.swing_leg[:6], [2, 0, -1, 3, 1, -1])  # LR LF shift RR RF shift
+    np.testing.assert_array_equal(plan.swing_leg[6:12], plan.swing_leg[:6])
+    # COG: (L, W) then (L, -W): back on the path after every cycle, 2 L_std per cycle
+    c0 = np.asarray(start.cog)
+    np.testing.assert_allclose(plan.cog[2] - c0, [L, W, 0.0], atol=1e-12)
+    np.testing.assert_allclose(plan.cog[5] - c0, [2 * L, 0.0, 0.0], atol=1e-12)
+    for k in range(N_CYC):
+        np.testing.assert_allclose(plan.feet[6 * k + 5] - start.feet, np.array([2 * L * (k + 1), 0, 0]) * np.ones((4, 1)), atol=1e-12)
+    assert float(plan.distance_per_cycle) == pytest.approx(2 * L)
+    assert float(plan.path_deviation) == pytest.approx(0.0, abs=1e-12)
+    # the start pose is the standard one, built here by hand (body frame at the COG)
+    w = W / 2
+    hand = np.array([[2.1 - L, 2.2 + w], [2.1, -2.2 + w], [-2.1 - L, 2.2 + w], [-2.1, -2.2 + w]])
+    np.testing.assert_allclose(np.asarray(start.feet[:, :2]) - c0[:2], hand, atol=1e-12)
+
+
+def test_standard_gait_margins_match_closed_form(scenarios):
+    plan = _take(scenarios[3], 0)
+    L, w, h = P.L_STD, P.W_STD / 2, P.H_G
+    nesm, lon = _closed_form_swing_margins(L, w, h)
+    swing = np.asarray(plan.swing_leg) >= 0
+    np.testing.assert_allclose(plan.nesm[swing], nesm, rtol=1e-9)
+    np.testing.assert_allclose(plan.long_margin[swing], lon, rtol=1e-9)
+    np.testing.assert_allclose(plan.nesm[~swing], _closed_form_shift_margins(L, w, h), rtol=1e-9)
+    assert nesm > P.S_NE_C  # the chosen W_std keeps the standard gait above S_NE^c
+    # and the core kernels agree with the hand formulas on the same support
+    feet = jnp.array([[2.1 - L, 2.2 + w, 0], [2.1, -2.2 + w, 0], [-2.1 - L, 2.2 + w, 0], [-2.1, -2.2 + w, 0]])
+    mask = jnp.array([True, True, False, True])
+    cog = jnp.array([0.0, 0.0, h])
+    assert float(stab.ne_stability_margin(cog, feet, mask)) == pytest.approx(nesm, rel=1e-12)
+    assert float(stab.longitudinal_margin(cog, feet, mask, jnp.array([1.0, 0.0]))) == pytest.approx(lon, rel=1e-12)
+
+
+# ----------------------------------------------------------- frame scenarios (Sec. 7, 8.4)
+def _clearance(xy, size, interval, off):
+    u = np.mod(xy - off, interval)
+    return np.min(np.minimum(u, interval - u), axis=-1) - size / 2
+
+
+def test_frame_scenarios_are_safe(scenarios):
+    gm, st, dr, plans = scenarios
+    for k, (name, size, interval, off, _, _) in enumerate(SCEN):
+        plan = _take(plans, k)
+        legs = np.asarray(plan.swing_leg)
+        ok = legs >= 0
+        landed = np.asarray(plan.feet)[ok, legs[ok]]
+        # S_NE^c along the whole plan (held steps stand on four legs)
+        assert float(plan.min_nesm) >= P.S_NE_C - 1e-9, name
+        if size > 0:
+            # frames never under a foot pad
+            assert _clearance(landed[:, :2], size, interval, off).min() > P.FOOT_RADIUS, name
+            # rectangular swings: vertical up, horizontal return clearing every frame the
+            # pad passes over by the swing clearance, vertical down (Sec. 6.4.1)
+            path = np.asarray(plan.swing_path)[ok]
+            np.testing.assert_allclose(path[:, 1, 2], path[:, 2, 2])
+            np.testing.assert_allclose(path[:, 0, :2], path[:, 1, :2])
+            np.testing.assert_allclose(path[:, 3, :2], path[:, 2, :2])
+            s = np.linspace(0.0, 1.0, 200)
+            for w in path:
+                line = w[1, None, :2] + s[:, None] * (w[2, :2] - w[1, :2])[None]
+                if _clearance(line, size, interval, off).min() < 0:  # crosses a frame
+                    assert w[1, 2] >= size + P.SWING_CLEARANCE - 1e-9, name
+        # landed heights come from the unevenness map (Sec. 6.2)
+        g = _take(gm, k)
+        np.testing.assert_allclose(landed[:, 2], M.sample_height(g, jnp.asarray(landed[:, :2])))
+
+
+def test_paper_scenarios_walk(scenarios):
+    _, _, dr, plans = scenarios
+    names = [s[0] for s in SCEN]
+    for name in names[1:]:
+        plan = _take(plans, names.index(name))
+        assert int(plan.n_failures) == 0, name
+        assert float(plan.distance_per_cycle) > 0.5, name  # at least half the standard 1.0 m
+        # |W-bar| = |W| (Sec. 5.5): the COG is back on each cycle's path
+        assert float(plan.path_deviation) < 1e-9, name
+    # walking directions: progress along each commanded direction
+    k = names.index("left")
+    plan = _take(plans, k)
+    assert float(plan.cog[-1, 1] - plan.cog[0, 1]) > 1.5
+
+
+def test_slope_map_frame_and_world_output(scenarios):
+    gm, _, _, plans = scenarios
+    k = [s[0] for s in SCEN].index("slope 30 deg, 0.2 m / 1.5 m")
+    plan = _take(plans, k)
+    a = P.SLOPE_ANGLE
+    R = np.array([[np.cos(a), 0, -np.sin(a)], [0, 1, 0], [np.sin(a), 0, np.cos(a)]])
+    np.testing.assert_allclose(plan.cog_world, np.asarray(plan.cog) @ R.T, atol=1e-12)
+    # climbing: the world height of the COG grows with the distance walked up the slope
+    dz = float(plan.cog_world[-1, 2] - plan.cog_world[0, 2])
+    dx = float(plan.cog[-1, 0] - plan.cog[0, 0])
+    assert dz == pytest.approx(dx * np.sin(a), rel=0.05)
+
+
+# --------------------------------------------------- foothold search on hand-built maps
+half_jit = jax.jit(G.half_cycle)
+
+
+def _flat_half(forbidden=None):
+    g = M.flat_map(SHAPE, ORIGIN)
+    if forbidden is not None:
+        g = M.GridMap(g.height, forbidden, g.origin, g.cell, g.slope)
+    s = G.standard_start(PAR, g, jnp.array([5.0, 6.5]))
+    d_b = jnp.array([1.0, 0.0])
+    roles, n_r = G.leg_roles((s.feet[:, :2] - s.cog[:2]), d_b, s.rear)
+    up = jnp.array([0.0, 0.0, 1.0])
+    h = half_jit(PAR, g, s.feet, s.cog, s.yaw, d_b, roles, n_r, PAR.l_std, PAR.w_std, jnp.asarray(True), up)
+    return g, h
+
+
+def test_foothold_search_avoids_forbidden_cell_at_initial_position():
+    g, h = _flat_half()
+    assert bool(h.ok)
+    np.testing.assert_allclose(h.j_r[:2], h.i_r, atol=1e-12)  # free map: J_u = I_u (step 1)
+    # forbid the cells around I_r (the foot pad would touch them)
+    c = M.cell_centres(SHAPE, ORIGIN, CELL)
+    forb = jnp.linalg.norm(c - h.i_r, axis=-1) < 0.16
+    g2, h2 = _flat_half(forb)
+    assert bool(h2.found_r)
+    assert not bool(M.sample_forbidden(g2, h2.j_r[:2]))
+    delta = np.asarray(h2.j_r[:2] - h.i_r)
+    # same row (step 2), nearest lateral point in the +y/-y order
+    assert abs(delta[0]) < 1e-9
+    assert abs(abs(delta[1]) - 0.2) < 1e-9 and delta[1] > 0
+
+
+def test_foothold_search_moves_rows_backwards_first():
+    g, h = _flat_half()
+    c = M.cell_centres(SHAPE, ORIGIN, CELL)
+    # forbid the whole row of I_r inside the reachable area: the search goes to row -1
+    forb = jnp.abs(c[..., 0] - h.i_r[0]) < 0.06
+    g2, h2 = _flat_half(forb)
+    assert bool(h2.found_r)
+    delta = np.asarray(h2.j_r[:2] - h.i_r)
+    assert delta[0] < -0.05  # behind I_u (towards -x)
+    assert not bool(M.sample_forbidden(g2, h2.j_r[:2]))
+
+
+def test_impossible_map_reports_failure_and_stops():
+    g = M.flat_map(SHAPE, ORIGIN)
+    start = G.standard_start(PAR, g, jnp.array([5.0, 6.5]))
+    blocked = M.GridMap(g.height, jnp.ones(SHAPE, bool), g.origin, g.cell, g.slope)
+    plan = plan_one(blocked, start, jnp.zeros(N_CYC))
+    assert int(plan.n_failures) == N_CYC
+    assert bool(jnp.all(plan.failed)) and bool(jnp.all(plan.swing_leg == -1))
+    np.testing.assert_allclose(plan.feet[-1], start.feet)  # the robot holds still
+    np.testing.assert_allclose(plan.cog[-1, :2], start.cog[:2])
+    _, h = _flat_half(jnp.ones(SHAPE, bool))
+    assert not bool(h.found_r) and not bool(h.ok)
+
+
+# ------------------------------------------------------------------------ transforms
+def test_vmap_over_maps_equals_loop(scenarios):
+    gm, st, dr, plans = scenarios
+    for k in (1, 3):
+        one = plan_one(_take(gm, k), _take(st, k), dr[k])
+        for a, b in zip(jax.tree_util.tree_leaves(one), jax.tree_util.tree_leaves(_take(plans, k))):
+            np.testing.assert_allclose(a, b, atol=1e-9)
+
+
+def test_vmap_over_params_equals_loop():
+    g = M.flat_map((90, 70), ORIGIN)
+
+    def run(l_std, w_std):
+        par = PAR.with_(l_std=l_std, w_std=w_std)
+        s = G.standard_start(par, g, jnp.array([3.0, 3.5]))
+        return G.plan_cycles(par, g, s, 1).cog[-1]
+
+    ls, ws = jnp.array([0.4, 0.5, 0.6]), jnp.array([1.0, 1.1, 1.2])
+    batched = jax.jit(jax.vmap(run))(ls, ws)
+    for k in range(3):
+        np.testing.assert_allclose(batched[k], jax.jit(run)(ls[k], ws[k]), atol=1e-12)
+        np.testing.assert_allclose(batched[k, 0] - 3.0, 2 * ls[k], atol=1e-12)  # 2 L_std per cycle
+
+
+def test_grad_of_standard_stance_margin_wrt_lateral_shift():
+    g = M.flat_map((90, 70), ORIGIN)
+
+    def margin(w_std):
+        par = PAR.with_(w_std=w_std)
+        s = G.standard_start(par, g, jnp.array([3.0, 3.5]))
+        mask = jnp.array([True, True, False, True])  # LR about to swing
+        return stab.ne_stability_margin(s.cog, s.feet, mask)
+
+    gr = jax.grad(margin)(1.0)
+    fd = (margin(1.0 + 1e-6) - margin(1.0 - 1e-6)) / 2e-6
+    assert float(gr) > 0  # a larger zigzag moves the COG away from the diagonal
+    assert float(gr) == pytest.approx(float(fd), rel=1e-6)
