@@ -2,7 +2,7 @@
 gait cycles planned per second, batched over maps (jit + vmap).
 
     python benchmarks/titan_plan.py [--batch 1,16,128] [--cycles 4] [--shape 160,100]
-                                    [--dtype float64] [--repeats 3]
+                                    [--dtype float64] [--repeats 2]
 
 Each map of a batch is a Section 7 / 8.4 frame grid (0.2 or 0.3 m frames every 1.5,
 2.0 or 3.0 m, random grid offset; every eighth map flat ground) on a fixed-shape grid of
@@ -38,7 +38,9 @@ def make_maps(batch: int, shape: tuple[int, int], seed: int, dtype):
     offs = rng.uniform(0.0, 1.0, (batch, 2)) * grids[:, None]
     slopes = np.where(grids == P.SLOPE_GRID, P.SLOPE_ANGLE, 0.0)
     gen = jax.vmap(
-        lambda s, i, o, a: M.frame_grid_map(shape, jnp.zeros(2, dtype), jnp.asarray(P.CELL, dtype), s, i, o, a)
+        lambda s, i, o, a: M.frame_grid_map(
+            shape, jnp.zeros(2, dtype), jnp.asarray(P.CELL, dtype), s, i, o, a
+        )
     )
     return gen(*(jnp.asarray(x, dtype) for x in (sizes, grids, offs, slopes)))
 
@@ -49,7 +51,7 @@ def main() -> None:
     ap.add_argument("--cycles", type=int, default=4)
     ap.add_argument("--shape", default="160,100")
     ap.add_argument("--dtype", default="float64")
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
 
@@ -77,7 +79,9 @@ def main() -> None:
         f"TITAN XI planner: {args.cycles} cycles per map, map {shape[0]}x{shape[1]} cells, {args.dtype}, "
         f"{jax.default_backend()} ({platform.processor() or platform.machine()}, {os.cpu_count()} CPUs)"
     )
-    print(f"{'batch':>6} {'compile [s]':>12} {'plan [s]':>10} {'cycles/s':>10} {'failed':>7} {'m/cycle':>8}")
+    print(
+        f"{'batch':>6} {'compile [s]':>12} {'plan [s]':>10} {'cycles/s':>10} {'failed':>7} {'m/cycle':>8}"
+    )
     for b in (int(x) for x in args.batch.split(",")):
         maps = make_maps(b, shape, args.seed, dtype)
         t0 = time.perf_counter()
@@ -90,7 +94,9 @@ def main() -> None:
             best = min(best, time.perf_counter() - t0)
         failed = int(np.sum(out[1]))
         dist = float(np.mean(out[2]))
-        print(f"{b:>6} {t_comp:>12.2f} {best:>10.4f} {b * args.cycles / best:>10.1f} {failed:>7d} {dist:>8.3f}")
+        print(
+            f"{b:>6} {t_comp:>12.2f} {best:>10.4f} {b * args.cycles / best:>10.1f} {failed:>7d} {dist:>8.3f}"
+        )
 
 
 if __name__ == "__main__":

@@ -34,7 +34,14 @@ SCEN = [
     ("flat", 0.0, 2.0, 1.0, (4.0, 6.5), (0, 0, 0)),
     ("frames 0.2 m / 2.0 m", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (3.0, 6.0), (0, 0, 0)),
     ("frames 0.3 m / 3.0 m", P.FRAME_LARGE, P.GRID_LARGE, 1.5, (5.3, 5.5), (0, 0, 0)),
-    ("slope 30 deg, 0.2 m / 1.5 m", P.SLOPE_FRAME, P.SLOPE_GRID, 0.75, (3.0, 6.0), (0, 0, 0)),
+    (
+        "slope 30 deg, 0.2 m / 1.5 m",
+        P.SLOPE_FRAME,
+        P.SLOPE_GRID,
+        0.75,
+        (3.0, 6.0),
+        (0, 0, 0),
+    ),
     ("left", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (6.5, 3.0), (90, 90, 90)),
     ("backwards", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (10.0, 6.5), (180, 180, 180)),
     ("right", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (6.5, 10.0), (270, 270, 270)),
@@ -43,19 +50,23 @@ SCEN = [
 
 
 def _map(size, interval, off, slope=0.0):
-    return M.frame_grid_map(SHAPE, ORIGIN, CELL, size, interval, jnp.array([off, off]), slope)
+    return M.frame_grid_map(
+        SHAPE, ORIGIN, CELL, size, interval, jnp.array([off, off]), slope
+    )
 
 
 @pytest.fixture(scope="module")
 def scenarios():
     maps, starts, dirs = [], [], []
     for name, size, interval, off, xy, deg in SCEN:
-        g = _map(size, interval, off, P.SLOPE_ANGLE if name.startswith("slope") else 0.0)
+        g = _map(
+            size, interval, off, P.SLOPE_ANGLE if name.startswith("slope") else 0.0
+        )
         d = jnp.radians(jnp.array(deg, float))
         maps.append(g)
         starts.append(G.standard_start(PAR, g, jnp.array(xy), d[0]))
         dirs.append(d)
-    stack = lambda xs: jax.tree_util.tree_map(lambda *a: jnp.stack(a), *xs)  # noqa: E731
+    stack = lambda xs: jax.tree_util.tree_map(lambda *a: jnp.stack(a), *xs)
     gm, st, dr = stack(maps), stack(starts), jnp.stack(dirs)
     return gm, st, dr, plan_many(gm, st, dr)
 
@@ -72,7 +83,9 @@ def test_virtual_plane_matches_numpy_lstsq():
     A = np.c_[np.ones(4), feet[:, :2]]
     c, *_ = np.linalg.lstsq(A, feet[:, 2], rcond=None)
     xy = rng.normal(size=(5, 2))
-    np.testing.assert_allclose(G.plane_height(n, off, jnp.asarray(xy)), c[0] + xy @ c[1:], atol=1e-12)
+    np.testing.assert_allclose(
+        G.plane_height(n, off, jnp.asarray(xy)), c[0] + xy @ c[1:], atol=1e-12
+    )
     assert float(n[2]) > 0
 
 
@@ -81,7 +94,9 @@ def test_fan_exit_distance_matches_ray_marching():
     checked = 0
     for _ in range(40):
         leg = int(rng.integers(4))
-        q0 = np.asarray(P.NEUTRAL_FEET[leg, :2] - P.PIVOTS[leg, :2]) + rng.uniform(-0.8, 0.8, 2)
+        q0 = np.asarray(P.NEUTRAL_FEET[leg, :2] - P.PIVOTS[leg, :2]) + rng.uniform(
+            -0.8, 0.8, 2
+        )
         u = rng.normal(size=2)
         u /= np.linalg.norm(u)
         t = float(G.fan_exit_distance(jnp.asarray(q0), jnp.asarray(u), leg, PAR))
@@ -100,7 +115,9 @@ def test_search_order_of_section_5_3():
     offs = G.search_offsets(2, 2)
     assert offs.shape == (25, 2)
     # I_u first, then +y / -y equidistantly along the row, then rows in -x, then +x
-    np.testing.assert_array_equal(offs[:6], [[0, 0], [0, 1], [0, -1], [0, 2], [0, -2], [-1, 0]])
+    np.testing.assert_array_equal(
+        offs[:6], [[0, 0], [0, 1], [0, -1], [0, 2], [0, -2], [-1, 0]]
+    )
     rows = offs[::5, 0]
     np.testing.assert_array_equal(rows, [0, -1, -2, 1, 2])
 
@@ -108,12 +125,19 @@ def test_search_order_of_section_5_3():
 def test_leg_roles_follow_section_5_1():
     feet_b = jnp.asarray(P.NEUTRAL_FEET[:, :2]).at[3, 0].add(-0.3)  # RR farthest back
     roles, n_r = G.leg_roles(feet_b, jnp.array([1.0, 0.0]))
-    np.testing.assert_array_equal(roles, [3, 1, 2, 0])  # r = RR, f = RF, r-bar = LR, f-bar = LF
+    np.testing.assert_array_equal(
+        roles, [3, 1, 2, 0]
+    )  # r = RR, f = RF, r-bar = LR, f-bar = LF
     np.testing.assert_allclose(n_r, [0.0, -1.0])  # W towards the side of r
     roles, _ = G.leg_roles(feet_b, jnp.array([1.0, 0.0]), prev=2)  # later cycles keep r
     np.testing.assert_array_equal(roles, [2, 0, 3, 1])
-    roles, n_r = G.leg_roles(jnp.asarray(P.NEUTRAL_FEET[:, :2]), jnp.array([0.0, 1.0]))  # walking left
-    assert set(np.asarray(roles)[[0, 2]].tolist()) == {1, 3}  # the right legs are the rear legs
+    roles, n_r = G.leg_roles(
+        jnp.asarray(P.NEUTRAL_FEET[:, :2]), jnp.array([0.0, 1.0])
+    )  # walking left
+    assert set(np.asarray(roles)[[0, 2]].tolist()) == {
+        1,
+        3,
+    }  # the right legs are the rear legs
 
 
 # ------------------------------------------------- standard gait on flat ground (Sec. 4.4)
@@ -129,12 +153,16 @@ def _closed_form_swing_margins(L, w, h):
     def rho(a, b):  # horizontal distance from the COG (origin) to the line a-b
         return abs(a[0] * b[1] - b[0] * a[1]) / math.hypot(b[0] - a[0], b[1] - a[1])
 
-    nesm = min(math.sqrt(rho(a, b) ** 2 + h * h) - h for a, b in ((lf, rf), (rf, rr), (rr, lf)))
+    nesm = min(
+        math.sqrt(rho(a, b) ** 2 + h * h) - h for a, b in ((lf, rf), (rf, rr), (rr, lf))
+    )
 
     def x_cross(a, b):  # where the edge a-b crosses the travel line y = 0
         return a[0] - a[1] * (b[0] - a[0]) / (b[1] - a[1])
 
-    lon = min(abs(x_cross(lf, rf)), abs(x_cross(rr, lf)))  # front edge, rear (diagonal) edge
+    lon = min(
+        abs(x_cross(lf, rf)), abs(x_cross(rr, lf))
+    )  # front edge, rear (diagonal) edge
     return nesm, lon
 
 
@@ -151,19 +179,27 @@ def test_flat_ground_gives_the_standard_intermittent_crawl_gait(scenarios):
     assert int(plan.n_failures) == 0 and int(plan.n_modifications) == 0
     np.testing.assert_allclose(plan.cycle_w, W)
     np.testing.assert_allclose(plan.cycle_l, L)
-    np.testing.assert_array_equal(plan.swing_leg[:6], [2, 0, -1, 3, 1, -1])  # LR LF shift RR RF shift
+    np.testing.assert_array_equal(
+        plan.swing_leg[:6], [2, 0, -1, 3, 1, -1]
+    )  # LR LF shift RR RF shift
     np.testing.assert_array_equal(plan.swing_leg[6:12], plan.swing_leg[:6])
     # COG: (L, W) then (L, -W): back on the path after every cycle, 2 L_std per cycle
     c0 = np.asarray(start.cog)
     np.testing.assert_allclose(plan.cog[2] - c0, [L, W, 0.0], atol=1e-12)
     np.testing.assert_allclose(plan.cog[5] - c0, [2 * L, 0.0, 0.0], atol=1e-12)
     for k in range(N_CYC):
-        np.testing.assert_allclose(plan.feet[6 * k + 5] - start.feet, np.array([2 * L * (k + 1), 0, 0]) * np.ones((4, 1)), atol=1e-12)
+        np.testing.assert_allclose(
+            plan.feet[6 * k + 5] - start.feet,
+            np.array([2 * L * (k + 1), 0, 0]) * np.ones((4, 1)),
+            atol=1e-12,
+        )
     assert float(plan.distance_per_cycle) == pytest.approx(2 * L)
     assert float(plan.path_deviation) == pytest.approx(0.0, abs=1e-12)
     # the start pose is the standard one, built here by hand (body frame at the COG)
     w = W / 2
-    hand = np.array([[2.1 - L, 2.2 + w], [2.1, -2.2 + w], [-2.1 - L, 2.2 + w], [-2.1, -2.2 + w]])
+    hand = np.array(
+        [[2.1 - L, 2.2 + w], [2.1, -2.2 + w], [-2.1 - L, 2.2 + w], [-2.1, -2.2 + w]]
+    )
     np.testing.assert_allclose(np.asarray(start.feet[:, :2]) - c0[:2], hand, atol=1e-12)
 
 
@@ -174,14 +210,27 @@ def test_standard_gait_margins_match_closed_form(scenarios):
     swing = np.asarray(plan.swing_leg) >= 0
     np.testing.assert_allclose(plan.nesm[swing], nesm, rtol=1e-9)
     np.testing.assert_allclose(plan.long_margin[swing], lon, rtol=1e-9)
-    np.testing.assert_allclose(plan.nesm[~swing], _closed_form_shift_margins(L, w, h), rtol=1e-9)
+    np.testing.assert_allclose(
+        plan.nesm[~swing], _closed_form_shift_margins(L, w, h), rtol=1e-9
+    )
     assert nesm > P.S_NE_C  # the chosen W_std keeps the standard gait above S_NE^c
     # and the core kernels agree with the hand formulas on the same support
-    feet = jnp.array([[2.1 - L, 2.2 + w, 0], [2.1, -2.2 + w, 0], [-2.1 - L, 2.2 + w, 0], [-2.1, -2.2 + w, 0]])
+    feet = jnp.array(
+        [
+            [2.1 - L, 2.2 + w, 0],
+            [2.1, -2.2 + w, 0],
+            [-2.1 - L, 2.2 + w, 0],
+            [-2.1, -2.2 + w, 0],
+        ]
+    )
     mask = jnp.array([True, True, False, True])
     cog = jnp.array([0.0, 0.0, h])
-    assert float(stab.ne_stability_margin(cog, feet, mask)) == pytest.approx(nesm, rel=1e-12)
-    assert float(stab.longitudinal_margin(cog, feet, mask, jnp.array([1.0, 0.0]))) == pytest.approx(lon, rel=1e-12)
+    assert float(stab.ne_stability_margin(cog, feet, mask)) == pytest.approx(
+        nesm, rel=1e-12
+    )
+    assert float(
+        stab.longitudinal_margin(cog, feet, mask, jnp.array([1.0, 0.0]))
+    ) == pytest.approx(lon, rel=1e-12)
 
 
 # ----------------------------------------------------------- frame scenarios (Sec. 7, 8.4)
@@ -191,7 +240,7 @@ def _clearance(xy, size, interval, off):
 
 
 def test_frame_scenarios_are_safe(scenarios):
-    gm, st, dr, plans = scenarios
+    gm, _st, _dr, plans = scenarios
     for k, (name, size, interval, off, _, _) in enumerate(SCEN):
         plan = _take(plans, k)
         legs = np.asarray(plan.swing_leg)
@@ -201,7 +250,9 @@ def test_frame_scenarios_are_safe(scenarios):
         assert float(plan.min_nesm) >= P.S_NE_C - 1e-9, name
         if size > 0:
             # frames never under a foot pad
-            assert _clearance(landed[:, :2], size, interval, off).min() > P.FOOT_RADIUS, name
+            assert (
+                _clearance(landed[:, :2], size, interval, off).min() > P.FOOT_RADIUS
+            ), name
             # rectangular swings: vertical up, horizontal return clearing every frame the
             # pad passes over by the swing clearance, vertical down (Sec. 6.4.1)
             path = np.asarray(plan.swing_path)[ok]
@@ -215,16 +266,20 @@ def test_frame_scenarios_are_safe(scenarios):
                     assert w[1, 2] >= size + P.SWING_CLEARANCE - 1e-9, name
         # landed heights come from the unevenness map (Sec. 6.2)
         g = _take(gm, k)
-        np.testing.assert_allclose(landed[:, 2], M.sample_height(g, jnp.asarray(landed[:, :2])))
+        np.testing.assert_allclose(
+            landed[:, 2], M.sample_height(g, jnp.asarray(landed[:, :2]))
+        )
 
 
 def test_paper_scenarios_walk(scenarios):
-    _, _, dr, plans = scenarios
+    _, _, _dr, plans = scenarios
     names = [s[0] for s in SCEN]
     for name in names[1:]:
         plan = _take(plans, names.index(name))
         assert int(plan.n_failures) == 0, name
-        assert float(plan.distance_per_cycle) > 0.5, name  # at least half the standard 1.0 m
+        assert float(plan.distance_per_cycle) > 0.5, (
+            name
+        )  # at least half the standard 1.0 m
         # |W-bar| = |W| (Sec. 5.5): the COG is back on each cycle's path
         assert float(plan.path_deviation) < 1e-9, name
     # walking directions: progress along each commanded direction
@@ -234,7 +289,7 @@ def test_paper_scenarios_walk(scenarios):
 
 
 def test_slope_map_frame_and_world_output(scenarios):
-    gm, _, _, plans = scenarios
+    _gm, _, _, plans = scenarios
     k = [s[0] for s in SCEN].index("slope 30 deg, 0.2 m / 1.5 m")
     plan = _take(plans, k)
     a = P.SLOPE_ANGLE
@@ -258,14 +313,29 @@ def _flat_half(forbidden=None):
     d_b = jnp.array([1.0, 0.0])
     roles, n_r = G.leg_roles((s.feet[:, :2] - s.cog[:2]), d_b, s.rear)
     up = jnp.array([0.0, 0.0, 1.0])
-    h = half_jit(PAR, g, s.feet, s.cog, s.yaw, d_b, roles, n_r, PAR.l_std, PAR.w_std, jnp.asarray(True), up)
+    h = half_jit(
+        PAR,
+        g,
+        s.feet,
+        s.cog,
+        s.yaw,
+        d_b,
+        roles,
+        n_r,
+        PAR.l_std,
+        PAR.w_std,
+        jnp.asarray(True),
+        up,
+    )
     return g, h
 
 
 def test_foothold_search_avoids_forbidden_cell_at_initial_position():
-    g, h = _flat_half()
+    _g, h = _flat_half()
     assert bool(h.ok)
-    np.testing.assert_allclose(h.j_r[:2], h.i_r, atol=1e-12)  # free map: J_u = I_u (step 1)
+    np.testing.assert_allclose(
+        h.j_r[:2], h.i_r, atol=1e-12
+    )  # free map: J_u = I_u (step 1)
     # forbid the cells around I_r (the foot pad would touch them)
     c = M.cell_centres(SHAPE, ORIGIN, CELL)
     forb = jnp.linalg.norm(c - h.i_r, axis=-1) < 0.16
@@ -279,7 +349,7 @@ def test_foothold_search_avoids_forbidden_cell_at_initial_position():
 
 
 def test_foothold_search_moves_rows_backwards_first():
-    g, h = _flat_half()
+    _g, h = _flat_half()
     c = M.cell_centres(SHAPE, ORIGIN, CELL)
     # forbid the whole row of I_r inside the reachable area: the search goes to row -1
     forb = jnp.abs(c[..., 0] - h.i_r[0]) < 0.06
@@ -308,23 +378,34 @@ def test_vmap_over_maps_equals_loop(scenarios):
     gm, st, dr, plans = scenarios
     for k in (1, 3):
         one = plan_one(_take(gm, k), _take(st, k), dr[k])
-        for a, b in zip(jax.tree_util.tree_leaves(one), jax.tree_util.tree_leaves(_take(plans, k))):
+        for a, b in zip(
+            jax.tree_util.tree_leaves(one), jax.tree_util.tree_leaves(_take(plans, k))
+        ):
             np.testing.assert_allclose(a, b, atol=1e-9)
 
 
-def test_vmap_over_params_equals_loop():
-    g = M.flat_map((90, 70), ORIGIN)
+def test_sweep_point_vmaps_over_parameters_and_maps():
+    """`sweep_metrics` (issue 5 sweeps): vmap over L_std, W_std and the frame size ==
+    a loop of single calls; flat ground gives 2 L_std per cycle."""
 
-    def run(l_std, w_std):
+    def run(l_std, w_std, size):
         par = PAR.with_(l_std=l_std, w_std=w_std)
-        s = G.standard_start(par, g, jnp.array([3.0, 3.5]))
-        return G.plan_cycles(par, g, s, 1).cog[-1]
+        return G.sweep_metrics(par, size, 2.0, 0.0, 0.0, 1, shape=(90, 70))
 
     ls, ws = jnp.array([0.4, 0.5, 0.6]), jnp.array([1.0, 1.1, 1.2])
-    batched = jax.jit(jax.vmap(run))(ls, ws)
+    sizes = jnp.array([0.0, 0.0, 0.2])
+    batched = jax.jit(jax.vmap(run))(ls, ws, sizes)
+    single = jax.jit(run)
     for k in range(3):
-        np.testing.assert_allclose(batched[k], jax.jit(run)(ls[k], ws[k]), atol=1e-12)
-        np.testing.assert_allclose(batched[k, 0] - 3.0, 2 * ls[k], atol=1e-12)  # 2 L_std per cycle
+        one = single(ls[k], ws[k], sizes[k])
+        for key, v in one.items():
+            np.testing.assert_allclose(batched[key][k], v, atol=1e-12)
+    # flat ground: the standard gait, 2 L_std per cycle, on the path
+    np.testing.assert_allclose(
+        batched["distance_per_cycle"][:2], 2 * ls[:2], atol=1e-12
+    )
+    np.testing.assert_allclose(batched["n_failures"], 0)
+    assert float(jnp.min(batched["min_nesm"])) >= P.S_NE_C
 
 
 def test_grad_of_standard_stance_margin_wrt_lateral_shift():

@@ -19,14 +19,18 @@ def _frame_clearance(xy, size, interval, offset):
 
 
 def test_survey_map_matches_analytic_frames():
-    offset = jnp.array([1.0, 0.0])  # frame lines at x = -3, -1, 1, 3 and y = -2, 0, 2, 4 (the survey covers the map)
+    offset = jnp.array(
+        [1.0, 0.0]
+    )  # frame lines at x = -3, -1, 1, 3 and y = -2, 0, 2, 4 (the survey covers the map)
     ref = M.frame_grid_map(SHAPE, ORIGIN, jnp.asarray(P.CELL), 0.2, 2.0, offset)
     nodes, centres = M.survey_points((4, 4), 2.0, ORIGIN, 0.2)
     gen = M.map_from_survey(nodes, centres, 0.2, 0.2, SHAPE, ORIGIN)
     np.testing.assert_allclose(gen.height, ref.height, atol=1e-9)
     assert bool(jnp.all(gen.forbidden == ref.forbidden))
     # with the +-5 mm total-station error the maps barely change
-    nodes, centres = M.survey_points((4, 4), 2.0, ORIGIN, 0.2, noise=0.005, key=jax.random.PRNGKey(0))
+    nodes, centres = M.survey_points(
+        (4, 4), 2.0, ORIGIN, 0.2, noise=0.005, key=jax.random.PRNGKey(0)
+    )
     noisy = M.map_from_survey(nodes, centres, 0.2, 0.2, SHAPE, ORIGIN)
     assert float(jnp.mean(noisy.forbidden != ref.forbidden)) < 0.03
     assert float(jnp.max(jnp.abs(noisy.height - ref.height) * (~ref.forbidden))) < 0.03
@@ -39,7 +43,10 @@ def test_survey_map_on_uneven_ground_interpolates_centres():
     nodes, centres = M.survey_points((4, 4), 2.0, ORIGIN, 0.2, ground_fn=ground)
     gen = M.map_from_survey(nodes, centres, 0.2, 0.2, SHAPE, ORIGIN)
     c = M.cell_centres(SHAPE, ORIGIN, jnp.asarray(P.CELL))
-    free = np.asarray(_frame_clearance(np.asarray(c).reshape(-1, 2), 0.2, 2.0, np.array([1.0, 0.0])) > 0.05)
+    free = np.asarray(
+        _frame_clearance(np.asarray(c).reshape(-1, 2), 0.2, 2.0, np.array([1.0, 0.0]))
+        > 0.05
+    )
     # frame base = top - height along the local normal: a tilted plane shifts the base
     # sideways by h sin(tilt), so allow a few mm
     err = np.abs(np.asarray(gen.height).ravel() - np.asarray(ground(c)).ravel())[free]
@@ -48,16 +55,24 @@ def test_survey_map_on_uneven_ground_interpolates_centres():
 
 def test_forbidden_map_is_conservative_for_the_foot_pad():
     size, interval, off = 0.3, 3.0, np.array([0.5, 0.5])
-    g = M.frame_grid_map(SHAPE, ORIGIN, jnp.asarray(P.CELL), size, interval, jnp.asarray(off))
+    g = M.frame_grid_map(
+        SHAPE, ORIGIN, jnp.asarray(P.CELL), size, interval, jnp.asarray(off)
+    )
     rng = np.random.default_rng(0)
     pts = rng.uniform([-3.0, -2.0], [3.0, 3.0], (4000, 2))
     free = ~np.asarray(M.sample_forbidden(g, jnp.asarray(pts)))
     clear = _frame_clearance(pts, size, interval, off)
     assert free.sum() > 500
-    assert clear[free].min() > P.FOOT_RADIUS  # any point of a free cell keeps the pad off frames
+    assert (
+        clear[free].min() > P.FOOT_RADIUS
+    )  # any point of a free cell keeps the pad off frames
     # and frames are in the unevenness map
-    on = clear < -0.075  # deeper than half a cell diagonal: the cell centre is on the frame too
-    np.testing.assert_allclose(np.asarray(M.sample_height(g, jnp.asarray(pts[on]))), size)
+    on = (
+        clear < -0.075
+    )  # deeper than half a cell diagonal: the cell centre is on the frame too
+    np.testing.assert_allclose(
+        np.asarray(M.sample_height(g, jnp.asarray(pts[on]))), size
+    )
 
 
 def test_lookups_outside_and_world_frame():
@@ -66,12 +81,24 @@ def test_lookups_outside_and_world_frame():
     assert bool(jnp.all(M.sample_forbidden(g, out)))
     np.testing.assert_allclose(M.sample_height(g, out), 0.0)
     a = P.SLOPE_ANGLE
-    np.testing.assert_allclose(M.map_to_world(g, jnp.array([1.0, 0.0, 0.0])), [np.cos(a), 0.0, np.sin(a)], atol=1e-12)
-    np.testing.assert_allclose(M.map_to_world(g, jnp.array([0.0, 0.0, 1.0])), [-np.sin(a), 0.0, np.cos(a)], atol=1e-12)
+    np.testing.assert_allclose(
+        M.map_to_world(g, jnp.array([1.0, 0.0, 0.0])),
+        [np.cos(a), 0.0, np.sin(a)],
+        atol=1e-12,
+    )
+    np.testing.assert_allclose(
+        M.map_to_world(g, jnp.array([0.0, 0.0, 1.0])),
+        [-np.sin(a), 0.0, np.cos(a)],
+        atol=1e-12,
+    )
 
 
 def test_frame_map_vmaps_over_frame_parameters():
-    f = jax.jit(jax.vmap(lambda s, i: M.frame_grid_map(SHAPE, ORIGIN, jnp.asarray(P.CELL), s, i)))
+    f = jax.jit(
+        jax.vmap(
+            lambda s, i: M.frame_grid_map(SHAPE, ORIGIN, jnp.asarray(P.CELL), s, i)
+        )
+    )
     sizes, ints = jnp.array([0.0, 0.2, 0.3]), jnp.array([2.0, 2.0, 3.0])
     gb = f(sizes, ints)
     for k in range(3):

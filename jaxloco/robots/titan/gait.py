@@ -75,7 +75,9 @@ Array = jax.Array
 
 # quadrant axes (+x, +y, -x, -y) of Sigma_b, the rear pair and the same-side partner rule
 _AXES = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
-_REAR_PAIRS = np.array([[2, 3], [1, 3], [0, 1], [0, 2]])  # LR RR | RF RR | LF RF | LF LR
+_REAR_PAIRS = np.array(
+    [[2, 3], [1, 3], [0, 1], [0, 2]]
+)  # LR RR | RF RR | LF RF | LF LR
 _PARTNER_XOR = np.array([2, 1, 2, 1])  # f = r ^ 2 for +-x, r ^ 1 for +-y
 
 
@@ -112,7 +114,9 @@ class GaitPlan(NamedTuple):
     swing_leg: Array  # (S,) leg index, -1 for a COG shift (or a held step)
     nesm: Array  # (S,) NE stability margin during the step [m]
     long_margin: Array  # (S,) longitudinal margin along L_G during the step [m]
-    swing_path: Array  # (S, 4, 3) rectangular swing waypoints (lift-off, 2 top, touch-down)
+    swing_path: (
+        Array  # (S, 4, 3) rectangular swing waypoints (lift-off, 2 top, touch-down)
+    )
     failed: Array  # (S,) bool: the cycle of this step failed (robot held)
     modified: Array  # (S,) bool: the cycle used modifications (a)/(b)/5.5
     cycle_w: Array  # (C,) |W| used
@@ -143,7 +147,9 @@ def _left(v: Array) -> Array:
 
 def effective_up(params: P.TitanParams, slope: Array) -> Array:
     """Unit 'up' of the effective gravity in the map frame (tethers, Sec. 8.1)."""
-    up = jnp.stack([(1.0 - params.tether) * jnp.sin(slope), jnp.zeros_like(slope), jnp.cos(slope)])
+    up = jnp.stack(
+        [(1.0 - params.tether) * jnp.sin(slope), jnp.zeros_like(slope), jnp.cos(slope)]
+    )
     return up / jnp.linalg.norm(up)
 
 
@@ -155,7 +161,11 @@ def in_fan(q: Array, leg: Array, params: P.TitanParams) -> Array:
     r = jnp.linalg.norm(q, axis=-1)
     ang = jnp.arctan2(q[..., 1], q[..., 0]) - axis
     ang = jnp.arctan2(jnp.sin(ang), jnp.cos(ang))
-    return (r >= params.r_in) & (r <= params.r_out) & (jnp.abs(ang) <= 0.5 * params.r_theta)
+    return (
+        (r >= params.r_in)
+        & (r <= params.r_out)
+        & (jnp.abs(ang) <= 0.5 * params.r_theta)
+    )
 
 
 def fan_exit_distance(q0: Array, u: Array, leg: Array, params: P.TitanParams) -> Array:
@@ -193,15 +203,26 @@ def plane_height(normal: Array, offset: Array, xy: Array) -> Array:
     return (offset - xy @ normal[:2]) / normal[2]
 
 
+def _axis_margin(c: Array, a: Array, b: Array, ref: Array) -> Array:
+    """`edge_energy_margin` for points already in a frame whose z is 'up'."""
+    e = b - a
+    e = e / jnp.maximum(jnp.linalg.norm(e), 1e-12)
+    r = c - a
+    R = r - jnp.dot(r, e) * e
+    rho = jnp.sqrt(jnp.dot(R, R) + jnp.finfo(c.dtype).tiny)
+    rise = rho * jnp.sqrt(jnp.clip(1.0 - e[2] * e[2], 0.0, 1.0)) - R[2]
+    s_c = geo.cross2(b[:2] - a[:2], c[:2] - a[:2])
+    s_ref = geo.cross2(b[:2] - a[:2], ref[:2] - a[:2])
+    return jnp.where(s_c * s_ref < 0, rise, -rise)
+
+
 def edge_energy_margin(cog: Array, a: Array, b: Array, ref: Array, up: Array) -> Array:
-    """Energy margin (NE stability margin of one tipping axis) of `cog` about the 3D axis
-    through a and b, signed positive when the COG is on the side of the line a-b opposite
-    to the point `ref` (horizontal projections along `up`)."""
-    S, p2 = stab._ne_edge_margins(cog, jnp.stack([a, b]), up)
+    """Energy margin (NE stability margin of one tipping axis, as in
+    `stability.ne_stability_margin`) of `cog` about the 3D axis through a and b, signed
+    positive when the COG is on the side of the line a-b opposite to the point `ref`
+    (horizontal projections along `up`)."""
     B = stab._vertical_frame(up, cog.dtype)
-    r2 = (B @ ref)[:2]
-    ref_left = geo.signed_distance_to_line(r2, p2[0], p2[1]) > 0
-    return jnp.where(ref_left, S[1, 0], S[0, 1])
+    return _axis_margin(B @ cog, B @ a, B @ b, B @ ref)
 
 
 # ------------------------------------------------------------------- roles and strokes
@@ -230,12 +251,22 @@ def stroke_centres(params: P.TitanParams, roles: Array, n_r: Array) -> Array:
     """Body-frame centres (4, 2) of the standard strokes: neutral foot + W_std / 2
     outward (+n_r for the legs r, f; -n_r for r-bar, f-bar)."""
     neutral = params.neutral_feet()[:, :2]
-    sigma = jnp.zeros(4, n_r.dtype).at[roles].set(jnp.array([1.0, 1.0, -1.0, -1.0], n_r.dtype))
+    sigma = (
+        jnp.zeros(4, n_r.dtype)
+        .at[roles]
+        .set(jnp.array([1.0, 1.0, -1.0, -1.0], n_r.dtype))
+    )
     return neutral + 0.5 * params.w_std * sigma[:, None] * n_r
 
 
 def initial_search_position(
-    params: P.TitanParams, centre_u: Array, centre_star: Array, foot_star_b: Array, d_b: Array, delta: Array, first: Array
+    params: P.TitanParams,
+    centre_u: Array,
+    centre_star: Array,
+    foot_star_b: Array,
+    d_b: Array,
+    delta: Array,
+    first: Array,
 ) -> Array:
     """Phase-reserved positioning (Sec. 5.3, Fig. 14): I_u (body frame, (2,)) on the
     standard stroke of u (centre `centre_u`) at s_u* + delta from its return start point;
@@ -247,7 +278,9 @@ def initial_search_position(
     return centre_u - params.l_std * d_b + s * d_b
 
 
-def search_offsets(half_rows: int = P.SEARCH_HALF_ROWS, half_cols: int = P.SEARCH_HALF_COLS) -> np.ndarray:
+def search_offsets(
+    half_rows: int = P.SEARCH_HALF_ROWS, half_cols: int = P.SEARCH_HALF_COLS
+) -> np.ndarray:
     """Search order of Sec. 5.3 as integer (along L_G, lateral) offsets (K, 2) from I_u:
     I_u first; along each row +y and -y alternately outwards; rows 0, -1 .. -half_rows
     (towards the rear), then +1 .. +half_rows. Static (numpy)."""
@@ -305,7 +338,9 @@ def half_cycle(
         return now & in_fan(c_b - l_len * d_b - p, leg, params)
 
     # --- leg r: D_r (Sec. 5.2.1, Fig. 10) and J_r
-    i_r = initial_search_position(params, centres[r], centres[fb], feet_b[fb], d_b, params.l_std, first)
+    i_r = initial_search_position(
+        params, centres[r], centres[fb], feet_b[fb], d_b, params.l_std, first
+    )
     c_b, c3, free = candidates(i_r)
     mask_f = jnp.ones(4, bool).at[f].set(False)
 
@@ -321,7 +356,9 @@ def half_cycle(
     j_r_b = c_b[k_r]
 
     # --- leg f: D_f (Sec. 5.2.2, Fig. 12) and J_f
-    i_f = initial_search_position(params, centres[f], centres[r], j_r_b, d_b, 0.0, first)
+    i_f = initial_search_position(
+        params, centres[f], centres[r], j_r_b, d_b, 0.0, first
+    )
     c_b, c3, free = candidates(i_f)
     mask_rb = jnp.ones(4, bool).at[rb].set(False)
 
@@ -335,14 +372,20 @@ def half_cycle(
     # diagonal J_r-bar J_f by S_NE^c. Without it a short J_f (a frame ahead) lets the
     # COG advance and the cycle after deadlocks (no J_r can satisfy condition 1).
     q_b = centres[rb] + params.l_std * d_b + g_b  # relative to P_g
-    la = jnp.asarray(search_offsets(P.LOOKAHEAD_HALF, P.LOOKAHEAD_HALF), dtype) * (2.0 * params.search_step)
+    la = jnp.asarray(search_offsets(P.LOOKAHEAD_HALF, P.LOOKAHEAD_HALF), dtype) * (
+        2.0 * params.search_step
+    )
     y_b = q_b + la[:, :1] * d_b + la[:, 1:] * lat
     y_xy = cog[:2] + y_b @ R.T
     y3 = jnp.concatenate([y_xy, M.sample_height(gmap, y_xy)[:, None]], axis=1)
     y_ok = ~M.sample_forbidden(gmap, y_xy) & in_fan(y_b - g_b - pivots[rb], rb, params)
 
+    B = stab._vertical_frame(up, dtype)
+    y3u, cog2u, fbu = y3 @ B.T, B @ cog2, B @ feet[fb]
+
     def ahead(x):
-        m = jax.vmap(lambda y: edge_energy_margin(cog2, y, x, feet[fb], up))(y3)
+        xu = B @ x
+        m = jax.vmap(lambda y: _axis_margin(cog2u, y, xu, fbu))(y3u)
         return jnp.any(y_ok & (m >= params.s_ne_c))
 
     valid_f = free & reach(c_b, f) & jax.vmap(cond_f)(c3)
@@ -350,9 +393,13 @@ def half_cycle(
     k_f, found_f = first_valid(valid_f)
     j_f = c3[k_f]
 
-    keep = in_fan(feet_b[rb] - g_b - pivots[rb], rb, params) & in_fan(feet_b[fb] - g_b - pivots[fb], fb, params)
+    keep = in_fan(feet_b[rb] - g_b - pivots[rb], rb, params) & in_fan(
+        feet_b[fb] - g_b - pivots[fb], fb, params
+    )
     ok = found_r & found_f & keep & (l_len > 1e-3)
-    return HalfCycle(ok, found_r, found_f, j_r, j_f, cog[:2] + R @ i_r, cog[:2] + R @ i_f, g_map)
+    return HalfCycle(
+        ok, found_r, found_f, j_r, j_f, cog[:2] + R @ i_r, cog[:2] + R @ i_f, g_map
+    )
 
 
 def max_longitudinal(params, feet_b, roles, d_b, n_r, w_len) -> Array:
@@ -379,7 +426,13 @@ class _Trial(NamedTuple):
     l2: Array
 
 
-def plan_cycle(params: P.TitanParams, gmap: M.GridMap, state: GaitState, direction: Array, first: Array):
+def plan_cycle(
+    params: P.TitanParams,
+    gmap: M.GridMap,
+    state: GaitState,
+    direction: Array,
+    first: Array,
+):
     """One gait cycle (Fig. 16) from `state` along the map-frame direction. Returns the
     new state (the old one when no trial succeeds) and the cycle record."""
     dtype = state.cog.dtype
@@ -396,7 +449,16 @@ def plan_cycle(params: P.TitanParams, gmap: M.GridMap, state: GaitState, directi
 
     zero = jnp.zeros((), dtype)
     no = jnp.asarray(False)
-    empty = HalfCycle(no, no, no, jnp.zeros(3, dtype), jnp.zeros(3, dtype), jnp.zeros(2, dtype), jnp.zeros(2, dtype), jnp.zeros(3, dtype))
+    empty = HalfCycle(
+        no,
+        no,
+        no,
+        jnp.zeros(3, dtype),
+        jnp.zeros(3, dtype),
+        jnp.zeros(2, dtype),
+        jnp.zeros(2, dtype),
+        jnp.zeros(3, dtype),
+    )
 
     def second(h1, w):
         """Second half (Sec. 5.5): same |W| towards the other side, L-bar reductions only."""
@@ -408,11 +470,13 @@ def plan_cycle(params: P.TitanParams, gmap: M.GridMap, state: GaitState, directi
         def body(c):
             j = c[0] + 1
             l2 = lmax * (n_l - j) / n_l
-            h = half_cycle(params, gmap, feet1, cog1, state.yaw, d_b, roles2, -n_r, l2, w, no, up)
+            h = half_cycle(
+                params, gmap, feet1, cog1, state.yaw, d_b, roles2, -n_r, l2, w, no, up
+            )
             return j, h, l2
 
         init = (jnp.asarray(-1), empty, zero)
-        go = lambda c: h1.ok & (~c[1].ok) & (c[0] < n_l - 1)  # noqa: E731
+        go = lambda c: h1.ok & (~c[1].ok) & (c[0] < n_l - 1)
         j, h, l2 = jax.lax.while_loop(go, body, init)
         return h, l2, jnp.maximum(j, 0)
 
@@ -422,7 +486,9 @@ def plan_cycle(params: P.TitanParams, gmap: M.GridMap, state: GaitState, directi
         w = params.w_std + i * params.dw
         lmax = max_longitudinal(params, feet_b, roles, d_b, n_r, w)
         l1 = lmax * (n_l - j) / n_l
-        h1 = half_cycle(params, gmap, feet, cog, state.yaw, d_b, roles, n_r, l1, w, first, up)
+        h1 = half_cycle(
+            params, gmap, feet, cog, state.yaw, d_b, roles, n_r, l1, w, first, up
+        )
         h2, l2, t2 = second(h1, w)
         return _Trial(t, t2, h1.ok & h2.ok, h1, h2, w, l1, l2)
 
@@ -448,27 +514,31 @@ def plan_cycle(params: P.TitanParams, gmap: M.GridMap, state: GaitState, directi
     cog_before = jnp.where(ok, cog_before, cog[None])
     legs = jnp.where(ok, legs, -1)
     d_map = _unit(direction)
-    nesm, lm = jax.vmap(lambda fb_, c0, c1, leg: _step_margins(fb_, c0, c1, leg, up, d_map))(
-        before, cog_before, cog_s, legs
+    nesm, lm = jax.vmap(
+        lambda fb_, c0, c1, leg: _step_margins(fb_, c0, c1, leg, up, d_map)
+    )(before, cog_before, cog_s, legs)
+    swing = jax.vmap(lambda a, b, leg: swing_path(params, gmap, a, b, leg))(
+        before, feet_s, legs
     )
-    swing = jax.vmap(lambda a, b, leg: swing_path(params, gmap, a, b, leg))(before, feet_s, legs)
-    new_state = GaitState(feet_s[-1], cog_s[-1], state.yaw, jnp.where(ok, roles[0], state.rear))
+    new_state = GaitState(
+        feet_s[-1], cog_s[-1], state.yaw, jnp.where(ok, roles[0], state.rear)
+    )
     dxy = cog_s[-1, :2] - cog[:2]
-    rec = dict(
-        feet=feet_s,
-        cog=cog_s,
-        swing_leg=legs,
-        nesm=nesm,
-        long_margin=lm,
-        swing_path=swing,
-        w=tr.w,
-        l=jnp.stack([tr.l1, tr.l2]),
-        trials=jnp.stack([tr.t, tr.t2]),
-        failed=~ok,
-        roles=roles,
-        progress=jnp.where(ok, jnp.dot(dxy, d_map), 0.0),
-        deviation=jnp.abs(geo.cross2(d_map, dxy)),
-    )
+    rec = {
+        "feet": feet_s,
+        "cog": cog_s,
+        "swing_leg": legs,
+        "nesm": nesm,
+        "long_margin": lm,
+        "swing_path": swing,
+        "w": tr.w,
+        "l": jnp.stack([tr.l1, tr.l2]),
+        "trials": jnp.stack([tr.t, tr.t2]),
+        "failed": ~ok,
+        "roles": roles,
+        "progress": jnp.where(ok, jnp.dot(dxy, d_map), 0.0),
+        "deviation": jnp.abs(geo.cross2(d_map, dxy)),
+    }
     return new_state, rec
 
 
@@ -478,11 +548,15 @@ def _step_margins(feet_before, cog0, cog1, leg, up, d_map):
     mask = jnp.arange(4) != leg
     cogs = jnp.stack([cog0, 0.5 * (cog0 + cog1), cog1])
     ne = jax.vmap(lambda c: stab.ne_stability_margin(c, feet_before, mask, up))(cogs)
-    lo = jax.vmap(lambda c: stab.longitudinal_margin(c, feet_before, mask, d_map, up))(cogs)
+    lo = jax.vmap(lambda c: stab.longitudinal_margin(c, feet_before, mask, d_map, up))(
+        cogs
+    )
     return jnp.min(ne), jnp.min(lo)
 
 
-def swing_path(params: P.TitanParams, gmap: M.GridMap, before: Array, after: Array, leg: Array) -> Array:
+def swing_path(
+    params: P.TitanParams, gmap: M.GridMap, before: Array, after: Array, leg: Array
+) -> Array:
     """Rectangular swing trajectory (Sec. 6.4.1, Fig. 18) of `leg` from its foot in
     `before` to the one in `after` (4, 3): lift-off, top above lift-off, top above
     touch-down, touch-down (4, 3). The top is at the highest map height under the pad
@@ -501,15 +575,24 @@ def swing_path(params: P.TitanParams, gmap: M.GridMap, before: Array, after: Arr
     pts = jnp.concatenate([seg, seg + n, seg - n])
     hmax = jnp.max(M.sample_height(gmap, pts))
     nrm, off = virtual_plane(before)
-    plane_top = jnp.max(plane_height(nrm, off, jnp.stack([a[:2], b[:2]]))) + params.swing_min_lift
-    top = jnp.maximum(jnp.maximum(hmax + params.swing_clearance, plane_top), jnp.maximum(a[2], b[2]))
+    plane_top = (
+        jnp.max(plane_height(nrm, off, jnp.stack([a[:2], b[:2]])))
+        + params.swing_min_lift
+    )
+    top = jnp.maximum(
+        jnp.maximum(hmax + params.swing_clearance, plane_top), jnp.maximum(a[2], b[2])
+    )
     way = jnp.stack([a, a.at[2].set(top), b.at[2].set(top), b])
     return jnp.where(leg >= 0, way, 0.0)
 
 
 # --------------------------------------------------------------------------- planning
 def standard_start(
-    params: P.TitanParams, gmap: M.GridMap, cog_xy: Array, direction: Array = 0.0, yaw: Array = 0.0
+    params: P.TitanParams,
+    gmap: M.GridMap,
+    cog_xy: Array,
+    direction: Array = 0.0,
+    yaw: Array = 0.0,
 ) -> GaitState:
     """The standard intermittent crawl gait at the start of a cycle (Fig. 7) for the
     map-frame walking direction: the COG on L_G, off the foot centre by W_std / 2 away
@@ -537,7 +620,11 @@ def standard_start(
 
 
 def plan_cycles(
-    params: P.TitanParams, gmap: M.GridMap, start: GaitState, n_cycles: int, direction: Array = 0.0
+    params: P.TitanParams,
+    gmap: M.GridMap,
+    start: GaitState,
+    n_cycles: int,
+    direction: Array = 0.0,
 ) -> GaitPlan:
     """Plan `n_cycles` (static) cycles from `start`; `direction` is the map-frame angle of
     L_G, a scalar or one per cycle (n_cycles,). Pure: jit / vmap over `gmap`, `params`,
@@ -595,19 +682,24 @@ def sweep_metrics(
     per cycle, number of failed cycles and modifications, path deviation. Every argument
     but `n_cycles`, `shape`, `cell` may be traced (vmap over them)."""
     dtype = jnp.asarray(params.l_std).dtype
-    nx, ny = shape
+    _nx, ny = shape
     origin = jnp.array([0.0, 0.0], dtype)
     gmap = M.frame_grid_map(
-        shape, origin, jnp.asarray(cell, dtype), frame_size, frame_interval,
-        jnp.array([0.5, 0.5], dtype) * frame_interval, slope,
+        shape,
+        origin,
+        jnp.asarray(cell, dtype),
+        frame_size,
+        frame_interval,
+        jnp.array([0.5, 0.5], dtype) * frame_interval,
+        slope,
     )
     start_xy = jnp.array([3.0, 0.5 * ny * cell], dtype)
     start = standard_start(params, gmap, start_xy, direction)
     plan = plan_cycles(params, gmap, start, n_cycles, direction)
-    return dict(
-        min_nesm=plan.min_nesm,
-        distance_per_cycle=plan.distance_per_cycle,
-        n_failures=plan.n_failures,
-        n_modifications=plan.n_modifications,
-        path_deviation=plan.path_deviation,
-    )
+    return {
+        "min_nesm": plan.min_nesm,
+        "distance_per_cycle": plan.distance_per_cycle,
+        "n_failures": plan.n_failures,
+        "n_modifications": plan.n_modifications,
+        "path_deviation": plan.path_deviation,
+    }

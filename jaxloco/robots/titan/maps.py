@@ -62,7 +62,9 @@ def _index(gmap: GridMap, xy: Array) -> tuple[Array, Array, Array]:
     # vmap and eager give the same cell
     ij = jnp.floor((xy - gmap.origin) / gmap.cell + 1e-6).astype(jnp.int32)
     nx, ny = gmap.height.shape
-    inside = (ij[..., 0] >= 0) & (ij[..., 0] < nx) & (ij[..., 1] >= 0) & (ij[..., 1] < ny)
+    inside = (
+        (ij[..., 0] >= 0) & (ij[..., 0] < nx) & (ij[..., 1] >= 0) & (ij[..., 1] < ny)
+    )
     i = jnp.clip(ij[..., 0], 0, nx - 1)
     j = jnp.clip(ij[..., 1], 0, ny - 1)
     return i, j, inside
@@ -94,7 +96,9 @@ def _shift(a: Array, di: int, dj: int, fill) -> Array:
     return p[abs(di) + di : abs(di) + di + nx, abs(dj) + dj : abs(dj) + dj + ny]
 
 
-def height_range(height: Array, cell: Array, radius: Array, max_cells: int = 3) -> Array:
+def height_range(
+    height: Array, cell: Array, radius: Array, max_cells: int = 3
+) -> Array:
     """max - min of the height over the cells whose centres are within `radius` of each
     cell centre (the foot pad), with at most `max_cells` cells each way (static)."""
     hi = height
@@ -111,7 +115,11 @@ def height_range(height: Array, cell: Array, radius: Array, max_cells: int = 3) 
 
 
 def forbidden_map(
-    frame_distance: Array, ground: Array, cell: Array, foot_radius: Array, uneven_max: Array = P.UNEVEN_MAX
+    frame_distance: Array,
+    ground: Array,
+    cell: Array,
+    foot_radius: Array,
+    uneven_max: Array = P.UNEVEN_MAX,
 ) -> Array:
     """Forbidden-foothold map (Sec. 8.2.1 step 4): frames within the foot pad radius of any
     point of the cell (`frame_distance` is the distance from the cell centre to the nearest
@@ -145,7 +153,11 @@ def frame_grid_map(
     may be traced; `frame_size` = 0 gives flat ground without frames."""
     dtype = jnp.asarray(cell).dtype
     origin = jnp.asarray(origin, dtype)
-    off = jnp.zeros(2, dtype) if frame_offset is None else jnp.asarray(frame_offset, dtype)
+    off = (
+        jnp.zeros(2, dtype)
+        if frame_offset is None
+        else jnp.asarray(frame_offset, dtype)
+    )
     c = cell_centres(shape, origin, cell)
     dx = _periodic_distance(c[..., 0], off[0], interval)
     dy = _periodic_distance(c[..., 1], off[1], interval)
@@ -154,7 +166,9 @@ def frame_grid_map(
     g = jnp.zeros(shape, dtype) if ground is None else ground
     height = g + jnp.where(dist <= 0, frame_size, 0.0)
     forb = forbidden_map(dist, g, cell, foot_radius)
-    return GridMap(height, forb, origin, jnp.asarray(cell, dtype), jnp.asarray(slope, dtype))
+    return GridMap(
+        height, forb, origin, jnp.asarray(cell, dtype), jnp.asarray(slope, dtype)
+    )
 
 
 def flat_map(shape: tuple[int, int], origin: Array, cell: Array = P.CELL) -> GridMap:
@@ -181,9 +195,13 @@ def survey_points(
     dtype = node_origin.dtype
     ii = jnp.arange(n_nodes[0], dtype=dtype)
     jj = jnp.arange(n_nodes[1], dtype=dtype)
-    nodes = node_origin + interval * jnp.stack(jnp.meshgrid(ii, jj, indexing="ij"), axis=-1)
+    nodes = node_origin + interval * jnp.stack(
+        jnp.meshgrid(ii, jj, indexing="ij"), axis=-1
+    )
     centres = 0.5 * (nodes[:-1, :-1] + nodes[1:, 1:])
-    gf = (lambda xy: jnp.zeros(xy.shape[:-1], dtype)) if ground_fn is None else ground_fn
+    gf = (
+        (lambda xy: jnp.zeros(xy.shape[:-1], dtype)) if ground_fn is None else ground_fn
+    )
     top = jnp.concatenate([nodes, (gf(nodes) + frame_height)[..., None]], axis=-1)
     mid = jnp.concatenate([centres, gf(centres)[..., None]], axis=-1)
     if key is not None:
@@ -197,10 +215,11 @@ def _node_normals(nodes: Array) -> Array:
     """Unit normals (NI, NJ, 3) of local planes fitted (least squares) through each
     intersection and its 4-neighbours (Sec. 8.2.1 step 2: "normal vectors for local planes
     formed by measured points, defined as the frame height direction")."""
-    ni, nj, _ = nodes.shape
+    _ni, _nj, _ = nodes.shape
     pad = jnp.pad(nodes, ((1, 1), (1, 1), (0, 0)), mode="edge")
     nb = jnp.stack(
-        [pad[1:-1, 1:-1], pad[:-2, 1:-1], pad[2:, 1:-1], pad[1:-1, :-2], pad[1:-1, 2:]], axis=2
+        [pad[1:-1, 1:-1], pad[:-2, 1:-1], pad[2:, 1:-1], pad[1:-1, :-2], pad[1:-1, 2:]],
+        axis=2,
     )  # (NI, NJ, 5, 3); edge copies repeat a point, harmless for least squares
     n, _ = jax.vmap(jax.vmap(geo.fit_plane))(nb)
     return n
@@ -262,15 +281,31 @@ def map_from_survey(
         a = jnp.clip(jnp.floor((q[0] - n0[0]) / sx).astype(jnp.int32), 0, ni - 2)
         b = jnp.clip(jnp.floor((q[1] - n0[1]) / sy).astype(jnp.int32), 0, nj - 2)
         m = centres[a, b]
-        c00, c10, c11, c01 = base[a, b], base[a + 1, b], base[a + 1, b + 1], base[a, b + 1]
-        zs, ws = zip(*[_triangle_interp(q, m, p, r) for p, r in ((c00, c10), (c10, c11), (c11, c01), (c01, c00))])
+        c00, c10, c11, c01 = (
+            base[a, b],
+            base[a + 1, b],
+            base[a + 1, b + 1],
+            base[a, b + 1],
+        )
+        zs, ws = zip(
+            *[
+                _triangle_interp(q, m, p, r)
+                for p, r in ((c00, c10), (c10, c11), (c11, c01), (c01, c00))
+            ]
+        )
         zs, ws = jnp.stack(zs), jnp.stack(ws)
         return zs[jnp.argmax(ws)]
 
     ground = jax.vmap(ground_at)(c)
-    seg_a = jnp.concatenate([base[:-1, :, :2].reshape(-1, 2), base[:, :-1, :2].reshape(-1, 2)])
-    seg_b = jnp.concatenate([base[1:, :, :2].reshape(-1, 2), base[:, 1:, :2].reshape(-1, 2)])
-    d = jax.vmap(lambda q: jnp.min(jax.vmap(_segment_distance_2d, (None, 0, 0))(q, seg_a, seg_b)))(c)
+    seg_a = jnp.concatenate(
+        [base[:-1, :, :2].reshape(-1, 2), base[:, :-1, :2].reshape(-1, 2)]
+    )
+    seg_b = jnp.concatenate(
+        [base[1:, :, :2].reshape(-1, 2), base[:, 1:, :2].reshape(-1, 2)]
+    )
+    d = jax.vmap(
+        lambda q: jnp.min(jax.vmap(_segment_distance_2d, (None, 0, 0))(q, seg_a, seg_b))
+    )(c)
     dist = (d - 0.5 * frame_width).reshape(shape)
     ground = ground.reshape(shape)
     height = ground + jnp.where(dist <= 0, frame_height, 0.0)
@@ -279,12 +314,29 @@ def map_from_survey(
 
 
 # ------------------------------------------------------------------------- scenarios
-def section7_map(shape: tuple[int, int], origin: Array, large: bool = False, offset: Array | None = None) -> GridMap:
+def section7_map(
+    shape: tuple[int, int],
+    origin: Array,
+    large: bool = False,
+    offset: Array | None = None,
+) -> GridMap:
     """Section 7 flat ground: 0.2 m frames on a 2.0 m grid (or 0.3 m on 3.0 m, `large`)."""
-    size, grid = (P.FRAME_LARGE, P.GRID_LARGE) if large else (P.FRAME_SMALL, P.GRID_SMALL)
+    size, grid = (
+        (P.FRAME_LARGE, P.GRID_LARGE) if large else (P.FRAME_SMALL, P.GRID_SMALL)
+    )
     return frame_grid_map(shape, origin, jnp.asarray(P.CELL), size, grid, offset)
 
 
-def slope_map(shape: tuple[int, int], origin: Array, offset: Array | None = None) -> GridMap:
+def slope_map(
+    shape: tuple[int, int], origin: Array, offset: Array | None = None
+) -> GridMap:
     """Section 8.4 test slope: 30 deg, 0.2 m frames every 1.5 m, in the slope frame."""
-    return frame_grid_map(shape, origin, jnp.asarray(P.CELL), P.SLOPE_FRAME, P.SLOPE_GRID, offset, P.SLOPE_ANGLE)
+    return frame_grid_map(
+        shape,
+        origin,
+        jnp.asarray(P.CELL),
+        P.SLOPE_FRAME,
+        P.SLOPE_GRID,
+        offset,
+        P.SLOPE_ANGLE,
+    )

@@ -50,7 +50,9 @@ import numpy as np
 G = 9.81  # [m/s^2]
 
 LEG_NAMES = ("LF", "RF", "LR", "RR")
-LEG_SIGNS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])  # (front +1, left +1)
+LEG_SIGNS = np.array(
+    [[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]]
+)  # (front +1, left +1)
 
 # --- Table 1
 ENVELOPE = np.array([4.8, 5.0, 3.0])  # length x width x height [m]
@@ -61,17 +63,27 @@ POWER = 41.9e3  # [W]
 # --- chosen geometry (module docstring)
 PIVOT_X = 1.1  # [m] pivot x offset from the COG, Sigma_b
 PIVOT_Y = 1.2  # [m]
-PIVOTS = np.concatenate([LEG_SIGNS * np.array([PIVOT_X, PIVOT_Y]), np.zeros((4, 1))], axis=1)  # (4, 3)
+PIVOTS = np.concatenate(
+    [LEG_SIGNS * np.array([PIVOT_X, PIVOT_Y]), np.zeros((4, 1))], axis=1
+)  # (4, 3)
 NEUTRAL_REACH = 1.0  # [m] neutral foot offset from the pivot along x and y (outward)
 NEUTRAL_FEET = np.concatenate(
-    [LEG_SIGNS * np.array([PIVOT_X + NEUTRAL_REACH, PIVOT_Y + NEUTRAL_REACH]), np.zeros((4, 1))], axis=1
+    [
+        LEG_SIGNS * np.array([PIVOT_X + NEUTRAL_REACH, PIVOT_Y + NEUTRAL_REACH]),
+        np.zeros((4, 1)),
+    ],
+    axis=1,
 )  # (4, 3), in Sigma_b at z = 0
 FOOT_RADIUS = 0.15  # [m] foot pad radius
 R_IN = 0.6  # [m] inner radius of the reachable area (Fig. 3)
 R_OUT = 2.3  # [m] outer radius (Fig. 3)
 R_THETA = math.radians(90.0)  # [rad] opening angle of the reachable fan (Fig. 3)
-LEG_AXIS_ANGLES = np.arctan2(LEG_SIGNS[:, 1], LEG_SIGNS[:, 0])  # fan centre directions [rad]
-PIVOT_HEIGHT = 2.2  # [m] pivot above the ground in the neutral pose (model side may refine)
+LEG_AXIS_ANGLES = np.arctan2(
+    LEG_SIGNS[:, 1], LEG_SIGNS[:, 0]
+)  # fan centre directions [rad]
+PIVOT_HEIGHT = (
+    2.2  # [m] pivot above the ground in the neutral pose (model side may refine)
+)
 
 # --- gait (Sections 5-6; chosen values)
 L_STD = 0.5  # [m] standard COG longitudinal shift per half cycle
@@ -80,17 +92,23 @@ S_NE_C = 0.03  # [m] critical NE stability margin S_NE^c (module docstring)
 H_G = 1.5  # [m] COG height above the virtual contact plane (Sec. 6.3)
 DW = 0.1  # [m] lateral increment of modifications (a), (b) and Sec. 5.5
 N_W = 5  # lateral trials: |W| = W_std + i DW, i < N_W ("a certain value", Sec. 5.2.3)
-N_L = 4  # longitudinal trials: |L| = L_max (N_L - j) / N_L, j < N_L (modification (a)-2)
+N_L = (
+    4  # longitudinal trials: |L| = L_max (N_L - j) / N_L, j < N_L (modification (a)-2)
+)
 SWING_CLEARANCE = 0.15  # [m] above the highest point under the return path (Sec. 6.4.1)
 SWING_MIN_LIFT = 0.2  # [m] minimum lift above the virtual plane
-UNEVEN_MAX = 0.1  # [m] height range under a foot pad that makes a cell forbidden (Sec. 8.2.1)
+UNEVEN_MAX = (
+    0.1  # [m] height range under a foot pad that makes a cell forbidden (Sec. 8.2.1)
+)
 
 # --- grid maps and foothold search (Sec. 5.3, 8.2.1)
 CELL = 0.1  # [m] grid cell size
 SEARCH_HALF_ROWS = 8  # rows -1..-8 and +1..+8 about I_u (Sec. 5.3, step 3)
 SEARCH_HALF_COLS = 8  # points 0, +-1 .. +-8 along each row (Sec. 5.3, step 2)
 SEARCH_STEP = CELL  # [m] spacing of the search points
-LOOKAHEAD_HALF = 4  # r-bar landings tried by the D_f look-ahead: (2 k + 1)^2 points, 2 cells apart
+LOOKAHEAD_HALF = (
+    3  # r-bar landings tried by the D_f look-ahead: (2 k + 1)^2 points, 2 cells apart
+)
 
 # --- frames (Sec. 7, 8.3, 8.4) [m]
 FRAME_SMALL = 0.2
@@ -120,7 +138,9 @@ class TitanParams:
     swing_clearance: jax.Array = SWING_CLEARANCE  # [m]
     swing_min_lift: jax.Array = SWING_MIN_LIFT  # [m]
     search_step: jax.Array = SEARCH_STEP  # [m]
-    tether: jax.Array = 1.0  # fraction of the slope-parallel gravity offset by the tethers
+    tether: jax.Array = (
+        1.0  # fraction of the slope-parallel gravity offset by the tethers
+    )
 
     def pivots(self) -> jax.Array:
         """Leg pivots in Sigma_b, (4, 3)."""
