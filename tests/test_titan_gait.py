@@ -421,3 +421,25 @@ def test_grad_of_standard_stance_margin_wrt_lateral_shift():
     fd = (margin(1.0 + 1e-6) - margin(1.0 - 1e-6)) / 2e-6
     assert float(gr) > 0  # a larger zigzag moves the COG away from the diagonal
     assert float(gr) == pytest.approx(float(fd), rel=1e-6)
+
+
+def test_direction_changes_across_rear_pairs_use_a_transition_shift():
+    """Reversing or turning by 90 deg changes the rear pair: neither new rear leg can lift
+    at the old cycle-start pose, so the planner makes one transition COG shift (no swing)
+    and then walks the new direction; never a step below S_NE^c."""
+    g = M.flat_map(SHAPE, ORIGIN)
+    start = G.standard_start(PAR, g, jnp.array([6.5, 6.5]))
+    for new, axis, sign in ((180.0, 0, -1.0), (90.0, 1, 1.0)):
+        plan = plan_one(g, start, jnp.radians(jnp.array([0.0, new, new])))
+        assert int(plan.n_failures) == 0
+        assert float(plan.min_nesm) >= P.S_NE_C
+        np.testing.assert_array_equal(plan.swing_leg[6:12], -1)  # the transition cycle
+        np.testing.assert_allclose(plan.feet[11], plan.feet[5])
+        assert bool(plan.modified[6]) and not bool(plan.modified[12])
+        np.testing.assert_array_equal(
+            np.asarray(plan.swing_leg[12:]) >= 0, [1, 1, 0, 1, 1, 0]
+        )
+        moved = float(plan.cog[-1, axis] - plan.cog[11, axis]) * sign
+        assert (
+            moved > 0.5 * 2 * P.L_STD
+        )  # then walking (feet not yet in the standard stance)

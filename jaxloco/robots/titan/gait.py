@@ -54,6 +54,14 @@ COG shift G-bar = L-bar + W-bar: six steps. Readings of the text chosen here:
   * Sec. 6.4.1: the return phase is horizontal (constant map z) at the highest map
     height under the foot pad along the return, plus the clearance, and at least
     `swing_min_lift` above the virtual plane.
+  * change of direction (added): the first swing of every cycle is checked; when the
+    rear pair changed (crossing +-45 deg from a body axis, or reversing) and neither
+    rear leg can lift with S_NE^c, the cycle is a single transition COG shift to the
+    cycle-start pose of the new roles (counted as one modification); if that is not
+    possible either, the cycle fails and the robot holds (never an unsafe step).
+  * limits of the chosen geometry (square stance, 90 deg fans, no body yaw): straight
+    walking works within about +-30 deg of a body axis; beyond, the standard start pose
+    is below S_NE^c and the planner reports failure.
   * gravity: on a slope the tethers cancel `tether` times the slope-parallel component
     (Sec. 8.1), so margins use up = ((1 - tether) sin(slope), 0, cos(slope)) normalized.
 """
@@ -118,7 +126,9 @@ class GaitPlan(NamedTuple):
         Array  # (S, 4, 3) rectangular swing waypoints (lift-off, 2 top, touch-down)
     )
     failed: Array  # (S,) bool: the cycle of this step failed (robot held)
-    modified: Array  # (S,) bool: the cycle used modifications (a)/(b)/5.5
+    modified: (
+        Array  # (S,) bool: the cycle used modifications (a)/(b)/5.5 or a transition
+    )
     cycle_w: Array  # (C,) |W| used
     cycle_l: Array  # (C, 2) |L|, |L-bar| used
     cycle_trials: Array  # (C, 2) trial index of the first and second half
@@ -127,8 +137,10 @@ class GaitPlan(NamedTuple):
     min_nesm: Array
     distance_per_cycle: Array  # mean progress along L_G per cycle [m]
     n_failures: Array  # cycles with no feasible trial
-    n_modifications: Array  # sum of trial indices (each = one W increase or L decrease)
+    n_modifications: Array  # sum of trial indices (one W increase or L decrease each; a
+    # transition shift counts one)
     path_deviation: Array  # max |lateral offset| of a cycle-end COG from its L_G [m]
+    # (0 when |W-bar| = |W|; a transition shift moves the COG off the old path)
 
 
 # ------------------------------------------------------------------------ geometry
@@ -443,7 +455,18 @@ def plan_cycle(
     nrm, off = virtual_plane(feet)
     cog = state.cog.at[2].set(plane_height(nrm, off, state.cog[:2]) + params.h_g)
     feet_b = (feet[:, :2] - cog[:2]) @ R
+    up_ok = lambda rl: (
+        stab.ne_stability_margin(cog, feet, jnp.arange(4) != rl[0], up) >= params.s_ne_c
+    )
     roles, n_r = leg_roles(feet_b, d_b, state.rear)
+    # (added) the first swing of the cycle must itself keep S_NE^c. The previous cycle
+    # guarantees it when r is unchanged; after a change of direction that changes the
+    # rear pair (or reverses it) Sec. 5.1's leg may not, and the other rear leg is used.
+    alt, n_alt = leg_roles(feet_b, d_b, roles[2])
+    use_alt = ~up_ok(roles) & up_ok(alt)
+    roles = jnp.where(use_alt, alt, roles)
+    n_r = jnp.where(use_alt, n_alt, n_r)
+    start_ok = up_ok(roles)
     roles2 = jnp.stack([roles[2], roles[3], roles[0], roles[1]])
     n_w, n_l = P.N_W, P.N_L
 
@@ -493,8 +516,10 @@ def plan_cycle(
         return _Trial(t, t2, h1.ok & h2.ok, h1, h2, w, l1, l2)
 
     tr = _Trial(jnp.asarray(-1), jnp.asarray(0), no, empty, empty, zero, zero, zero)
-    tr = jax.lax.while_loop(lambda c: (~c.done) & (c.t < n_w * n_l - 1), attempt, tr)
-    ok = tr.done
+    tr = jax.lax.while_loop(
+        lambda c: start_ok & (~c.done) & (c.t < n_w * n_l - 1), attempt, tr
+    )
+    ok = tr.done & start_ok
     h1, h2 = tr.h1, tr.h2
     # --- the six steps
     f1 = feet.at[roles[0]].set(h1.j_r)
@@ -508,12 +533,41 @@ def plan_cycle(
     before = jnp.stack([feet, f1, f2, f2, f3, f4])
     cog_before = jnp.stack([cog, cog, cog, cog1, cog1, cog1])
     legs = jnp.stack([roles[0], roles[1], -1, roles[2], roles[3], -1])
-    feet_s = jnp.where(ok, feet_s, feet[None])
-    cog_s = jnp.where(ok, cog_s, cog[None])
-    before = jnp.where(ok, before, feet[None])
-    cog_before = jnp.where(ok, cog_before, cog[None])
-    legs = jnp.where(ok, legs, -1)
     d_map = _unit(direction)
+    # --- transition (added; the paper has no gait start after a change of direction):
+    # when neither rear leg can lift, shift the COG alone to the cycle-start pose of the
+    # new roles (as `standard_start`: W_std / 2 from the foot centroid away from the side
+    # of r, L_std / 2 ahead), if S_NE^c holds during the shift and for the swing of r
+    # after it, and every foot stays reachable. The cycle is then that single shift.
+    pivots = params.pivots()[:, :2]
+
+    def transition(rl, nr):
+        t_b = (
+            jnp.mean(feet_b, axis=0)
+            - 0.5 * params.w_std * nr
+            + 0.5 * params.l_std * d_b
+        )
+        cog_t = cog.at[:2].set(cog[:2] + R @ t_b)
+        m_shift, _ = _step_margins(feet, cog, cog_t, -1, up, d_map)
+        m_swing = stab.ne_stability_margin(cog_t, feet, jnp.arange(4) != rl[0], up)
+        legs4 = jnp.arange(4)
+        reach = jnp.all(
+            jax.vmap(lambda q, i: in_fan(q, i, params))(feet_b - t_b - pivots, legs4)
+        )
+        return (m_shift >= params.s_ne_c) & (m_swing >= params.s_ne_c) & reach, cog_t
+
+    ok_a, cog_a = transition(roles, n_r)
+    ok_b, cog_b = transition(alt, n_alt)
+    trans = ~start_ok & (ok_a | ok_b)
+    cog_t = jnp.where(ok_a, cog_a, cog_b)
+    roles = jnp.where(trans & ~ok_a, alt, roles)
+    t_s = jnp.stack([cog, cog, cog_t, cog_t, cog_t, cog_t])
+    t_before = jnp.stack([cog, cog, cog, cog_t, cog_t, cog_t])
+    feet_s = jnp.where(ok, feet_s, feet[None])
+    cog_s = jnp.where(ok, cog_s, jnp.where(trans, t_s, cog[None]))
+    before = jnp.where(ok, before, feet[None])
+    cog_before = jnp.where(ok, cog_before, jnp.where(trans, t_before, cog[None]))
+    legs = jnp.where(ok, legs, -1)
     nesm, lm = jax.vmap(
         lambda fb_, c0, c1, leg: _step_margins(fb_, c0, c1, leg, up, d_map)
     )(before, cog_before, cog_s, legs)
@@ -521,7 +575,7 @@ def plan_cycle(
         before, feet_s, legs
     )
     new_state = GaitState(
-        feet_s[-1], cog_s[-1], state.yaw, jnp.where(ok, roles[0], state.rear)
+        feet_s[-1], cog_s[-1], state.yaw, jnp.where(ok | trans, roles[0], state.rear)
     )
     dxy = cog_s[-1, :2] - cog[:2]
     rec = {
@@ -533,10 +587,12 @@ def plan_cycle(
         "swing_path": swing,
         "w": tr.w,
         "l": jnp.stack([tr.l1, tr.l2]),
-        "trials": jnp.stack([tr.t, tr.t2]),
-        "failed": ~ok,
+        "trials": jnp.where(
+            trans, jnp.array([1, 0]), jnp.stack([jnp.maximum(tr.t, 0), tr.t2])
+        ),
+        "failed": ~(ok | trans),
         "roles": roles,
-        "progress": jnp.where(ok, jnp.dot(dxy, d_map), 0.0),
+        "progress": jnp.where(ok | trans, jnp.dot(dxy, d_map), 0.0),
         "deviation": jnp.abs(geo.cross2(d_map, dxy)),
     }
     return new_state, rec
@@ -662,7 +718,7 @@ def plan_cycles(
         distance_per_cycle=jnp.mean(rec["progress"]),
         n_failures=jnp.sum(failed_c),
         n_modifications=jnp.sum(jnp.where(failed_c, 0, rec["trials"].sum(axis=1))),
-        path_deviation=jnp.max(jnp.where(failed_c, 0.0, rec["deviation"])),
+        path_deviation=jnp.max(rec["deviation"]),
     )
 
 
