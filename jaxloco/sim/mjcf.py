@@ -16,6 +16,15 @@ import mujoco
 from jaxloco.analysis import SpecError
 
 
+def set_actuator_limits(act: mujoco.MjsActuator, ctrlrange: tuple[float, float], force: float) -> None:
+    """Limit an MjSpec actuator's control to `ctrlrange` and its force to +-`force`
+    (units of the actuator: N, N m, m/s, rad)."""
+    act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    act.ctrlrange = list(ctrlrange)
+    act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    act.forcerange = [-force, force]
+
+
 def _first_line(exc: Exception) -> str:
     text = str(exc).strip()
     return text.splitlines()[0] if text else type(exc).__name__

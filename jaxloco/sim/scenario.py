@@ -83,6 +83,13 @@ class ModelField:
         return self.name in MASS_FIELDS
 
 
+def friction_field(geom_ids: Any, key: str = "mu") -> ModelField:
+    """The sliding friction of the geoms `geom_ids` set per simulation to params[key]
+    (the terrain friction coefficient of a scenario)."""
+    ids = np.asarray(geom_ids)
+    return ModelField("geom_friction", (ids, 0), lambda p: jnp.full(ids.shape, p[key]))
+
+
 @dataclass(frozen=True)
 class DivergenceTest:
     """When a simulation counts as diverged: a non-finite state, a joint speed above

@@ -34,8 +34,8 @@ from jaxloco.sim.scenario import (
     Controller,
     Environment,
     InitialState,
-    ModelField,
     Scenario,
+    friction_field,
 )
 from jaxloco.sim.scenario import params_batch as sim_params_batch
 
@@ -217,9 +217,6 @@ def make_scenario(
             "status": jnp.where(done, 0, jnp.where(c.status > 0, c.status, 2)),
         }
 
-    def mu_values(p):
-        return jnp.full(len(terrain_geoms), p["mu"])
-
     return Scenario(
         name="leggrope.fragile_slope",
         model=m,
@@ -232,7 +229,7 @@ def make_scenario(
         substeps=substeps,
         record_every=record_every,
         environment=Environment(env_init, env_step),
-        model_fields=(ModelField("geom_friction", (terrain_geoms, 0), mu_values),),
+        model_fields=(friction_field(terrain_geoms),),
         statuses=control.STATUSES,
     )
 
@@ -311,7 +308,7 @@ def standing_scenario(horizon: int = 10, substeps: int = 5, record_every: int = 
         horizon=horizon,
         substeps=substeps,
         record_every=record_every,
-        model_fields=(ModelField("geom_friction", (np.array([geom]), 0), lambda p: p["mu"][None]),),
+        model_fields=(friction_field([geom]),),
     )
 
 

@@ -221,16 +221,16 @@ def build_spec() -> mujoco.MjSpec:
     for side in ("l", "r"):
         act = spec.add_actuator(name=f"crawler_{side}", target=f"crawler_{side}", trntype=mujoco.mjtTrn.mjTRN_TENDON)
         act.set_to_velocity(kv=CRAWLER_KV)
-        _limits(act, (-P.CRAWLER_MAX_SPEED, P.CRAWLER_MAX_SPEED), CRAWLER_FORCE)
+        mjcf.set_actuator_limits(act, (-P.CRAWLER_MAX_SPEED, P.CRAWLER_MAX_SPEED), CRAWLER_FORCE)
     for name in P.FLIPPER_NAMES:
         act = spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         act.set_to_position(kp=FLIPPER_KP, kv=FLIPPER_KV)
-        _limits(act, (-P.FLIPPER_LIMIT, P.FLIPPER_LIMIT), FLIPPER_TAU)
+        mjcf.set_actuator_limits(act, (-P.FLIPPER_LIMIT, P.FLIPPER_LIMIT), FLIPPER_TAU)
     for arm in P.ARM_NAMES:
         for j, joint in enumerate(P.ARM_JOINTS):
             act = spec.add_actuator(name=f"{arm}_{joint}", target=f"{arm}_{joint}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
             act.set_to_position(kp=ARM_KP[j], kv=ARM_KV[j])
-            _limits(act, ARM_RANGE[j], ARM_TAU[j])
+            mjcf.set_actuator_limits(act, ARM_RANGE[j], ARM_TAU[j])
 
     sens = mujoco.mjtSensor
     for name in P.FLIPPER_NAMES + tuple(f"{a}_{j}" for a in P.ARM_NAMES for j in P.ARM_JOINTS):
@@ -288,13 +288,6 @@ def _wheel_radii() -> dict[str, float]:
 def _arm_joint(body: mujoco.MjsBody, name: str, axis: list[float], j: int) -> None:
     body.add_joint(name=name, type=_HINGE, axis=axis, range=list(ARM_RANGE[j]), limited=_LIMITED,
                    armature=ARM_ARMATURE, damping=1.0)
-
-
-def _limits(act: mujoco.MjsActuator, ctrlrange: tuple[float, float], force: float) -> None:
-    act.ctrllimited = _LIMITED
-    act.ctrlrange = list(ctrlrange)
-    act.forcelimited = _LIMITED
-    act.forcerange = [-force, force]
 
 
 def load_spec(path: str | Path | None = None) -> mujoco.MjSpec:

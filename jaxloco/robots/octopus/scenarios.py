@@ -51,7 +51,7 @@ from jaxloco.robots.octopus import params as P
 from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.data import SimData, sensor_slice
-from jaxloco.sim.scenario import Controller, InitialState, ModelField, Scenario
+from jaxloco.sim.scenario import Controller, InitialState, Scenario, friction_field
 from jaxloco.sim.scenario import params_batch as sim_params_batch
 
 KINDS = ("step1", "step2_front", "step2_side", "block", "flat")
@@ -293,9 +293,6 @@ def make_scenario(
             "status": jnp.where(success, 0, 1),
         }
 
-    def mu_values(p):
-        return jnp.full(len(terrain_geoms), p["mu"])
-
     return Scenario(
         name=f"octopus.{kind}",
         model=m,
@@ -307,7 +304,7 @@ def make_scenario(
         horizon=horizon,
         substeps=substeps,
         record_every=record_every,
-        model_fields=(ModelField("geom_friction", (terrain_geoms, 0), mu_values),),
+        model_fields=(friction_field(terrain_geoms),),
         statuses=STATUSES,
     )
 

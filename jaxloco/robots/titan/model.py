@@ -203,7 +203,7 @@ def build_spec() -> mujoco.MjSpec:
                 name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT
             )
             act.set_to_position(kp=KP[j], kv=KV[j])
-            _limits(act, JOINT_RANGE[j], TAU[j])
+            mjcf.set_actuator_limits(act, JOINT_RANGE[j], TAU[j])
     for axis, gear in zip("xyz", np.eye(3), strict=True):
         act = spec.add_actuator(
             name=f"tether_{axis}",
@@ -213,7 +213,7 @@ def build_spec() -> mujoco.MjSpec:
             gear=[*gear.tolist(), 0.0, 0.0, 0.0],
         )
         act.set_to_motor()
-        _limits(act, (-TETHER_MAX, TETHER_MAX), TETHER_MAX)
+        mjcf.set_actuator_limits(act, (-TETHER_MAX, TETHER_MAX), TETHER_MAX)
 
     sens, obj = mujoco.mjtSensor, mujoco.mjtObj
     joints = [f"{leg}_{j}" for leg in K.LEG_NAMES for j in K.JOINT_NAMES]
@@ -290,15 +290,6 @@ def _joint(body: mujoco.MjsBody, name: str, axis: list[float], j: int) -> None:
         armature=ARMATURE,
         damping=JOINT_DAMPING,
     )
-
-
-def _limits(
-    act: mujoco.MjsActuator, ctrlrange: tuple[float, float], force: float
-) -> None:
-    act.ctrllimited = _LIMITED
-    act.ctrlrange = list(ctrlrange)
-    act.forcelimited = _LIMITED
-    act.forcerange = [-force, force]
 
 
 def load_spec(path: str | Path | None = None) -> mujoco.MjSpec:

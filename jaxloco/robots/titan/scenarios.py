@@ -75,7 +75,7 @@ from jaxloco.robots.titan import params as P
 from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.data import SimData, sensor_slice
-from jaxloco.sim.scenario import Controller, InitialState, ModelField, Scenario
+from jaxloco.sim.scenario import Controller, InitialState, Scenario, friction_field
 from jaxloco.sim.scenario import params_batch as sim_params_batch
 
 N_BEAMS = 6  # beams each way
@@ -562,9 +562,6 @@ def make_scenario(
             "status": jnp.where(success, 0, 1),
         }
 
-    def mu_values(p):
-        return jnp.full(len(terrain_geoms), p["mu"])
-
     return Scenario(
         name="titan.footsteps",
         model=m,
@@ -576,7 +573,7 @@ def make_scenario(
         horizon=horizon,
         substeps=substeps,
         record_every=record_every,
-        model_fields=(ModelField("geom_friction", (terrain_geoms, 0), mu_values),),
+        model_fields=(friction_field(terrain_geoms),),
         statuses=STATUSES,
     )
 
