@@ -28,8 +28,9 @@ from jaxloco import geometry as geo
 Array = jax.Array
 
 
-def _vertical_frame(up: Array | None, dtype) -> Array:
-    """Rows (u1, u2, up): an orthonormal basis whose third axis is `up`."""
+def vertical_frame(up: Array | None, dtype) -> Array:
+    """Rows (u1, u2, up): an orthonormal basis whose third axis is `up` (identity for
+    None: z is up). `B @ x` expresses a world point in it."""
     if up is None:
         return jnp.eye(3, dtype=dtype)
     R = geo.contact_frame(up)  # columns: x, y, z=up
@@ -38,7 +39,7 @@ def _vertical_frame(up: Array | None, dtype) -> Array:
 
 def _split(cog: Array, contacts: Array, up: Array | None) -> tuple[Array, Array, Array, Array]:
     """Horizontal (2D) and vertical coordinates of the COG and the contacts."""
-    B = _vertical_frame(up, contacts.dtype)
+    B = vertical_frame(up, contacts.dtype)
     c = B @ cog
     p = contacts @ B.T
     return c[:2], c[2], p[:, :2], p[:, 2]
@@ -73,20 +74,28 @@ def static_margin_smooth(
 
 
 # ------------------------------------------------------ normalized energy stability margin
+def axis_energy_rise(c: Array, a: Array, b: Array) -> Array:
+    """How high (m, >= 0) the COG `c` rises when the body tips about the 3D axis through
+    the contacts a and b until the COG is above the axis: the highest point of its circle
+    about the axis minus its present height (points in a frame whose z is up, see
+    `vertical_frame`). The unsigned energy margin of one tipping axis (the NE stability
+    margin of that edge, Hirose et al.); finite gradients also for a == b."""
+    e = b - a
+    elen = geo._safe_norm(e)
+    e = e / jnp.where(elen > 0, elen, 1.0)
+    r = c - a
+    R = r - jnp.dot(r, e) * e  # from the axis to the COG, normal to it
+    rho = jnp.sqrt(jnp.dot(R, R) + jnp.finfo(c.dtype).tiny)
+    return rho * jnp.sqrt(jnp.clip(1.0 - e[2] * e[2], 0.0, 1.0)) - R[2]
+
+
 def _ne_edge_margins(cog: Array, contacts: Array, up: Array | None) -> tuple[Array, Array]:
     """Per-edge energy margin h_max - h_0 (m), signed by the side of the COG."""
-    B = _vertical_frame(up, contacts.dtype)
+    B = vertical_frame(up, contacts.dtype)
     c = B @ cog
     p = contacts @ B.T
-    pi = p[:, None, :]
-    e = p[None, :, :] - pi  # axis i -> j
-    elen = geo._safe_norm(e)[..., None]  # finite gradient on the i == j diagonal
-    e = e / jnp.where(elen > 0, elen, 1.0)
-    r = c[None, None, :] - pi
-    R = r - jnp.sum(r * e, axis=-1, keepdims=True) * e  # from the axis to the COG, normal to it
-    rho = jnp.sqrt(jnp.sum(R * R, axis=-1) + jnp.finfo(c.dtype).tiny)
-    ez = e[..., 2]
-    rise = rho * jnp.sqrt(jnp.clip(1.0 - ez * ez, 0.0, 1.0)) - R[..., 2]  # >= 0
+    # axis i -> j for every pair (finite gradient on the i == j diagonal)
+    rise = jax.vmap(jax.vmap(lambda a, b: axis_energy_rise(c, a, b), (None, 0)), (0, None))(p, p)
     side = _edge_line_distances(c[:2], p[:, :2])
     return jnp.where(side >= 0, rise, -rise), p[:, :2]
 
@@ -118,7 +127,7 @@ def ne_stability_margin_smooth(
 # ------------------------------------------------------------ longitudinal stability margin
 def _longitudinal_terms(cog, contacts, direction, up, eps):
     q, _, p2, _ = _split(cog, contacts, up)
-    B = _vertical_frame(up, contacts.dtype)
+    B = vertical_frame(up, contacts.dtype)
     d3 = jnp.concatenate([direction, jnp.zeros(3 - direction.shape[0], direction.dtype)])
     d = (B @ d3)[:2]
     d = d / jnp.linalg.norm(d)

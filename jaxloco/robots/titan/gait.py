@@ -217,12 +217,7 @@ def plane_height(normal: Array, offset: Array, xy: Array) -> Array:
 
 def _axis_margin(c: Array, a: Array, b: Array, ref: Array) -> Array:
     """`edge_energy_margin` for points already in a frame whose z is 'up'."""
-    e = b - a
-    e = e / jnp.maximum(jnp.linalg.norm(e), 1e-12)
-    r = c - a
-    R = r - jnp.dot(r, e) * e
-    rho = jnp.sqrt(jnp.dot(R, R) + jnp.finfo(c.dtype).tiny)
-    rise = rho * jnp.sqrt(jnp.clip(1.0 - e[2] * e[2], 0.0, 1.0)) - R[2]
+    rise = stab.axis_energy_rise(c, a, b)
     s_c = geo.cross2(b[:2] - a[:2], c[:2] - a[:2])
     s_ref = geo.cross2(b[:2] - a[:2], ref[:2] - a[:2])
     return jnp.where(s_c * s_ref < 0, rise, -rise)
@@ -233,7 +228,7 @@ def edge_energy_margin(cog: Array, a: Array, b: Array, ref: Array, up: Array) ->
     `stability.ne_stability_margin`) of `cog` about the 3D axis through a and b, signed
     positive when the COG is on the side of the line a-b opposite to the point `ref`
     (horizontal projections along `up`)."""
-    B = stab._vertical_frame(up, cog.dtype)
+    B = stab.vertical_frame(up, cog.dtype)
     return _axis_margin(B @ cog, B @ a, B @ b, B @ ref)
 
 
@@ -392,7 +387,7 @@ def half_cycle(
     y3 = jnp.concatenate([y_xy, M.sample_height(gmap, y_xy)[:, None]], axis=1)
     y_ok = ~M.sample_forbidden(gmap, y_xy) & in_fan(y_b - g_b - pivots[rb], rb, params)
 
-    B = stab._vertical_frame(up, dtype)
+    B = stab.vertical_frame(up, dtype)
     y3u, cog2u, fbu = y3 @ B.T, B @ cog2, B @ feet[fb]
 
     def ahead(x):
