@@ -17,8 +17,9 @@ forward, y left, z up). Leg i (0 LF "fl", 1 RF "fr", 2 LR "rl", 3 RR "rr", the o
     turns it counter-clockwise seen from above;
   * in that plane (x_l outward, z up) a hip pitch joint q1 on the pivot axis and a knee
     q2, both about +y_l, so positive angles turn links downwards; thigh L1 = 1.6 m and
-    shank L2 = 2.1 m (L1 + L2 = 3.7 m, Table 1 "leg length"); the foot is a sphere of
-    radius FOOT_RADIUS (0.15 m) centred at the shank end:
+    shank L2 = 2.1 m (L1 + L2 = 3.7 m, Table 1 "leg length"); the foot is a contact sphere
+    of radius FOOT_RADIUS (0.04 m; the pad's radius is params.FOOT_RADIUS, see
+    `model`) centred at the shank end:
         r = L1 cos q1 + L2 cos(q1 + q2),   z = -L1 sin q1 - L2 sin(q1 + q2)
     with the knee above the pivot-foot line (q2 > 0, "knee up", as on large sprawled
     walking machines);
@@ -51,7 +52,7 @@ YAW0 = np.asarray(
     P.LEG_AXIS_ANGLES, float
 )  # (4,) [rad] azimuth of the leg plane at q0 = 0
 L1, L2 = 1.6, 2.1  # [m] thigh, shank
-FOOT_RADIUS = float(P.FOOT_RADIUS)  # [m]
+FOOT_RADIUS = 0.04  # [m] contact sphere of the foot (the pad's radius is P.FOOT_RADIUS)
 R_IN, R_OUT, R_THETA = float(P.R_IN), float(P.R_OUT), float(P.R_THETA)  # Fig. 3
 HOME_HEIGHT = float(P.H_G)  # [m] body origin above flat ground in the home pose (H_g)
 

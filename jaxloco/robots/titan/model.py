@@ -32,9 +32,23 @@ Structure (Sigma_b = the `body` frame, see `kinematics.py`; 7,000 kg in all):
     foot centres 4.2 x 4.4 m apart, 0.15 m foot pads) is 0.3 m narrower than Table 1's
     4.8 x 5.0 m; the height is Table 1's.
 
-Known issue: during body shifts the supporting feet creep ~4% of the shift distance
-(speed-independent; not MuJoCo's soft-friction creep, the no-slip solver does not
-remove it; cause not found yet).
+Feet: the foot pad (radius params.FOOT_RADIUS 0.15 m, what the forbidden-foothold maps
+keep off the frames, and what the executor's frame clearance uses) has no geom; the
+contact is a sphere of radius kinematics.FOOT_RADIUS (0.04 m) at the ankle, rigid on
+the shank. Readings chosen here,
+measured with body shifts of (0.5, 1.0) m on four feet: a 0.15 m rigid contact sphere
+rolls by r dphi as the shank turns (the real pad sits flat on a passive ankle, so its
+contact point does not roll), which moved the whole robot 4 % of every shift; a free ball
+ankle rolls freely (worse); the small sphere keeps the contact point where the pad
+centre is. The shank capsule stops SHANK_END_GAP short of the foot so that only the foot
+touches the ground.
+
+Servo gains: with kp 3x stiffer than KP (1e7 N m/rad) the four-legged closed chain
+fought itself: small leg-to-leg inconsistencies (joint lags, the body yawing 7 mrad)
+became internal forces above the friction limit and the supporting feet slid 8-10 cm per
+diagonal shift (no-slip solver, finer solver tolerances and slower shifts did not help;
+stiffer servos made it worse). KP / KV below cut that to < 1 cm (sag under load ~1 cm,
+which the executor's body correction removes).
 
 Contacts and timestep: a 7 t robot on stiff position servos. TIMESTEP 2 ms with the
 implicit-in-velocity integrator keeps the servos (natural frequency ~ 100 rad/s on a
@@ -74,10 +88,13 @@ TOWER_RADIUS, TOWER_TOP, TOWER_MASS = (
 HUB_MASS, THIGH_MASS, SHANK_MASS, FOOT_MASS = 50.0, 200.0, 150.0, 50.0
 THIGH_RADIUS, SHANK_RADIUS = 0.12, 0.10
 TOUCH_MARGIN = 0.02  # [m] touch site radius beyond the foot sphere
+SHANK_END_GAP = (
+    0.2  # [m] the shank capsule stops short of the foot (only the foot touches)
+)
 
 # Servos (yaw, pitch, knee): stiffness [N m/rad], damping [N m s/rad], torque limit [N m]
-KP = (5.0e6, 1.0e7, 1.0e7)
-KV = (3.0e5, 6.0e5, 6.0e5)
+KP = (1.7e6, 3.3e6, 3.3e6)
+KV = (1.0e5, 2.0e5, 2.0e5)
 TAU = (2.0e5, 3.0e5, 3.0e5)
 ARMATURE = 200.0  # [kg m^2] reflected inertia of the hydraulic drive
 JOINT_DAMPING = 1000.0  # [N m s/rad]
@@ -175,7 +192,7 @@ def build_spec() -> mujoco.MjSpec:
             name=f"{leg}_shank",
             type=_CAPSULE,
             size=[SHANK_RADIUS, 0, 0],
-            fromto=[0, 0, 0, K.L2, 0, 0],
+            fromto=[0, 0, 0, K.L2 - SHANK_END_GAP, 0, 0],
             mass=SHANK_MASS,
             rgba=YELLOW,
             **COLLIDE,

@@ -1,0 +1,168 @@
+"""The gait planner's footsteps (`gait.plan_cycles`) executed in MuJoCo by the footstep
+executor (`scenarios.make_scenario`): Sections 7 and 8.4 end to end.
+
+Frames: the planner works in the map frame (`maps`: x up the fall line, y across, z
+along the slope normal); the simulated terrain (`jaxloco.sim.terrain.frames_on_slope`
+with `direction` 0) is the same plane, so the map frame is the slope frame with the same
+origin and `maps.map_to_world` gives world points. The simulated frame beams are
+centred on the origin at +-spacing/2, +-3 spacing/2, ... (N_BEAMS each way, reaching
+about +-(N_BEAMS - 1) spacing / 2); `sim_map` builds the matching grid maps (frame
+lines at spacing/2 + k spacing). The maps are periodic: keep walks inside the beams.
+
+COG: the planner's COG is the body origin (the trunk's centre of mass, what the executor
+moves); the whole-robot centre of mass, which the executor's NESM uses, moves with the
+legs (each leg is 450 kg of 7 t): ~7 cm sideways in the standard gait, which costs
+~2 cm of the planned NE margin.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxloco.robots.titan import gait as G
+from jaxloco.robots.titan import maps as M
+from jaxloco.robots.titan import params as P
+from jaxloco.robots.titan import scenarios as S
+
+SIM_SHAPE = (120, 120)  # cells of the planning map (12 x 12 m at 0.1 m)
+STEPS_PER_CYCLE = 6
+
+
+def sim_map(
+    frame_size: float,
+    spacing: float,
+    slope: float = 0.0,
+    shape: tuple[int, int] = SIM_SHAPE,
+    cell: float = float(P.CELL),
+) -> M.GridMap:
+    """Unevenness and forbidden-foothold maps of the simulated frames (`scenarios`
+    terrain: beams `frame_size` wide and high every `spacing` m, centred on the origin),
+    on a grid centred on the origin. frame_size 0: flat ground."""
+    origin = -0.5 * np.asarray(shape, float) * cell
+    half = 0.5 * spacing
+    return M.frame_grid_map(
+        shape,
+        jnp.asarray(origin),
+        jnp.asarray(cell),
+        frame_size,
+        spacing,
+        jnp.array([half, half]),
+        slope,
+    )
+
+
+def executor_plan(
+    gait: G.GaitPlan, start: G.GaitState, gmap: M.GridMap, direction
+) -> S.Plan:
+    """The executor's `scenarios.Plan` (world frame) of a planned walk: feet and body
+    after each step, swings, cycle ends, the path L_G of each cycle (through the COG at
+    the cycle's start, along that cycle's `direction`, map-frame angle, scalar or one
+    per cycle) and the planner's swing tops (frame clearance)."""
+    feet = np.asarray(gait.feet_world, float)
+    n_steps = feet.shape[0]
+    n_cycles = n_steps // STEPS_PER_CYCLE
+    body = np.asarray(gait.cog_world, float)
+    body0 = np.asarray(M.map_to_world(gmap, start.cog), float)
+    feet0 = np.asarray(M.map_to_world(gmap, start.feet), float)
+    dirs = np.broadcast_to(np.asarray(direction, float), (n_cycles,))
+    d_map = np.stack([np.cos(dirs), np.sin(dirs), np.zeros_like(dirs)], axis=1)
+    d_world = np.asarray(M.map_to_world(gmap, jnp.asarray(d_map)), float)
+    cycle_start = np.concatenate([body0[None], body[STEPS_PER_CYCLE - 1 :: 6][:-1]])
+    swing = np.asarray(gait.swing_leg, np.int32)
+    top = np.where(swing >= 0, np.asarray(gait.swing_path, float)[:, 1, 2], -np.inf)
+    return S.Plan(
+        feet0=feet0,
+        body0=body0,
+        feet=feet,
+        body=body,
+        swing=swing,
+        cycle_end=np.arange(n_steps) % STEPS_PER_CYCLE == STEPS_PER_CYCLE - 1,
+        path_origin=np.repeat(cycle_start, STEPS_PER_CYCLE, axis=0),
+        path_dir=np.repeat(d_world, STEPS_PER_CYCLE, axis=0),
+        swing_top=top,
+    )
+
+
+def clear_start(
+    params: P.TitanParams,
+    gmap: M.GridMap,
+    near_xy,
+    direction: float = 0.0,
+    search: float = 3.0,
+    step: float = 0.1,
+    snap: float = 0.6,
+) -> G.GaitState:
+    """A start pose near `near_xy` (map xy of the COG) with its four feet on free cells
+    of the forbidden-foothold map: the standard start (`gait.standard_start`) nearest
+    `near_xy` on a grid of `step` within +-search / 2 whose feet are all free; if there
+    is none (dense frames: 0.2 m frames every 1.5 m leave no room for the standard
+    stance), the standard start at `near_xy` with each foot on a frame moved to the
+    nearest free cell centre within `snap` m and the COG put H_g above the new virtual
+    plane. ValueError if a foot finds no free cell."""
+    near = np.asarray(near_xy, float)
+    ticks = np.arange(-0.5 * search, 0.5 * search + 1e-9, step)
+    cand = near + np.stack(np.meshgrid(ticks, ticks, indexing="ij"), -1).reshape(-1, 2)
+    cand = cand[np.argsort(np.linalg.norm(cand - near, axis=1), kind="stable")]
+    feet = jax.vmap(lambda xy: G.standard_start(params, gmap, xy, direction).feet)(
+        jnp.asarray(cand)
+    )
+    free = ~np.asarray(M.sample_forbidden(gmap, feet[..., :2])).any(axis=1)
+    if free.any():
+        xy = jnp.asarray(cand[int(np.argmax(free))])
+        return G.standard_start(params, gmap, xy, direction)
+    start = G.standard_start(params, gmap, jnp.asarray(near), direction)
+    centres = np.asarray(
+        M.cell_centres(gmap.forbidden.shape, gmap.origin, gmap.cell)
+    ).reshape(-1, 2)
+    ok = ~np.asarray(gmap.forbidden).reshape(-1)
+    xy = np.asarray(start.feet[:, :2], float).copy()
+    for leg in range(4):
+        if bool(M.sample_forbidden(gmap, jnp.asarray(xy[leg]))):
+            dist = np.where(ok, np.linalg.norm(centres - xy[leg], axis=1), np.inf)
+            best = int(np.argmin(dist))
+            if dist[best] > snap:
+                raise ValueError(
+                    f"clear_start: foot {leg} of the start pose near {near.tolist()} "
+                    f"has no free cell within {snap} m"
+                )
+            xy[leg] = centres[best]
+    xy = jnp.asarray(xy)
+    feet = jnp.concatenate([xy, M.sample_height(gmap, xy)[:, None]], axis=1)
+    nrm, off = G.virtual_plane(feet)
+    cog_z = G.plane_height(nrm, off, start.cog[:2]) + params.h_g
+    return G.GaitState(feet, start.cog.at[2].set(cog_z), start.yaw, start.rear)
+
+
+def plan_walk(
+    start_xy,
+    n_cycles: int,
+    direction=0.0,
+    frame_size: float = float(P.FRAME_SMALL),
+    spacing: float = float(P.GRID_SMALL),
+    slope: float = 0.0,
+    params: P.TitanParams | None = None,
+    shape: tuple[int, int] = SIM_SHAPE,
+) -> tuple[S.Plan, G.GaitPlan, dict[str, float]]:
+    """Plan `n_cycles` on the simulated frames from the standard start with the COG near
+    `start_xy` (map frame; `clear_start` moves it by up to 1.5 m so that no foot starts
+    on a frame) along `direction` (map-frame angle [rad], scalar or one per
+    cycle; the first sets the start pose). Returns the executor plan, the planner's
+    output and the executor's scalar params for the terrain (theta, spacing,
+    beam_height, tether, s_ne_c)."""
+    params = P.default_params() if params is None else params
+    gmap = sim_map(frame_size, spacing, slope, shape)
+    dirs = jnp.broadcast_to(jnp.asarray(direction, float), (n_cycles,))
+    start = clear_start(params, gmap, start_xy, float(dirs[0]))
+    gait = G.plan_cycles(params, gmap, start, n_cycles, dirs)
+    plan = executor_plan(gait, start, gmap, np.asarray(dirs))
+    scalars = {
+        "theta": float(slope),
+        "direction": 0.0,
+        "spacing": float(spacing),
+        "beam_height": float(frame_size),
+        "tether": float(params.tether),
+        "s_ne_c": float(params.s_ne_c),
+    }
+    return plan, gait, scalars
