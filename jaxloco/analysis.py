@@ -157,6 +157,7 @@ _BUILTIN: dict[str, str] = {
     "leggrope.fragile_walk": "jaxloco.robots.leggrope.sim_analysis:FRAGILE_WALK",
     "octopus.terrain_classification": "jaxloco.robots.octopus.analysis:TERRAIN_CLASSIFICATION",
     "octopus.step_climb": "jaxloco.robots.octopus.sim_analysis:STEP_CLIMB",
+    "titan.stride": "jaxloco.robots.titan.analysis:STRIDE",
 }
 _REGISTERED: dict[str, Analysis] = {}
 

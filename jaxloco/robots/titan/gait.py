@@ -717,6 +717,40 @@ def plan_cycles(
     )
 
 
+SWEEP_START_X = 3.0  # [m] map x of the start COG of a sweep point
+
+
+def sweep_plan(
+    params: P.TitanParams,
+    frame_size: Array,
+    frame_interval: Array,
+    slope: Array,
+    direction: Array,
+    n_cycles: int,
+    shape: tuple[int, int] = (160, 100),
+    cell: float = P.CELL,
+) -> GaitPlan:
+    """The plan of one sweep point (issue 5, Sec. 4 sweeps): `n_cycles` on a frame grid map
+    (frames of `frame_size` every `frame_interval`, centre lines at (k + 1/2) interval,
+    map origin (0, 0), slope angle `slope`) from the standard start at the map's
+    x = SWEEP_START_X, y = centre, walking along `direction`. Every argument but
+    `n_cycles`, `shape`, `cell` may be traced (vmap over them)."""
+    dtype = jnp.asarray(params.l_std).dtype
+    _nx, ny = shape
+    gmap = M.frame_grid_map(
+        shape,
+        jnp.zeros(2, dtype),
+        jnp.asarray(cell, dtype),
+        frame_size,
+        frame_interval,
+        jnp.array([0.5, 0.5], dtype) * frame_interval,
+        slope,
+    )
+    start_xy = jnp.array([SWEEP_START_X, 0.5 * ny * cell], dtype)
+    start = standard_start(params, gmap, start_xy, direction)
+    return plan_cycles(params, gmap, start, n_cycles, direction)
+
+
 def sweep_metrics(
     params: P.TitanParams,
     frame_size: Array,
@@ -727,26 +761,11 @@ def sweep_metrics(
     shape: tuple[int, int] = (160, 100),
     cell: float = P.CELL,
 ) -> dict[str, Array]:
-    """Sweep point (issue 5, Sec. 4 sweeps): plan `n_cycles` on a frame grid map (frames of
-    `frame_size` every `frame_interval`, slope angle `slope`) from the standard start at
-    the map's x = 3 m, y = centre, walking along `direction`; returns min NESM, distance
-    per cycle, number of failed cycles and modifications, path deviation. Every argument
-    but `n_cycles`, `shape`, `cell` may be traced (vmap over them)."""
-    dtype = jnp.asarray(params.l_std).dtype
-    _nx, ny = shape
-    origin = jnp.array([0.0, 0.0], dtype)
-    gmap = M.frame_grid_map(
-        shape,
-        origin,
-        jnp.asarray(cell, dtype),
-        frame_size,
-        frame_interval,
-        jnp.array([0.5, 0.5], dtype) * frame_interval,
-        slope,
+    """`sweep_plan`'s min NESM, distance per cycle, number of failed cycles and
+    modifications, path deviation."""
+    plan = sweep_plan(
+        params, frame_size, frame_interval, slope, direction, n_cycles, shape, cell
     )
-    start_xy = jnp.array([3.0, 0.5 * ny * cell], dtype)
-    start = standard_start(params, gmap, start_xy, direction)
-    plan = plan_cycles(params, gmap, start, n_cycles, direction)
     return {
         "min_nesm": plan.min_nesm,
         "distance_per_cycle": plan.distance_per_cycle,

@@ -36,13 +36,19 @@ settle_time + k step_time for `step_time` seconds.
     target, then descends to the target and PRESS below it; as soon as its touch sensor
     reads more than `contact_force` (fraction of M g) in the descent, the foot target
     stops there ("lower until contact", the unevenness-absorbing gait of Fig. 6);
+  * the swing target is offset by the mean in-plane deviation of the supporting feet
+    from their targets (slip, the body correction below), so that the foot lands at
+    its planned world position;
   * joint targets: `kinematics.legs_inverse_kinematics` of the foot targets in the
     commanded body frame, with the body placed at its target plus a correction `corr`
     that integrates the error of the whole-robot centre of mass (in the plane) and of
     the body origin (along the normal) against the planned body position (gain
     `body_gain` [1/s], at most MAX_CORR per axis): the plan's body position is the
     planner's COG, the legs (450 kg each) move the centre of mass off the trunk's by up
-    to ~7 cm, and the servos sag under the 7 t load (no attitude feedback).
+    to ~7 cm, and the servos sag under the 7 t load; likewise the commanded attitude is
+    turned by a small rotation `corr_rot` integrating the body attitude error (same
+    gain, at most MAX_CORR_ROT per axis): without it the body pitched 0.03 rad down
+    the 30 deg slope over four cycles.
 
 Records (every control period): body position and quaternion, rpy, COG (whole-robot
 centre of mass), foot centres and their targets, touch forces and contacts, NESM
@@ -79,6 +85,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from jaxloco import geometry as geo
 from jaxloco import stability
 from jaxloco.robots.titan import kinematics as K
 from jaxloco.robots.titan import model as titan_model
@@ -97,6 +104,7 @@ CONTROL_DT = 0.04  # [s]
 PRESS = 0.03  # [m] the descent goes this far below the target if no contact comes first
 N_SAMPLES = 16  # points per leg link for the clearance
 MAX_CORR = 0.2  # [m] largest body position correction per axis
+MAX_CORR_ROT = 0.1  # [rad] largest body attitude correction per axis
 FELL_TILT = 0.3  # [rad]
 FELL_DROP = 0.5  # [m]
 STATUSES = ("ok", "failed")
@@ -113,7 +121,7 @@ PARAM_DEFAULTS: dict[str, float] = {
     "settle_time": 1.0,  # [s] standing before the first step
     "swing_height": 0.5,  # [m] lift above the higher of start and target
     "contact_force": 0.05,  # touch above this fraction of M g = contact
-    "body_gain": 1.0,  # [1/s] integral gain of the body position correction
+    "body_gain": 3.0,  # [1/s] integral gain of the body position correction
     "s_ne_c": float(P.S_NE_C),  # [m] critical NE stability margin
     "nesm_tol": 0.005,  # [m] success: min_nesm >= s_ne_c - nesm_tol (servo compliance)
     "touchdown_tol": 0.1,  # [m] success: largest touchdown error
@@ -349,9 +357,12 @@ def make_scenario(
     def terrain_values(p):
         return {k: p[k] for k in ("theta", "direction", "spacing", "beam_height")}
 
-    def leg_targets(p, feet_c, body_c):
-        """Joint targets (12,) for foot centres feet_c (4, 3) and body position body_c."""
+    def leg_targets(p, feet_c, body_c, rot=None):
+        """Joint targets (12,) for foot centres feet_c (4, 3), body position body_c and
+        the commanded attitude turned by the small world-frame rotation `rot` (3,)."""
         _, R = frames(p)
+        if rot is not None:
+            R = geo.rpy_to_matrix(rot[0], rot[1], rot[2]) @ R
         local = (feet_c - body_c[None]) @ R
         q, _ = K.legs_inverse_kinematics(local)
         return q.reshape(-1)
@@ -402,7 +413,15 @@ def make_scenario(
         # swing foot (rectangular trajectory along n)
         uu = jnp.maximum(u, 0)
         start = feet_prev[uu]
-        goal = p["plan_feet"][kk, uu] + r_foot * n
+        # where the supporting feet really are against their targets (in the plane):
+        # the offset of the commanded frame from the world (foot slip, the body
+        # correction); the swing foot aims off by the same so that it lands at its
+        # planned world position
+        support = (jnp.arange(4) != u)[:, None]
+        drift = jnp.sum(jnp.where(support, obs["feet"] - feet_prev, 0.0), axis=0)
+        drift = drift / jnp.sum(support)
+        drift = drift - (drift @ n) * n
+        goal = p["plan_feet"][kk, uu] + r_foot * n - drift
         top = jnp.maximum(
             jnp.maximum(start @ n, goal @ n) + p["swing_height"],
             p["plan_swing_top"][kk] + r_foot,
@@ -455,6 +474,7 @@ def make_scenario(
             "latched": jnp.asarray(False),
             "hold": jnp.zeros(3, feet.dtype),
             "corr": jnp.zeros(3, feet.dtype),
+            "corr_rot": jnp.zeros(3, feet.dtype),
         }
 
     def step(p, c, obs):
@@ -475,11 +495,26 @@ def make_scenario(
         running = (obs["time"] > p["settle_time"]) & (obs["time"] < end_time(p))
         corr = c["corr"] + jnp.where(running, p["body_gain"] * CONTROL_DT * err, 0.0)
         corr = jnp.clip(corr, -MAX_CORR, MAX_CORR)
-        state = {**state, "corr": corr}
-        q0 = leg_targets(p, feet_t, body_t + corr)
+        # and on the attitude: the small rotation (world frame) from the measured body
+        # attitude to the commanded one
+        _, R_plan = frames(p)
+        M_err = R_plan @ tr.quat_to_matrix(obs["quat"]).T
+        e_rot = 0.5 * jnp.array(
+            [
+                M_err[2, 1] - M_err[1, 2],
+                M_err[0, 2] - M_err[2, 0],
+                M_err[1, 0] - M_err[0, 1],
+            ]
+        )
+        rot = c["corr_rot"] + jnp.where(
+            running, p["body_gain"] * CONTROL_DT * e_rot, 0.0
+        )
+        rot = jnp.clip(rot, -MAX_CORR_ROT, MAX_CORR_ROT)
+        state = {**state, "corr": corr, "corr_rot": rot}
+        q0 = leg_targets(p, feet_t, body_t + corr, rot)
         later = {**obs, "time": obs["time"] + CONTROL_DT}
         _, _, feet_1, body_1, _, _ = targets(p, c, later)
-        q1 = leg_targets(p, feet_1, body_1 + corr)
+        q1 = leg_targets(p, feet_1, body_1 + corr, rot)
         q = 0.5 * (q0 + q1) + lag * (q1 - q0) / CONTROL_DT
         return state, jnp.concatenate([q, tether_force(p)])
 

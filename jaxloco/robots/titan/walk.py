@@ -28,6 +28,13 @@ from jaxloco.robots.titan import scenarios as S
 
 SIM_SHAPE = (120, 120)  # cells of the planning map (12 x 12 m at 0.1 m)
 STEPS_PER_CYCLE = 6
+# [m] kept between the pad and the frames on top of the planner's own (cell) margin: the
+# executor lands feet within ~4-6 cm of the plan and the feet slip a few cm over a walk
+# (benchmarks/titan_walks.py); without it a foot planned 5 cm from a frame touched it
+PLACEMENT_MARGIN = 0.05
+
+# one compilation per (map shape, n_cycles): every walk on the same grid reuses it
+_plan_cycles = jax.jit(G.plan_cycles, static_argnames="n_cycles")
 
 
 def sim_map(
@@ -36,10 +43,12 @@ def sim_map(
     slope: float = 0.0,
     shape: tuple[int, int] = SIM_SHAPE,
     cell: float = float(P.CELL),
+    margin: float = PLACEMENT_MARGIN,
 ) -> M.GridMap:
     """Unevenness and forbidden-foothold maps of the simulated frames (`scenarios`
     terrain: beams `frame_size` wide and high every `spacing` m, centred on the origin),
-    on a grid centred on the origin. frame_size 0: flat ground."""
+    on a grid centred on the origin. frame_size 0: flat ground. The forbidden cells keep
+    the pad plus `margin` off the frames (the executor's placement error)."""
     origin = -0.5 * np.asarray(shape, float) * cell
     half = 0.5 * spacing
     return M.frame_grid_map(
@@ -50,6 +59,7 @@ def sim_map(
         spacing,
         jnp.array([half, half]),
         slope,
+        foot_radius=float(P.FOOT_RADIUS) + margin,
     )
 
 
@@ -71,6 +81,10 @@ def executor_plan(
     d_world = np.asarray(M.map_to_world(gmap, jnp.asarray(d_map)), float)
     cycle_start = np.concatenate([body0[None], body[STEPS_PER_CYCLE - 1 :: 6][:-1]])
     swing = np.asarray(gait.swing_leg, np.int32)
+    # a cycle without swings (a change-of-direction transition shift, or a failed cycle
+    # holding still) ends off the old path by design: measure it against its own end
+    still = (swing.reshape(n_cycles, STEPS_PER_CYCLE) < 0).all(axis=1)
+    cycle_start = np.where(still[:, None], body[STEPS_PER_CYCLE - 1 :: 6], cycle_start)
     top = np.where(swing >= 0, np.asarray(gait.swing_path, float)[:, 1, 2], -np.inf)
     return S.Plan(
         feet0=feet0,
@@ -155,7 +169,7 @@ def plan_walk(
     gmap = sim_map(frame_size, spacing, slope, shape)
     dirs = jnp.broadcast_to(jnp.asarray(direction, float), (n_cycles,))
     start = clear_start(params, gmap, start_xy, float(dirs[0]))
-    gait = G.plan_cycles(params, gmap, start, n_cycles, dirs)
+    gait = _plan_cycles(params, gmap, start, n_cycles=n_cycles, direction=dirs)
     plan = executor_plan(gait, start, gmap, np.asarray(dirs))
     scalars = {
         "theta": float(slope),

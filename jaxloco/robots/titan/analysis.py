@@ -1,0 +1,268 @@
+"""`titan.stride`: the TITAN XI grid step over intermittent crawl gait (Hodoshima et al.
+2007, Sec. 5-6; `gait.py`) on frame grid maps, against its stride (L_std, W_std) and the
+critical NE stability margin S_NE^c, as a sweep analysis (issue 5, Sec. 4 "Sweeps").
+
+The question it answers: for the Sec. 7 frame fields (0.2 m frames on a 2.0 m grid,
+0.3 m on 3.0 m) and the Sec. 8.4 test slope (30 deg, 0.2 m frames every 1.5 m), which
+stride walks fastest (distance per cycle) while every step keeps NESM >= S_NE^c and the
+foothold search never fails?
+
+One row is `gait.sweep_plan`: a `maps.frame_grid_map` of `shape` cells of `cell` m
+(origin (0, 0), frame centre lines at (k + 1/2) frame_interval in x and y; frame_size = 0
+is flat ground; slope angle `slope` of the map frame), the standard start
+(`gait.standard_start`) with the COG at map xy (3 m, shape[1] cell / 2), and `n_cycles`
+planned cycles (`gait.plan_cycles`) along the map-frame `direction`; the metrics add the
+smooth objective from the plan's per-step NESM to `gait.sweep_metrics`' (the tests check
+the rows against it).
+Frames: map frame of `maps` (on the slope: x up the fall line, y across, z normal to
+the slope); SI units, radians.
+
+Metrics (per row):
+  * min_nesm, distance_per_cycle, n_failures, n_modifications, path_deviation: the plan's
+    (`gait.GaitPlan`): smallest per-step NESM [m], mean COG progress along L_G per cycle
+    [m] (0 for a held, failed cycle), cycles with no feasible trial, trial-index sum of
+    modifications (a), (b), Sec. 5.5 and transitions, largest lateral offset of a
+    cycle-end COG from L_G [m].
+  * nesm_ok: min_nesm >= S_NE^c - 1e-9 m and n_failures == 0.
+  * softmin_nesm = -tau log(sum_k exp(-nesm_k / tau)) over the S = 6 n_cycles per-step
+    NESMs (tau = softmin_tau [m]): a smooth lower bound of min_nesm,
+    min_nesm - tau log(S) <= softmin_nesm <= min_nesm.
+  * objective = distance_per_cycle * sigmoid((softmin_nesm - S_NE^c) / tau): the speed
+    (progress per cycle; every cycle is six steps) discounted smoothly by how far the
+    soft-min margin is above the critical one (0.5 at softmin_nesm = S_NE^c, -> 1 well
+    above it, -> 0 below it). Larger is better.
+
+Differentiability: the objective is a smooth function of the plan's COG positions and
+feet, which are piecewise smooth in l_std and w_std (the foothold search picks grid
+candidates relative to the stride-dependent search start I_u; `lax.while_loop`s pick the
+trial). `gait.plan_cycles` uses `lax.while_loop`, so only forward-mode derivatives exist
+(`jax.jvp`, `jax.jacfwd`; `objective_fn` gives the scalar function); reverse mode
+(`jax.grad`) raises. Across a change of the chosen foothold or trial the objective jumps,
+so gradient tuning should use flat ground or average over frame offsets.
+
+Limits (from `gait.py`): straight walking works within about +-30 deg of a body axis;
+beyond, the standard start is below S_NE^c and the cycle fails. The robot starts 3 m from
+the map's x = 0 edge with its feet about 2.1 m from the COG, so directions with a
+negative x component walk off the map (outside reads forbidden) and fail within a cycle
+or two.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxloco.analysis import Analysis, Metric, Param, Summary
+from jaxloco.robots.titan import gait as G
+from jaxloco.robots.titan import params as P
+
+NESM_TOL = 1e-9  # [m] rounding allowance of nesm_ok's min_nesm >= S_NE^c
+TITAN_PARAMS = ("l_std", "w_std", "s_ne_c", "tether")  # fields of `TitanParams` set per row
+
+PARAMS = (
+    Param("l_std", P.L_STD, "L_std: standard COG longitudinal shift per half cycle (stroke 2 L_std)", "m",
+          lo=0.0, hi=1.0, lo_open=True),
+    Param("w_std", P.W_STD, "W_std: standard COG lateral shift per half cycle (zigzag +-W_std / 2)", "m",
+          lo=0.0, hi=2.0),
+    Param("s_ne_c", P.S_NE_C, "S_NE^c: critical NE stability margin of every planned step", "m", lo=0.0, hi=0.3),
+    Param("frame_size", P.FRAME_SMALL, "square section (width = height) of the frames; 0 = flat ground", "m",
+          lo=0.0, hi=0.3),
+    Param("frame_interval", P.GRID_SMALL, "frame grid spacing (centre lines at (k + 1/2) interval in x and y)", "m",
+          lo=1.0, hi=5.0),
+    Param("slope", 0.0, "slope angle of the map frame about the world y axis (Sec. 8.4: 30 deg)", "rad",
+          lo=0.0, hi=0.7),
+    Param("direction", 0.0, "map-frame walking direction (0 = +x, up the fall line on a slope); "
+          "about +-30 deg of +x works, negative x walks off the map", "rad", lo=-math.pi, hi=math.pi),
+    Param("tether", 1.0, "fraction of the slope-parallel gravity the tethers cancel (Sec. 8.1)", "",
+          lo=0.0, hi=1.0),
+    Param("softmin_tau", 0.005, "temperature tau of the soft-min NESM (log-sum-exp) and of the objective's sigmoid",
+          "m", lo=0.0, hi=0.1, lo_open=True),
+    Param("n_cycles", 4, "gait cycles planned per row (6 steps each)", "", kind="int", lo=1, hi=64,
+          sweepable=False),
+    Param("map_nx", 160, "grid map cells along x", "", kind="int", lo=60, hi=1000, sweepable=False),
+    Param("map_ny", 100, "grid map cells along y (the start COG is at y = map_ny cell / 2)", "", kind="int",
+          lo=60, hi=1000, sweepable=False),
+    Param("cell", P.CELL, "grid map cell size", "m", lo=0.02, hi=0.2, sweepable=False),
+)
+
+METRICS = (
+    Metric("min_nesm", "smallest NE stability margin over every planned step", "m"),
+    Metric("distance_per_cycle", "mean COG progress along the walking direction per cycle (0 for failed cycles)",
+           "m"),
+    Metric("n_failures", "cycles with no feasible foothold trial (the robot holds)", kind="int"),
+    Metric("n_modifications", "modifications used: trial-index sum of (a), (b), Sec. 5.5 and transitions",
+           kind="int"),
+    Metric("path_deviation", "largest lateral offset of a cycle-end COG from its path L_G", "m"),
+    Metric("nesm_ok", "min_nesm >= S_NE^c (1e-9 m allowance) and no failed cycle", kind="bool"),
+    Metric("softmin_nesm", "soft-min of the per-step NESMs: -tau log sum exp(-nesm / tau)", "m"),
+    Metric("objective", "distance_per_cycle * sigmoid((softmin_nesm - S_NE^c) / tau); smooth, larger is better",
+           "m"),
+)
+
+STATUSES = (
+    "ok",
+    "failed: foothold search (a cycle with no feasible trial, robot held)",
+    "failed: NESM below S_NE^c during a step",
+)
+
+
+def softmin(x: jax.Array, tau: jax.Array) -> jax.Array:
+    """Soft minimum -tau log(sum exp(-x / tau)) of x (S,) [m] with temperature tau [m]."""
+    return -tau * jax.nn.logsumexp(-x / tau)
+
+
+def plan_metrics(plan: G.GaitPlan, s_ne_c: jax.Array, tau: jax.Array) -> dict[str, jax.Array]:
+    """The metrics of `METRICS` and the status code of one plan (module docstring)."""
+    soft = softmin(plan.nesm, tau)
+    objective = plan.distance_per_cycle * jax.nn.sigmoid((soft - s_ne_c) / tau)
+    low = plan.min_nesm < s_ne_c - NESM_TOL
+    failed = plan.n_failures > 0
+    return {
+        "min_nesm": plan.min_nesm,
+        "distance_per_cycle": plan.distance_per_cycle,
+        "n_failures": plan.n_failures,
+        "n_modifications": plan.n_modifications,
+        "path_deviation": plan.path_deviation,
+        "nesm_ok": ~low & ~failed,
+        "softmin_nesm": soft,
+        "objective": objective,
+        "status": jnp.where(failed, 1, jnp.where(low, 2, 0)).astype(jnp.int32),
+    }
+
+
+def row_params(values: Mapping[str, jax.Array], dtype) -> P.TitanParams:
+    """`TitanParams` (defaults in `dtype`) with the row's l_std, w_std, s_ne_c, tether."""
+    return P.default_params().astype(dtype).with_(**{n: jnp.asarray(values[n], dtype) for n in TITAN_PARAMS})
+
+
+def run_one(values: Mapping[str, jax.Array], n_cycles: int, shape: tuple[int, int], cell: float
+            ) -> dict[str, jax.Array]:
+    """Metrics and status of one row for scalar parameter `values` (every sweepable one)."""
+    dtype = jnp.asarray(values["l_std"]).dtype
+    params = row_params(values, dtype)
+    plan = G.sweep_plan(params, values["frame_size"], values["frame_interval"], values["slope"],
+                        values["direction"], n_cycles, shape, cell)
+    return plan_metrics(plan, params.s_ne_c, values["softmin_tau"])
+
+
+def _static(fixed: Mapping[str, Any]) -> tuple[int, tuple[int, int], float]:
+    return int(fixed["n_cycles"]), (int(fixed["map_nx"]), int(fixed["map_ny"])), float(fixed["cell"])
+
+
+def make_batch_fn(fixed: Mapping[str, Any]):
+    """`Analysis.make_batch_fn`: rows vmapped over every sweepable parameter; n_cycles and
+    the map shape/cell are static (one compilation per sweep). No randomness: keys unused."""
+    n_cycles, shape, cell = _static(fixed)
+    sweepable = [p.name for p in PARAMS if p.sweepable]
+
+    def batch(swept: Mapping[str, jax.Array], keys: jax.Array) -> dict[str, jax.Array]:
+        n = keys.shape[0]
+        dtype = jnp.result_type(float)
+        values = {
+            name: jnp.asarray(swept[name], dtype) if name in swept else jnp.full(n, fixed[name], dtype)
+            for name in sweepable
+        }
+        return jax.vmap(lambda v: run_one(v, n_cycles, shape, cell))(values)
+
+    return batch
+
+
+def objective_fn(fixed: Mapping[str, Any]):
+    """`f(l_std, w_std) -> objective` [m] for the other parameters at `fixed` (every
+    parameter of PARAMS but l_std and w_std, e.g. `STRIDE.defaults()`): the smooth tuning
+    objective of one sweep point. Differentiate with forward mode (`jax.jacfwd`, `jax.jvp`);
+    see the module docstring."""
+    n_cycles, shape, cell = _static(fixed)
+    sweepable = [p.name for p in PARAMS if p.sweepable and p.name not in ("l_std", "w_std")]
+
+    def f(l_std: jax.Array, w_std: jax.Array) -> jax.Array:
+        dtype = jnp.result_type(l_std, w_std, float)
+        values = {name: jnp.asarray(fixed[name], dtype) for name in sweepable}
+        values.update(l_std=jnp.asarray(l_std, dtype), w_std=jnp.asarray(w_std, dtype))
+        return run_one(values, n_cycles, shape, cell)["objective"]
+
+    return f
+
+
+# ---------------------------------------------------------------------------- summary
+GROUP = ("frame_size", "frame_interval", "slope", "direction", "tether")
+STRIDE_COLS = ("l_std", "w_std", "s_ne_c")
+
+
+def best_rows(cols: Mapping[str, np.ndarray]) -> list[tuple[tuple[float, ...], np.ndarray, int | None]]:
+    """Per terrain case (distinct `GROUP` values, first-seen order): (key, row indices of the
+    case, index of the best stride or None). The best stride is the nesm_ok row with the
+    largest distance_per_cycle, ties (within 1 mm) to the larger min_nesm - S_NE^c."""
+    keys = np.column_stack([np.asarray(cols[n], float) for n in GROUP])
+    dist = np.asarray(cols["distance_per_cycle"], float)
+    spare = np.asarray(cols["min_nesm"], float) - np.asarray(cols["s_ne_c"], float)
+    ok = np.asarray(cols["nesm_ok"], bool)
+    out = []
+    for key in dict.fromkeys(map(tuple, keys)):
+        idx = np.flatnonzero(np.all(keys == np.asarray(key), axis=1))
+        good = idx[ok[idx]]
+        best = None
+        if good.size:
+            top = good[dist[good] >= dist[good].max() - 1e-3]
+            best = int(top[np.argmax(spare[top])])
+        out.append((key, idx, best))
+    return out
+
+
+def summarize(table) -> Summary:
+    """Per terrain case (frame size, interval, slope, direction, tether): how many strides
+    kept NESM >= S_NE^c without failures, and the fastest of them (`best_rows`)."""
+    cols = {k: np.asarray(v) for k, v in table.to_pydict().items()}
+    tether_varies = len(set(np.asarray(cols["tether"], float).tolist())) > 1
+    rows = []
+    for key, idx, best in best_rows(cols):
+        size, interval, slope, direction, tether = key
+        ok = int(np.sum(np.asarray(cols["nesm_ok"], bool)[idx]))
+        cells = [f"{size:g}" if size > 0 else "flat", f"{interval:g}" if size > 0 else "-",
+                 f"{math.degrees(slope):.0f}", f"{direction:+.2f}"]
+        if tether_varies:
+            cells.append(f"{tether:g}")
+        cells.append(f"{ok}/{idx.size}")
+        if best is None:
+            cells += ["-"] * 8
+        else:
+            cells += [f"{cols[n][best]:g}" for n in STRIDE_COLS]
+            cells += [f"{cols['distance_per_cycle'][best]:.3f}", f"{cols['min_nesm'][best]:.3f}",
+                      str(int(cols["n_modifications"][best])), f"{cols['path_deviation'][best]:.3f}",
+                      f"{cols['objective'][best]:.3f}"]
+        rows.append(tuple(cells))
+    n_cycles = sorted(set(np.asarray(cols["n_cycles"], int).tolist()))
+    notes = (
+        ("ok = rows with min NESM >= S_NE^c and no failed cycle; best = the ok row with the largest "
+         "distance per cycle (ties within 1 mm: largest min NESM - S_NE^c)"),
+        (f"{', '.join(map(str, n_cycles))} cycles per row from the standard start; slope in deg, direction in rad "
+         "(map frame); objective = dist * sigmoid((softmin NESM - S_NE^c) / tau)"),
+        (f"paper strides: L_std = {P.L_STD:g} m, W_std = {P.W_STD:g} m, S_NE^c = {P.S_NE_C:g} m "
+         "(params.py; 1 m per cycle on flat ground)"),
+    )
+    columns = ("frame [m]", "interval [m]", "slope", "dir", *(("tether",) if tether_varies else ()), "ok",
+               "L_std", "W_std", "S_NE^c", "dist/cycle", "min NESM", "mods", "deviation", "objective")
+    return Summary(
+        title="TITAN XI crawl gait: fastest stride with NESM >= S_NE^c per terrain case",
+        columns=columns,
+        rows=tuple(rows),
+        notes=notes,
+    )
+
+
+STRIDE = Analysis(
+    name="titan.stride",
+    doc="TITAN XI crawl gait on frame fields and slopes: min NESM, distance per cycle, search failures "
+    "and modifications against the stride (L_std, W_std) and S_NE^c",
+    params=PARAMS,
+    metrics=METRICS,
+    make_batch_fn=make_batch_fn,
+    statuses=STATUSES,
+    summarize=summarize,
+    x64=True,
+)

@@ -1,0 +1,114 @@
+"""The TITAN XI planner's footsteps executed in MuJoCo (issue 5, Sec. 3 Scenarios): two gait
+cycles over the Section 7 frames (0.2 m frames on a 2.0 m grid) and two on the Section
+8.4 slope (30 deg, 0.2 m frames every 1.5 m, tethers on), one batch of two simulations;
+plus the planner -> executor plan conversion and the start-pose search."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxloco.robots.titan import gait as G
+from jaxloco.robots.titan import maps as M
+from jaxloco.robots.titan import params as P
+from jaxloco.robots.titan import scenarios as S
+from jaxloco.robots.titan import walk as W
+from jaxloco.sim.rollout import rollout
+
+THETA = float(P.SLOPE_ANGLE)
+N_CYCLES = 2
+
+
+def _line_distance(x, spacing):
+    """Distance from x to the nearest simulated beam centre line (spacing/2 + k spacing)."""
+    u = np.mod(x - 0.5 * spacing, spacing)
+    return np.minimum(u, spacing - u)
+
+
+@pytest.fixture(scope="module")
+def walks():
+    flat = W.plan_walk((-3.0, 0.3), N_CYCLES, 0.0, P.FRAME_SMALL, P.GRID_SMALL)
+    slope = W.plan_walk((-2.5, 0.0), N_CYCLES, 0.0, P.SLOPE_FRAME, P.SLOPE_GRID, THETA)
+    return flat, slope
+
+
+@pytest.fixture(scope="module")
+def runs(walks):
+    (flat, _, sc_flat), (slope, _, sc_slope) = walks
+    sc = S.make_scenario(flat.n_steps, beam_width=P.FRAME_SMALL)
+    p = S.params_batch(
+        [flat, slope],
+        **{k: np.array([sc_flat[k], sc_slope[k]]) for k in sc_flat},
+    )
+    return rollout(sc, p, nthread=2)
+
+
+def test_planned_footholds_avoid_the_simulated_frames(walks):
+    # the grid maps of walk.sim_map line up with the simulated beams: every planned
+    # foothold keeps its pad (P.FOOT_RADIUS) off the beams (half width 0.1 m)
+    for (plan, _, sc), spacing in zip(walks, (P.GRID_SMALL, P.SLOPE_GRID), strict=True):
+        gmap = W.sim_map(sc["beam_height"], spacing, sc["theta"])
+        inv = np.linalg.inv(np.asarray(M.map_to_world(gmap, jnp.eye(3))))
+        for feet in (plan.feet0[None], plan.feet):
+            local = feet @ inv  # back to the map (slope) frame
+            d = np.minimum(
+                _line_distance(local[..., 0], spacing),
+                _line_distance(local[..., 1], spacing),
+            )
+            assert d.min() > 0.5 * P.FRAME_SMALL + P.FOOT_RADIUS
+
+
+def test_executor_plan_follows_the_planner(walks):
+    plan, gait, _ = walks[0]
+    assert plan.n_steps == 6 * N_CYCLES
+    assert np.array_equal(plan.swing, np.asarray(gait.swing_leg))
+    assert plan.cycle_end.sum() == N_CYCLES and plan.cycle_end[5] and plan.cycle_end[-1]
+    # each cycle's path starts at the COG of the cycle start, along +x
+    assert np.allclose(plan.path_origin[0], plan.body0)
+    assert np.allclose(plan.path_origin[6], plan.body[5])
+    assert np.allclose(plan.path_dir, [1.0, 0.0, 0.0], atol=1e-6)
+    # the swing tops clear the 0.2 m frames by the planner's clearance
+    tops = plan.swing_top[plan.swing >= 0]
+    assert np.all(tops >= P.FRAME_SMALL) and np.all(
+        np.isinf(plan.swing_top[plan.swing < 0])
+    )
+
+
+def test_clear_start_moves_feet_off_the_frames():
+    params = P.default_params()
+    dense = W.sim_map(P.SLOPE_FRAME, P.SLOPE_GRID)
+    start = W.clear_start(params, dense, (0.0, 0.0))
+    assert not np.asarray(M.sample_forbidden(dense, start.feet[:, :2])).any()
+    # the COG stays H_g above the feet's virtual plane
+    nrm, off = G.virtual_plane(start.feet)
+    assert float(
+        start.cog[2] - G.plane_height(nrm, off, start.cog[:2])
+    ) == pytest.approx(float(P.H_G), abs=1e-5)
+    # a map that is all frame: a clear one-line error, not a loop
+    blocked = M.GridMap(
+        dense.height,
+        jnp.ones_like(dense.forbidden),
+        dense.origin,
+        dense.cell,
+        dense.slope,
+    )
+    with pytest.raises(ValueError, match="no free cell"):
+        W.clear_start(params, blocked, (0.0, 0.0))
+
+
+@pytest.mark.parametrize("row", [0, 1], ids=["section7_frames", "slope_30deg"])
+def test_planned_walk_runs_in_mujoco(runs, row):
+    m = runs.row(row)
+    assert runs.status[row] == "ok", m
+    assert m["completed"] and not m["fell"]
+    # the NE margin stays at S_NE^c (less the servos' few mm of compliance)
+    assert m["min_nesm"] >= P.S_NE_C - 0.005
+    # no leg touches a frame while swinging, no foot lands on one
+    assert not m["swing_collision"] and m["min_swing_clearance"] > 0.0
+    assert not m["forbidden_landing"]
+    # the feet land where planned and the COG comes back to the path at each cycle end
+    assert m["max_touchdown_error"] < 0.08
+    assert m["max_cycle_error"] < 0.08 and m["max_path_deviation"] < 0.08
+    # and it walks: about the planned distance
+    assert m["final_progress"] > 0.8 * N_CYCLES * 0.7
