@@ -443,3 +443,48 @@ def test_direction_changes_across_rear_pairs_use_a_transition_shift():
         assert (
             moved > 0.5 * 2 * P.L_STD
         )  # then walking (feet not yet in the standard stance)
+
+
+def test_gait_converges_back_to_the_standard_gait_after_the_frames():
+    # Fig. 5: 0.2 m frames on a 2.0 m grid up to x = 8 m, flat ground beyond. Walking
+    # through, the planner adapts (shortened strides); once every foot is past the
+    # frames its cycles are standard again: |L| = L_std, |W| = W_std, no modification,
+    # and the same stance about the COG every cycle, the standard one up to a constant
+    # shift along the strokes (phase-reserved positioning keeps the legs' relative
+    # phases, not where on its stroke each foot is: 4.4 cm here in float64, 0 in float32)
+    shape = (200, 100)
+    frames = M.frame_grid_map(
+        shape, ORIGIN, CELL, P.FRAME_SMALL, P.GRID_SMALL, jnp.array([1.0, 1.0])
+    )
+    flat = M.flat_map(shape, ORIGIN)
+    band = M.cell_centres(shape, ORIGIN, CELL)[..., 0] < 8.0
+    gmap = M.GridMap(
+        jnp.where(band, frames.height, flat.height),
+        jnp.where(band, frames.forbidden, flat.forbidden),
+        ORIGIN,
+        CELL,
+        frames.slope,
+    )
+    start = G.standard_start(PAR, gmap, jnp.array([3.0, 5.0]), 0.0)
+    n = 11
+    plan = jax.jit(G.plan_cycles, static_argnames="n_cycles")(
+        PAR, gmap, start, n_cycles=n, direction=0.0
+    )
+    assert int(plan.n_failures) == 0
+    cog, feet = np.asarray(plan.cog), np.asarray(plan.feet)
+    ends = 6 * np.arange(n) + 5
+    off_frames = feet[ends, :, 0].min(axis=1) > 8.0 + P.FOOT_RADIUS
+    assert off_frames[-3:].all()
+    deviation = []
+    for k in ends:
+        std = np.asarray(G.standard_start(PAR, flat, jnp.asarray(cog[k, :2]), 0.0).feet)
+        deviation.append(np.abs(feet[k, :, :2] - std[:, :2]).max())
+    deviation = np.asarray(deviation)
+    assert deviation[1:-3].max() > 0.1  # the frames pushed it off the standard gait
+    assert deviation[off_frames].max() < 0.1
+    rel = feet[ends][off_frames] - cog[ends][off_frames][:, None]
+    np.testing.assert_allclose(rel, rel[0][None].repeat(len(rel), 0), atol=1e-6)
+    last = off_frames.nonzero()[0]
+    np.testing.assert_allclose(np.asarray(plan.cycle_w)[last], P.W_STD, atol=1e-9)
+    np.testing.assert_allclose(np.asarray(plan.cycle_l)[last], P.L_STD, atol=1e-9)
+    assert (np.asarray(plan.cycle_trials)[last] == 0).all()
