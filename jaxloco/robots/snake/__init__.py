@@ -1,0 +1,9 @@
+"""T² Snake-3 with the Omni-gripper, the wheeled articulated mobile robot of Tanaka et
+al., "Task-Space Control of Articulated Mobile Robots With a Soft Gripper for
+Operations", IEEE T-RO 35(1), 2019.
+
+Modules: `params` (Table I and the dimensions chosen where the paper is silent),
+`kinematics` (forward kinematics of the chain, the wheel contact points, the velocity
+constraints of Eqs. 2-8 per mode of Table II and the augmented model of Eqs. 9-11),
+`model` (the MJCF `models/t2snake3.xml`).
+"""

@@ -1,0 +1,157 @@
+"""T² Snake-3 with the Omni-gripper (Tanaka et al., IEEE T-RO 35(1), 2019): Table I
+dimensions, the joint / wheel layout of Sec. II-A and IV-A, the modes of Table II and
+the values the paper does not give, each with the reason for the chosen value.
+
+Frames and units: SI, radians. The world is the paper's O-xyz with the ground the
+plane z = 0. Every link frame has x forward (towards the head), y left (along the
+wheel axles of a straight robot), z up.
+
+Paper values:
+  * Table I: n = 9 modules, link length l = 90.5 mm, module length L = 181 mm (= 2 l),
+    total size H x W x L = 175 x 175 x 1729 mm, wheel radius r = 50 mm, pitch range
+    |psi| <= 113 deg, yaw range |theta| <= 65 deg, total mass 10 kg.
+  * Sec. II-A: yaw and pitch joints alternate, theta_1, psi_1, ..., psi_{n-1}, theta_n
+    (n = 9 yaw, n - 1 = 8 pitch joints; psi_b = [psi_{n_h/2+1} .. psi_{n-1}] has
+    n_b - 1 entries, so the last joint is the yaw joint theta_n); a pair of wheels is
+    coaxial with each pitch joint, one active and one passive (Fig. 4(b)).
+  * Sec. IV-C3, IV-C6: n_h = 6 (head part theta_1..psi_3), so n_b = n - n_h/2 = 6
+    (theta_4..theta_9); the SCP is the n_h-th joint psi_3 (m = 1), target 110 deg.
+  * Sec. V-A: initial joint angles phi = [0, -0.8, 0, -1.1, 0, 1.9, 0, ..., 0].
+  * Sec. IV-B: Omni-gripper 50 mm diameter, 90 mm long, 87 g.
+  * Table II: 7 wheel pairs on the base part; modes 1-6 (grounded mask below).
+
+Chosen values (not in the text):
+  * 17 joints give 18 links of length l each, joint to joint (module = yaw + pitch
+    joint = 2 l = L). Link 1 is the head: the head frame w_h is at its front end, l
+    ahead of theta_1. The gripper (in operation, Fig. 4(f); its two rotational joints
+    on the head are fixed, gripper pointing forward along the head's x) puts the
+    controlled point w, the gripper tip, GRIPPER_TIP = 100 mm ahead of the head frame
+    (90 mm gripper + 10 mm mount). Then gripper tip to tail end = 18 l + 100 mm =
+    1729 mm, Table I's total length.
+  * Wheel pairs: Eq. 2 has n_b + 1 = 7 side-slip rows for the base part and Table II
+    numbers 7 base pairs, one per rigid segment of the (flat) base between its yaw
+    joints. The pitch joints psi_3..psi_8 give six; the seventh is a tail pair on the
+    last link, axle TAIL_AXLE = l - r behind theta_9 so that the wheels end flush with
+    the tail (they stay inside the 1729 mm). Base pair 1 is at psi_3 (the head end of
+    the base: Sec. IV-C5 "the wheel of the head of the base part"), pair 7 at the tail.
+    The head part has pairs at psi_1 and psi_2 (in the model, ignored by the kinematic
+    model as the paper says: "active wheels of the head part are ignored").
+  * Active wheel on the left (+y) of each pair, passive on the right (Fig. 4(b) shows
+    one of each, the side is not given). Track: wheel centres +-WHEEL_Y = +-77.5 mm, wheel
+    width 20 mm, so the wheels' outer faces are 175 mm apart = Table I width. The
+    175 mm height (camera, stored gripper) is not modelled: links are boxes 120 x 80 mm
+    in section centred on the axle line, 10 mm ground clearance when flat.
+  * Masses: gripper 87 g (Sec. IV-B), 18 wheels of 0.1 kg, links 2..18 0.45 kg each,
+    the head link the rest (0.463 kg, it carries the gripper's two joints): 10 kg.
+  * Joint sign conventions: a positive yaw angle theta_i turns the front (head side)
+    link to the left relative to the rear one; a positive pitch angle psi_i raises the
+    front link (psi_3 = +110 deg raises the head part, Sec. IV-C3 and Fig. 4(a)).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+G = 9.81  # [m/s^2]
+
+# --- Table I
+N_MODULES = 9  # n: number of modules = number of yaw joints
+LINK_LENGTH = 0.0905  # l [m]
+MODULE_LENGTH = 0.181  # L [m] = 2 l
+SIZE_HWL = (0.175, 0.175, 1.729)  # total size H x W x L [m]
+WHEEL_RADIUS = 0.050  # r [m]
+PITCH_LIMIT = math.radians(113.0)  # |psi_i| <= 113 deg
+YAW_LIMIT = math.radians(65.0)  # |theta_i| <= 65 deg
+MASS = 10.0  # [kg]
+
+# --- joint layout (Sec. II-A)
+N_YAW = N_MODULES  # theta_1 .. theta_9
+N_PITCH = N_MODULES - 1  # psi_1 .. psi_8
+N_JOINTS = N_YAW + N_PITCH  # 17, alternating theta_1, psi_1, ..., psi_8, theta_9
+N_LINKS = N_JOINTS + 1  # 18, link 1 = head
+# joint k (0-based, head to tail) is a yaw joint for even k, a pitch joint for odd k
+JOINT_IS_PITCH = np.array([k % 2 == 1 for k in range(N_JOINTS)])
+JOINT_NAMES = tuple(
+    f"psi{k // 2 + 1}" if k % 2 else f"theta{k // 2 + 1}" for k in range(N_JOINTS)
+)
+
+# --- head / base split (Sec. II-A, IV-C3, IV-C6)
+N_H = 6  # n_h: joints of the head part (theta_1, psi_1, ..., theta_3, psi_3)
+N_B = N_YAW - N_H // 2  # n_b = 6 yaw joints of the base part (theta_4 .. theta_9)
+N_PHI = N_H + N_B  # 12: phi = [phi_h, phi_b]
+# index of each phi entry in the 17-joint list (psi_b = psi_4..psi_8 are not in phi)
+PHI_JOINTS = np.concatenate(
+    [np.arange(N_H), N_H + 2 * np.arange(N_B)]
+)  # [0..5, 6, 8, 10, 12, 14, 16]
+PSI_B_JOINTS = N_H + 1 + 2 * np.arange(N_B - 1)  # [7, 9, 11, 13, 15]
+SCP_INDEX = N_H - 1  # the SCP psi_{n_h/2} = psi_3 is phi[5] (Sec. IV-C3), m = 1
+SCP_TARGET = math.radians(110.0)  # [rad] psi_3 target (Sec. IV-C3)
+INITIAL_PHI = np.array([0.0, -0.8, 0.0, -1.1, 0.0, 1.9] + [0.0] * N_B)  # Sec. V-A [rad]
+
+# --- wheels (chosen layout, module docstring)
+N_PAIRS_BASE = N_B + 1  # 7 pairs on the base part (Table II)
+N_W = N_PAIRS_BASE  # n_w: active wheels of the base part, one per pair
+N_PAIRS = N_PITCH + 1  # 9 pairs: psi_1 .. psi_8 and the tail
+# link (1-based) carrying each pair: the link behind the pitch joint, the tail link
+PAIR_LINKS = np.array([2 * k + 3 for k in range(N_PITCH)] + [N_LINKS])
+TAIL_AXLE = LINK_LENGTH - WHEEL_RADIUS  # [m] tail axle behind theta_9
+PAIR_OFFSETS = np.array(
+    [0.0] * N_PITCH + [-TAIL_AXLE]
+)  # axle x in the carrying link's frame [m]
+BASE_PAIRS = np.arange(N_PITCH - N_PAIRS_BASE + 1, N_PAIRS)  # pairs 2..8 (0-based)
+WHEEL_Y = 0.0775  # [m] wheel centre from the axle midpoint
+WHEEL_HALF_WIDTH = 0.010  # [m]
+ACTIVE_SIDE = 1.0  # +1: the active wheel is the left one
+
+# --- gripper (Sec. IV-B) and body
+GRIPPER_TIP = 0.100  # [m] tip ahead of the head frame along the head x
+GRIPPER_LENGTH = 0.090  # [m]
+GRIPPER_RADIUS = 0.025  # [m]
+GRIPPER_MASS = 0.087  # [kg]
+WHEEL_MASS = 0.1  # [kg]
+LINK_MASS = 0.45  # [kg] links 2..18
+HEAD_MASS = MASS - GRIPPER_MASS - 2 * N_PAIRS * WHEEL_MASS - (N_LINKS - 1) * LINK_MASS
+# = 0.463 kg: link 1 with the gripper's two rotational joints (Fig. 4(e), (f))
+LINK_HALF = (0.5 * LINK_LENGTH, 0.060, 0.040)  # link box half sizes [m]
+
+# --- Table II: modes (rows sigma = 1..6) x base wheel pairs 1..7, True = grounded
+MODES = np.array(
+    [
+        [1, 1, 0, 1, 1, 0, 1],
+        [1, 1, 1, 1, 1, 0, 0],
+        [1, 1, 1, 1, 0, 0, 1],
+        [1, 1, 1, 0, 0, 1, 1],
+        [1, 1, 0, 0, 1, 1, 1],
+        [1, 0, 0, 1, 1, 1, 1],
+    ],
+    dtype=bool,
+)
+N_MODES = MODES.shape[0]
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class SnakeParams:
+    """Dimensions used by `kinematics` as a pytree (every field is a leaf: traceable,
+    vmappable for sweeps). SI units."""
+
+    link_length: jax.Array = LINK_LENGTH  # l [m]
+    wheel_radius: jax.Array = WHEEL_RADIUS  # r [m]
+    gripper_tip: jax.Array = GRIPPER_TIP  # [m]
+    tail_axle: jax.Array = TAIL_AXLE  # [m]
+    wheel_y: jax.Array = WHEEL_Y  # [m] active wheel centre from the axle midpoint
+
+    def with_(self, **changes) -> SnakeParams:
+        return replace(self, **changes)
+
+    def astype(self, dtype) -> SnakeParams:
+        return jax.tree_util.tree_map(lambda x: jnp.asarray(x, dtype), self)
+
+
+def default_params() -> SnakeParams:
+    return SnakeParams()
