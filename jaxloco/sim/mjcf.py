@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -68,3 +69,31 @@ def write_main(description: str, path: Path, text: Callable[[], str], argv: list
         print(f"wrote {path}")
     else:
         print(out)
+
+
+@dataclass(frozen=True)
+class ModelFile:
+    """A robot's generated MJCF file: where it lives (`path`) and the MjSpec builder that
+    writes it (`build`). A robot's model module exposes `load_spec`, `load_model`,
+    `xml_text` and its `--write` command line from one of these."""
+
+    path: Path
+    build: Callable[[], mujoco.MjSpec]
+
+    def load_spec(self, path: str | Path | None = None) -> mujoco.MjSpec:
+        """The MJCF (default `self.path`) as an MjSpec; SpecError (one line) for a
+        missing or broken file."""
+        return load_spec(self.path if path is None else path)
+
+    def load_model(self, path: str | Path | None = None) -> mujoco.MjModel:
+        """`load_spec(path)` compiled; SpecError (one line) if it does not compile."""
+        return load_model(self.path if path is None else path)
+
+    def xml_text(self) -> str:
+        """The MJCF text `build` generates."""
+        return xml_text(self.build())
+
+    def main(self, description: str, argv: list[str] | None = None) -> None:
+        """The model module's command line: print the MJCF, or write it with --write."""
+        write_main(description, self.path, self.xml_text, argv)
+

@@ -235,23 +235,14 @@ def rpy_to_quat(rpy: np.ndarray) -> np.ndarray:
     )
 
 
-def load_spec(path: str | Path | None = None) -> mujoco.MjSpec:
-    """The robot MJCF (default `models/t2snake3.xml`) as an MjSpec; SpecError (one
-    line) for a missing or broken file."""
-    return mjcf.load_spec(path if path is not None else MODEL_PATH)
-
-
-def load_model(path: str | Path | None = None) -> mujoco.MjModel:
-    """`load_spec(path)` compiled; SpecError (one line) if it does not compile."""
-    return mjcf.load_model(path if path is not None else MODEL_PATH)
-
-
-def xml_text() -> str:
-    return mjcf.xml_text(build_spec())
+FILE = mjcf.ModelFile(MODEL_PATH, build_spec)
+load_spec = FILE.load_spec
+load_model = FILE.load_model
+xml_text = FILE.xml_text
 
 
 def main(argv: list[str] | None = None) -> None:
-    mjcf.write_main(__doc__.splitlines()[0], MODEL_PATH, xml_text, argv)
+    FILE.main(__doc__.splitlines()[0], argv)
 
 
 if __name__ == "__main__":
