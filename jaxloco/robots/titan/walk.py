@@ -79,12 +79,16 @@ def executor_plan(
     dirs = np.broadcast_to(np.asarray(direction, float), (n_cycles,))
     d_map = np.stack([np.cos(dirs), np.sin(dirs), np.zeros_like(dirs)], axis=1)
     d_world = np.asarray(M.map_to_world(gmap, jnp.asarray(d_map)), float)
-    cycle_start = np.concatenate([body0[None], body[STEPS_PER_CYCLE - 1 :: 6][:-1]])
+    cycle_start = np.concatenate(
+        [body0[None], body[STEPS_PER_CYCLE - 1 :: STEPS_PER_CYCLE][:-1]]
+    )
     swing = np.asarray(gait.swing_leg, np.int32)
     # a cycle without swings (a change-of-direction transition shift, or a failed cycle
     # holding still) ends off the old path by design: measure it against its own end
     still = (swing.reshape(n_cycles, STEPS_PER_CYCLE) < 0).all(axis=1)
-    cycle_start = np.where(still[:, None], body[STEPS_PER_CYCLE - 1 :: 6], cycle_start)
+    cycle_start = np.where(
+        still[:, None], body[STEPS_PER_CYCLE - 1 :: STEPS_PER_CYCLE], cycle_start
+    )
     top = np.where(swing >= 0, np.asarray(gait.swing_path, float)[:, 1, 2], -np.inf)
     return S.Plan(
         feet0=feet0,
