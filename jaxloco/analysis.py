@@ -158,6 +158,7 @@ _BUILTIN: dict[str, str] = {
     "octopus.terrain_classification": "jaxloco.robots.octopus.analysis:TERRAIN_CLASSIFICATION",
     "octopus.step_climb": "jaxloco.robots.octopus.sim_analysis:STEP_CLIMB",
     "titan.stride": "jaxloco.robots.titan.analysis:STRIDE",
+    "snake.kv": "jaxloco.robots.snake.analysis:KV",
 }
 _REGISTERED: dict[str, Analysis] = {}
 

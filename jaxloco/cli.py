@@ -1,7 +1,8 @@
-"""The `jaxloco` command line: sweep, summary, analyses, describe, info.
+"""The `jaxloco` command line: sweep, summary, analyses, describe, tune, objectives, info.
 
 User errors print one line, `error: ...`, on stderr and exit with code 2; an interrupted
-sweep exits with 130. JAX is imported only by the commands that need it.
+sweep or tuning exits with 130, a tuning whose loss stops being finite with 1. JAX is
+imported only by the commands that need it.
 """
 
 from __future__ import annotations
@@ -131,6 +132,65 @@ def describe(
     console.print(Text(f"{analysis.name}: {analysis.doc.strip()}"))
     for table in describe_tables(analysis):
         console.print(table)
+
+
+@app.command()
+def tune(
+    spec: Annotated[Path, typer.Argument(help="the tune spec (TOML)", show_default=False)],
+    out: Annotated[Path | None, typer.Option("--out", help="output directory (overrides the spec)")] = None,
+    steps: Annotated[int | None, typer.Option("--steps", help="optimizer steps (overrides the spec)")] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+) -> None:
+    """Tune an objective's parameters by gradient descent (optax) and compare them with the
+    initial values and the objective's references."""
+    from jaxloco.tune import TuneDiverged, load_spec, run
+    from jaxloco.tune.display import print_result
+
+    with _user_errors():
+        loaded = load_spec(spec).with_options(output=out, steps=steps)
+        try:
+            result = run(loaded, progress=not quiet)
+        except KeyboardInterrupt as exc:  # TuneInterrupted says what was saved
+            typer.echo(str(exc) or "interrupted", err=True)
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+        except TuneDiverged as exc:
+            raise _fail(str(exc), code=1) from None
+    for warning in result.warnings:
+        typer.echo(f"warning: {warning}", err=True)
+    print_result(result, _stdout())
+    for path in result.written:
+        typer.echo(f"wrote {path}")
+
+
+@app.command()
+def objectives(
+    name: Annotated[
+        str | None, typer.Argument(help="an objective to describe (tunables, settings, references)", show_default=False)
+    ] = None,
+) -> None:
+    """List the objectives that `jaxloco tune` can tune, or describe one."""
+    from rich.text import Text
+
+    from jaxloco.sweep.display import first_line
+    from jaxloco.tune import objective as registry
+    from jaxloco.tune.display import describe_table, objectives_table
+
+    console = _stdout()
+    if name is not None:
+        with _user_errors():
+            found = registry.get(name)
+        console.print(Text(f"{found.name}: {found.doc.strip()}"))
+        console.print(describe_table(found))
+        return
+    rows = []
+    for known in registry.names():
+        try:
+            doc = first_line(registry.get(known).doc)
+        except Exception as exc:  # a broken plugin must not hide the others
+            cause = exc.__cause__ or exc
+            doc = f"(cannot load: {type(cause).__name__}: {cause})"
+        rows.append((known, doc))
+    console.print(objectives_table(rows))
 
 
 @app.command()

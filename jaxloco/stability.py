@@ -73,6 +73,16 @@ def static_margin_smooth(
     return geo.soft_min(_edge_line_distances(q, p2).ravel(), temperature, E.ravel())
 
 
+def support_edge_distances(cog: Array, contacts: Array, mask: Array, up: Array | None = None) -> tuple[Array, Array]:
+    """Signed distances of the projected COG from the lines of the support polygon's
+    edges: (d (N, N), E (N, N) bool). d[i, j] is the distance (positive inside, m) from
+    the edge p_i -> p_j when E[i, j] marks it as a counter-clockwise hull edge
+    (`geometry.hull_edges`); entries off the hull are meaningless. For costs that use
+    every side, e.g. T² Snake-3's Eq. 20 ||d||_2 = sqrt(sum over E of d^2)."""
+    q, _, p2, _ = _split(cog, contacts, up)
+    return _edge_line_distances(q, p2), geo.hull_edges(p2, mask)
+
+
 # ------------------------------------------------------ normalized energy stability margin
 def axis_energy_rise(c: Array, a: Array, b: Array) -> Array:
     """How high (m, >= 0) the COG `c` rises when the body tips about the 3D axis through

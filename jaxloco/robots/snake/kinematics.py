@@ -305,3 +305,77 @@ def compact_rows(M: np.ndarray, grounded: np.ndarray, extra: int = 0) -> np.ndar
     trailing rows (the SCP rows of A_tilde / B_tilde) are kept."""
     keep = np.concatenate([np.asarray(row_mask(grounded)), np.ones(extra, bool)])
     return np.asarray(M)[keep]
+
+
+def point_to_head(w: Array, point: str, params: P.SnakeParams | None = None) -> Array:
+    """Head pose w_h of a controlled-point pose `w` (`point` "tip": the gripper tip,
+    "head": w is already w_h)."""
+    if point == "tip":
+        return head_from_tip(w, params)
+    if point == "head":
+        return w
+    raise ValueError(f"point must be 'tip' or 'head', not {point!r}")
+
+
+def head_to_point(w_h: Array, point: str, params: P.SnakeParams | None = None) -> Array:
+    """Inverse of `point_to_head`."""
+    if point == "tip":
+        return tip_from_head(w_h, params)
+    if point == "head":
+        return w_h
+    raise ValueError(f"point must be 'tip' or 'head', not {point!r}")
+
+
+def base_of(
+    w_h: Array,
+    phi: Array,
+    psi_b: Array | None = None,
+    params: P.SnakeParams | None = None,
+) -> Array:
+    """Planar pose [x, y, heading] (3,) of the first base link (link 7, origin on the
+    psi_3 axle) from the head pose and phi: the inverse of `base_frame_pose` for a base
+    flat on the ground (world frame, m and rad)."""
+    Rs, ps = link_frames(w_h, full_joint_angles(phi, psi_b), params)
+    R, p = Rs[_BASE_LINK], ps[_BASE_LINK]
+    return jnp.stack([p[0], p[1], jnp.arctan2(R[1, 0], R[0, 0])])
+
+
+def wheel_contacts(
+    w_h: Array,
+    joints: Array,
+    params: P.SnakeParams | None = None,
+) -> Array:
+    """Ground contact points (7, 2, 3) of both wheels of base pairs 1..7 (index 0: the
+    active, left wheel; 1: the passive one), world frame: each pair's contact point
+    offset by +-wheel_y along its axle."""
+    params = P.default_params() if params is None else params
+    _, contact, R = wheel_pairs(w_h, joints, params)
+    c, y = contact[P.BASE_PAIRS], R[P.BASE_PAIRS][:, :, 1]
+    d = P.ACTIVE_SIDE * params.wheel_y
+    return jnp.stack([c + d * y, c - d * y], axis=1)
+
+
+def center_of_mass(
+    w_h: Array,
+    joints: Array,
+    params: P.SnakeParams | None = None,
+) -> Array:
+    """Whole-robot centre of mass (3,), world frame [m], with the masses of `params`
+    (module docstring there; the same as the MJCF): each link's box centre l/2 behind
+    its frame, the 18 wheels at the axle ends, the gripper's centre on the head x axis."""
+    params = P.default_params() if params is None else params
+    Rs, ps = link_frames(w_h, joints, params)
+    dt = ps.dtype
+    l = jnp.asarray(params.link_length, dt)
+    links = ps - 0.5 * l * Rs[:, :, 0]
+    link_m = jnp.full(P.N_LINKS, P.LINK_MASS, dt).at[0].set(P.HEAD_MASS)
+    axle, _, R = wheel_pairs(w_h, joints, params)
+    wheels = jnp.concatenate(
+        [axle + P.WHEEL_Y * R[:, :, 1], axle - P.WHEEL_Y * R[:, :, 1]]
+    )
+    grip_c = ps[0] + (P.GRIPPER_TIP - 0.5 * P.GRIPPER_LENGTH) * Rs[0][:, 0]
+    total = jnp.sum(link_m) + 2 * P.N_PAIRS * P.WHEEL_MASS + P.GRIPPER_MASS
+    moment = (
+        link_m @ links + P.WHEEL_MASS * jnp.sum(wheels, axis=0) + P.GRIPPER_MASS * grip_c
+    )
+    return moment / total

@@ -19,7 +19,8 @@ Structure (10 kg in all, dimensions and masses in `params`):
   * the gripper: a capsule on the head (radius 25 mm, 90 mm long, 87 g), site `head` at
     the head frame and site `tip` at the gripper tip (the controlled point w);
   * position servos on the 17 joints (KP, KV, torque TAU: Dynamixel MX-106R stall
-    torque about 8.4 N m), joint encoders `{joint}_pos`;
+    torque about 8.4 N m; the base part's joints theta_4..theta_9, psi_4..psi_8 stiffer,
+    KP_BASE, KV_BASE, see below), joint encoders `{joint}_pos`;
   * keyframes `straight` (all joints 0, flat on z = 0, head towards +x) and `initial`
     (Sec. V-A: phi = [0, -0.8, 0, -1.1, 0, 1.9, 0, ...], base straight on the ground).
 
@@ -28,6 +29,27 @@ Contacts: wheels, links and gripper collide with the terrain (collision bits of
 wheels touch (links have 10 mm clearance). The dynamics parameters (servo gains,
 friction) are first choices for kinematic checks; the closed-loop simulation will tune
 them.
+
+Closed-loop tuning (`scenarios.py`, `tests/test_snake_sim.py`):
+  * Base joints KP_BASE = 300 N m/rad, KV_BASE = 3 N m s/rad (head part: KP = 30). The
+    base pitch joints lift wheels by about 0.1 rad (`scenarios.lift_angles`, 20 mm);
+    holding the tail pairs 6, 7 lifted (mode 2) is a cantilever of about 5 N m at psi_7,
+    which KP = 30 let sag by 0.16 rad: the tail stayed on the ground (pair 7 clearance
+    -0.06 mm, pair 6 8.5 mm after 1 s) and the other modes reached 14-18 mm of 20. The paper
+    (Sec. IV-C2) says the base joints' servo stiffness is sufficient (angles almost at
+    their targets) while the head part has steady errors under its load; with KP_BASE
+    every mode lifts its pairs 14-20 mm (mode 2's tail 14 mm, others >= 19 mm) and the
+    base yaw joints follow their targets too. KV_BASE gives the tail segments a damping ratio of
+    about 0.3-0.5. The head part keeps KP = 30 (its sag under load is the
+    paper's steady error; measured in `tests/test_snake_sim.py`).
+  * WHEEL_KV = 5 N m s/rad (was 0.5): the velocity servo's steady speed is
+    KV / (KV + JOINT_DAMPING) of its command, 0.909 with 0.5 (the robot drove at 91 % of
+    r rho_dot), 0.99 now; a real wheel servo regulates its speed. With the bare wheel's
+    inertia (1.25e-4 kg m^2) that gain made the loaded wheel at psi_3 chatter and spin
+    (rolling slip up to 1 m/s, the robot veered and drove at twice the speed on mu 0.5);
+    the active wheels now carry WHEEL_ARMATURE = 1e-3 kg m^2 (the geared motor's
+    reflected rotor inertia, as the joints' ARMATURE): rolling slip < 0.15 m/s peak,
+    speed within 1.2 % of r rho_dot for mu 0.3..1, forwards and backwards.
 """
 
 from __future__ import annotations
@@ -49,7 +71,9 @@ TIMESTEP = 0.002  # [s]
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 2  # = jaxloco.sim.terrain.ROBOT_* (tested)
 
 KP, KV, TAU = 30.0, 0.5, 8.4  # joint servos [N m/rad], [N m s/rad], [N m]
-WHEEL_KV, WHEEL_TAU, WHEEL_SPEED = 0.5, 2.5, 6.0  # [N m s/rad], [N m], [rad/s]
+KP_BASE, KV_BASE = 300.0, 3.0  # base part joints theta_4 .. theta_9, psi_4 .. psi_8
+WHEEL_KV, WHEEL_TAU, WHEEL_SPEED = 5.0, 2.5, 6.0  # [N m s/rad], [N m], [rad/s]
+WHEEL_ARMATURE = 0.001  # [kg m^2] active wheels: reflected rotor inertia of the motor
 JOINT_DAMPING, ARMATURE = 0.05, 0.01
 FRICTION = (1.0, 0.005, 0.0001)
 WHEEL_NAMES = tuple(f"wheel{i + 1}" for i in range(P.N_PAIRS))
@@ -151,6 +175,7 @@ def build_spec() -> mujoco.MjSpec:
                 type=_HINGE,
                 axis=[0, 1, 0],
                 damping=0.0 if side == "passive" else JOINT_DAMPING,
+                armature=0.0 if side == "passive" else WHEEL_ARMATURE,
             )
             wheel.add_geom(
                 name=f"wheel{i + 1}_{side}",
@@ -166,7 +191,8 @@ def build_spec() -> mujoco.MjSpec:
         act = spec.add_actuator(
             name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT
         )
-        act.set_to_position(kp=KP, kv=KV)
+        base = k >= P.N_H  # theta_4 onwards: the base part
+        act.set_to_position(kp=KP_BASE if base else KP, kv=KV_BASE if base else KV)
         mjcf.set_actuator_limits(act, joint_range(k), TAU)
     for name in WHEEL_NAMES:
         act = spec.add_actuator(

@@ -1,0 +1,241 @@
+"""`snake.kv`: T² Snake-3 joint-limit avoidance (Tanaka et al. 2019, Sec. IV-C5, V-B)
+in the pure-JAX kinematic simulation (`kinsim`), against the cost weights K_V, the
+null-space gain k_eta, the task gain K, the switching period Delta T and the order of
+the switching modes, as a sweep analysis; and the smooth loss that `jaxloco tune`
+minimises (`limit_loss`, objective `snake.kv` in `tuning`).
+
+The question it answers: from the zigzag posture with the base joints at 97 % of their
+limits (Fig. 8), which weights bring the base back from the limits fastest while the
+gripper tip stays where it is (head error) and the robot keeps a support margin?
+
+One row is `experiments`' joint-limit setup: zigzag amplitude `amplitude`, gripper tip
+held, psi_3 -> 110 deg, fixing state (sigma = 1) until `switch_at`, then modes
+`mode_order` every `delta_t`; K_V = `control.kv_diagonal(kv_head_yaw, kv_head_pitch,
+kv_base, kv_ratio)` (the paper: 15, 0.015, 9.6, 0.5); Eq. 20's support term with weight
+`a2` (0: Eq. 19); joints limited to `joint_speed_max`. The horizon is `horizon` s in
+steps of `dt` (feedforward control, as the paper's robot).
+
+Metrics: `experiments.limit_metrics` (recovery_time, recovered, V0, final_V,
+max_pos_error, max_att_error, min_margin, time_near_limit) plus final_margin (static
+margin at the end [m]), final_area (the support polygon's area at the end [m^2]),
+head_ok (max_pos_error <= 30 mm and max_att_error <= 0.1 rad: the paper's "about 30 mm
+and 0.1 rad"), and loss (`limit_loss`, smooth; what tuning minimises).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxloco import geometry as geo
+from jaxloco.analysis import Analysis, Metric, Param, Summary
+from jaxloco.robots.snake import control as C
+from jaxloco.robots.snake import experiments as E
+from jaxloco.robots.snake import kinematics as K
+from jaxloco.robots.snake import kinsim as S
+from jaxloco.robots.snake import params as P
+
+MODE_ORDERS = np.array(
+    [
+        [2, 3, 4, 5, 6],  # 0: the paper's, lifting from the tail towards the head
+        [6, 5, 4, 3, 2],  # 1: from the head towards the tail
+        [2, 4, 6, 3, 5],  # 2: interleaved
+    ]
+)
+POS_TOL, ATT_TOL = E.PAPER_HEAD_ERROR  # 0.03 m, 0.1 rad
+
+PARAMS = (
+    Param("kv_head_yaw", C.PAPER_KV_HEAD_YAW, "K_V weight of the head yaw joints theta_1..theta_3", "",
+          lo=0.0, hi=1e4),
+    Param("kv_head_pitch", C.PAPER_KV_HEAD_PITCH, "K_V weight of the head pitch joints psi_1..psi_3", "",
+          lo=0.0, hi=1e4),
+    Param("kv_base", C.PAPER_KV_BASE, "K_V weight of theta_4, the head end of the base part", "", lo=0.0, hi=1e4),
+    Param("kv_ratio", C.PAPER_KV_RATIO, "K_V ratio from one base joint to the next towards the tail "
+          "(0.5: the weights double from the tail to the head, as the paper's)", "", lo=0.0, hi=4.0, lo_open=True),
+    Param("k_eta", 0.1, "null-space gain k_eta of Eq. 14", "", lo=0.0, hi=100.0),
+    Param("gain", 1.0, "task gain K (the same on the 7 controlled variables) of Eq. 13", "1/s",
+          lo=0.0, hi=50.0, lo_open=True),
+    Param("delta_t", 1.0, "Delta T: period of the mode switching", "s", lo=0.02, hi=30.0),
+    Param("mode_order", 0, "switching order: 0 = 2,3,4,5,6 (paper, tail to head), 1 = 6,5,4,3,2, "
+          "2 = 2,4,6,3,5", kind="int", choices=(0, 1, 2)),
+    Param("switch_at", E.SWITCH_AT, "operator's command of the switching state (fixing state before)", "s",
+          lo=0.0, hi=1e3),
+    Param("a2", 0.0, "Eq. 20 weight of 1/||d|| (distances of P_G from the support polygon's sides); 0 = Eq. 19",
+          "m", lo=0.0, hi=1e3),
+    Param("amplitude", E.ZIGZAG_AMPLITUDE, "zigzag amplitude of the base yaw joints at t = 0 (limit 1.134)",
+          "rad", lo=0.0, hi=P.YAW_LIMIT),
+    Param("joint_speed_max", S.JOINT_SPEED_MAX, "servo speed limit of the joints", "rad/s", lo=0.0, hi=100.0,
+          lo_open=True),
+    Param("recover_ratio", 0.7, "recovered once every base joint is below this fraction of its limit", "",
+          lo=0.0, hi=1.0, lo_open=True),
+    Param("w_limit", 1.0, "loss weight of the time near the limits against the head error", "", lo=0.0, hi=1e3),
+    Param("horizon", 30.0, "simulated time", "s", lo=0.1, hi=600.0, sweepable=False),
+    Param("dt", 0.02, "control period (explicit Euler step of the kinematic plant)", "s", lo=1e-4, hi=0.2,
+          sweepable=False),
+    Param("feedback", False, "use the plant's w and phi (true) or the paper's feedforward estimate (false)",
+          kind="bool", sweepable=False),
+)
+
+METRICS = (
+    Metric("recovery_time", "first time every base joint is below recover_ratio of its limit (horizon + dt if never)",
+           "s"),
+    Metric("recovered", "the base joints came below recover_ratio of their limits", kind="bool"),
+    Metric("V0", "cost V at t = 0 (Eq. 19 / 20)"),
+    Metric("final_V", "cost V at the end"),
+    Metric("max_pos_error", "largest gripper-tip position error", "m"),
+    Metric("max_att_error", "largest gripper-tip attitude error (norm of roll, pitch, yaw errors)", "rad"),
+    Metric("head_ok", "max_pos_error <= 30 mm and max_att_error <= 0.1 rad (the paper's figures)", kind="bool"),
+    Metric("min_margin", "smallest static stability margin of the grounded wheels' support polygon", "m"),
+    Metric("final_margin", "static stability margin at the end", "m"),
+    Metric("final_area", "area of the support polygon at the end", "m^2"),
+    Metric("time_near_limit", "time with some base joint at >= 95 % of its limit", "s"),
+    Metric("loss", "the tuning loss (limit_loss): head-error term + w_limit * near-limit term"),
+)
+
+STATUSES = (
+    "ok",
+    "failed: base joints not recovered within the horizon",
+    "failed: head error above 30 mm / 0.1 rad",
+    "diverged: non-finite state",
+)
+
+_KV_NAMES = ("kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio")
+
+
+def control_params(values: Mapping[str, jax.Array]) -> C.ControlParams:
+    """`ControlParams` of one row (values: scalar arrays of the sweepable parameters)."""
+    dtype = jnp.asarray(values["k_eta"]).dtype
+    kv = C.kv_diagonal(*(values[n] for n in _KV_NAMES))
+    order = jnp.asarray(MODE_ORDERS)[jnp.asarray(values["mode_order"], jnp.int32)]
+    return E.limit_params(
+        kv=kv.astype(dtype),
+        k_eta=values["k_eta"],
+        gain=jnp.full(C.N_TASK, values["gain"], dtype),
+        delta_t=values["delta_t"],
+        mode_order=order,
+        switch_at=values["switch_at"],
+        a2=values["a2"],
+    )
+
+
+def limit_loss(recs: Mapping[str, jax.Array], recover_ratio: jax.Array, w_limit: jax.Array,
+               temperature: float = 0.02) -> jax.Array:
+    """Smooth tuning loss of a joint-limit rollout:
+        mean_t [ (|e_p| / 30 mm)^2 + (|e_a| / 0.1 rad)^2 ]
+        + w_limit * mean_t sum_j T softplus((|theta_j| / limit - recover_ratio) / T) / (1 - recover_ratio)
+    e_p, e_a: the gripper tip's position and attitude errors (scaled by the paper's
+    figures), theta_j the base yaw joints (temperature T): the first term is the head
+    error, the second a smooth count of base joints above recover_ratio of their limit
+    (about 1 per joint at the limit), averaged over time."""
+    pos = jnp.sum(recs["error"][:, :3] ** 2, axis=-1) / POS_TOL**2
+    att = jnp.sum(recs["error"][:, 3:6] ** 2, axis=-1) / ATT_TOL**2
+    ratio = jnp.abs(recs["phi"][:, P.N_H :]) / P.YAW_LIMIT
+    excess = temperature * jax.nn.softplus((ratio - recover_ratio) / temperature) / (1.0 - recover_ratio)
+    return jnp.mean(pos + att) + w_limit * jnp.mean(jnp.sum(excess, axis=-1))
+
+
+def _config(horizon: float, dt: float, feedback: bool) -> S.RolloutConfig:
+    return S.RolloutConfig(steps=int(round(horizon / dt)) + 1, dt=dt, point="tip", feedback=bool(feedback))
+
+
+def run_one(values: Mapping[str, jax.Array], config: S.RolloutConfig) -> tuple[dict[str, jax.Array], dict]:
+    """(metrics with status, records) of one row (scalar values of every sweepable
+    parameter)."""
+    dtype = jnp.asarray(values["k_eta"]).dtype
+    x0, target = E.limit_setup(values["amplitude"], dtype)
+    cp = control_params(values)
+    plant = S.PlantParams(joint_speed_max=values["joint_speed_max"])
+    recs = S.rollout(x0, target, cp, config, plant)
+    m = E.limit_metrics(recs, values["recover_ratio"])
+    sigma_end = recs["sigma"][-1]
+    grounded = C.grounded_of(sigma_end)
+    w_h = K.point_to_head(recs["w"][-1], "tip")
+    joints = K.full_joint_angles(recs["phi"][-1])
+    pts = K.wheel_contacts(w_h, joints).reshape(-1, 3)[:, :2]
+    verts, valid = geo.convex_hull(pts, jnp.repeat(grounded, 2))
+    m["final_margin"] = recs["margin"][-1]
+    m["final_area"] = geo.polygon_area(verts, valid)
+    m["head_ok"] = (m["max_pos_error"] <= POS_TOL) & (m["max_att_error"] <= ATT_TOL)
+    m["loss"] = limit_loss(recs, values["recover_ratio"], values["w_limit"])
+    finite = jnp.all(jnp.isfinite(recs["phi"])) & jnp.all(jnp.isfinite(recs["w"]))
+    m["status"] = jnp.where(
+        ~finite, 3, jnp.where(~m["recovered"], 1, jnp.where(~m["head_ok"], 2, 0))
+    ).astype(jnp.int32)
+    return m, recs
+
+
+def make_batch_fn(fixed: Mapping[str, Any]):
+    """`Analysis.make_batch_fn`: every sweepable parameter vmapped; horizon, dt and
+    feedback static. No randomness (keys unused)."""
+    config = _config(fixed["horizon"], fixed["dt"], fixed["feedback"])
+    sweepable = [p.name for p in PARAMS if p.sweepable]
+
+    def batch(swept: Mapping[str, jax.Array], keys: jax.Array) -> dict[str, jax.Array]:
+        n = keys.shape[0]
+        dtype = jnp.result_type(float)
+        values = {}
+        for name in sweepable:
+            kind = jnp.int32 if name == "mode_order" else dtype
+            values[name] = jnp.asarray(swept[name], kind) if name in swept else jnp.full(n, fixed[name], kind)
+        return jax.vmap(lambda v: run_one(v, config)[0])(values)
+
+    return batch
+
+
+# ---------------------------------------------------------------------------- summary
+def summarize(table) -> Summary:
+    """The rows ranked: ok rows (recovered with the head within 30 mm / 0.1 rad) by
+    recovery time, then the rest by loss; the first 10 and the paper's K_V row."""
+    cols = {k: np.asarray(v) for k, v in table.to_pydict().items()}
+    n = len(cols["loss"])
+    ok = np.asarray(cols["status"]) == "ok"
+    order = sorted(range(n), key=lambda i: (not ok[i], cols["recovery_time"][i] if ok[i] else cols["loss"][i]))
+    paper = [
+        i for i in range(n)
+        if all(np.isclose(cols[k][i], d) for k, d in zip(_KV_NAMES + ("k_eta",), (
+            C.PAPER_KV_HEAD_YAW, C.PAPER_KV_HEAD_PITCH, C.PAPER_KV_BASE, C.PAPER_KV_RATIO, 0.1), strict=True))
+    ]
+    shown = order[:10] + [i for i in paper[:1] if i not in order[:10]]
+    varying = [p.name for p in PARAMS if p.name in cols and len(set(np.asarray(cols[p.name]).tolist())) > 1]
+    rows = []
+    for i in shown:
+        cells = [("paper " if i in paper else "") + str(i)]
+        cells += [f"{cols[k][i]:g}" for k in varying]
+        cells += [
+            f"{cols['recovery_time'][i]:.2f}",
+            f"{1e3 * cols['max_pos_error'][i]:.1f}",
+            f"{cols['max_att_error'][i]:.3f}",
+            f"{cols['final_V'][i]:.2f}",
+            f"{1e3 * cols['min_margin'][i]:.0f}",
+            f"{cols['loss'][i]:.3f}",
+            str(cols["status"][i]).split(":")[0],
+        ]
+        rows.append(tuple(cells))
+    return Summary(
+        title=f"T² Snake-3 joint-limit avoidance: {int(ok.sum())}/{n} rows recovered with the head held",
+        columns=("row", *varying, "recovery [s]", "pos err [mm]", "att err [rad]", "final V", "min margin [mm]",
+                 "loss", "status"),
+        rows=tuple(rows),
+        notes=(
+            "ok = base joints below recover_ratio of their limits within the horizon and gripper-tip error "
+            "<= 30 mm / 0.1 rad (the paper's Fig. 9 figures); ranked by recovery time, then loss",
+            "paper K_V = diag(15, 0.015, 15, 0.015, 15, 0.015, 9.6, 4.8, 2.4, 1.2, 0.6, 0.3), k_eta = 0.1 (ours)",
+        ),
+    )
+
+
+KV = Analysis(
+    name="snake.kv",
+    doc="T² Snake-3 joint-limit avoidance by mode switching (kinematic simulation): recovery time, final V, "
+    "head error and support margin against K_V, k_eta, K, Delta T and the mode order",
+    params=PARAMS,
+    metrics=METRICS,
+    make_batch_fn=make_batch_fn,
+    statuses=STATUSES,
+    summarize=summarize,
+    x64=True,
+)

@@ -1,0 +1,178 @@
+"""The paper's experiments (Tanaka et al., IEEE T-RO 35(1), 2019, Sec. V-A, V-B) as
+data and metrics, for the kinematic simulation (`kinsim`) and MuJoCo (`scenarios`).
+
+Relative position accuracy (Sec. V-A, Table III): the controlled point is the head
+(w_h); from phi = INITIAL_PHI (base straight) each component of w_h is changed alone by
+the Table III target (0.2 m, 0.1 m, -0.1 m, pi/2, -pi/6, pi/4), starting at t = 1 s;
+the displacement is the mean of w_h over [t_e + 4, t_e + 5] minus its mean over
+[0, 1] (t_e: end of the target's change) and the error is |measured - target| /
+|target| of the changed component. The paper does not give the speed of the change:
+we ramp each target over RAMP = 4 s (a smooth step, `kinsim.Target`), fixing state
+sigma = 1 throughout.
+
+Joint-limit avoidance (Sec. V-B, Figs. 8-10): the zigzag posture, head part as in
+Sec. V-A, base yaw joints theta_4..theta_9 = +-1.1 rad alternating (Fig. 10: "in the
+neighborhood of the joint angle limit (1.1 rad)"; the sign of theta_4 is not given, we
+start with +); the target holds the gripper tip where it starts and psi_3 at its SCP
+target 110 deg; Delta T = 1 s, fixing state for t < 2 s then switching; K_V of the
+paper. Metrics (`limit_metrics`): recovery time (first time every base joint is below
+`recover_ratio` of its limit), final V, largest head position / attitude errors,
+smallest static stability margin of the grounded wheels, time spent near a limit.
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxloco.robots.snake import control as C
+from jaxloco.robots.snake import kinsim as S
+from jaxloco.robots.snake import params as P
+
+Array = jax.Array
+
+# --- Sec. V-A, Table III
+RAMP = 4.0  # [s] our duration of each target change (not in the paper)
+T_START = 1.0  # [s] the target begins to change at t = 1
+ACCURACY_HORIZON = T_START + RAMP + 5.0  # [s] t_e + 5
+ACCURACY_NAMES = ("x", "y", "z", "alpha", "beta", "gamma")
+ACCURACY_DELTAS = np.array([0.2, 0.1, -0.1, math.pi / 2, -math.pi / 6, math.pi / 4])  # [m] / [rad]
+# Table III, "Exp. (Mean)" of the changed component and the "Error" row [%]
+PAPER_ACCURACY_MEAN = np.array([0.20, 0.066, -0.10, 1.54, -0.55, 0.79])
+PAPER_ACCURACY_ERROR = np.array([1.0, 34.0, 1.5, 1.9, 6.0, 0.4])
+# Table III, the full mean displacement rows (x, y, z [m], alpha, beta, gamma [rad])
+PAPER_ACCURACY_ROWS = np.array(
+    [
+        [0.20, 0.0052, 0.0024, 0.0092, -0.0047, -0.012],
+        [-0.069, 0.066, 0.014, -0.055, -0.055, -0.075],
+        [-0.011, 0.0040, -0.10, 0.013, -0.013, 0.0075],
+        [-0.054, -0.035, 0.030, 1.54, -0.060, -0.063],
+        [0.00062, 0.0015, 0.0061, 0.019, -0.55, -0.0060],
+        [-0.018, 0.00032, 0.027, 0.050, -0.12, 0.79],
+    ]
+)
+
+# --- Sec. V-B, Figs. 8-10
+ZIGZAG_AMPLITUDE = 1.1  # [rad]
+SWITCH_AT = 2.0  # [s]
+LIMIT_HORIZON = 30.0  # [s] our run length (Fig. 9's time axis is not in the text)
+PAPER_HEAD_ERROR = (0.030, 0.1)  # [m], [rad] "about 30 mm and 0.1 rad"
+
+
+def zigzag_phi(amplitude: float = ZIGZAG_AMPLITUDE) -> np.ndarray:
+    """phi (12,) of the joint-limit experiment: head part of Sec. V-A, base yaw joints
+    +-amplitude alternating from theta_4 = +amplitude."""
+    phi = np.array(P.INITIAL_PHI, float)
+    phi[P.N_H :] = amplitude * (-1.0) ** np.arange(P.N_B)
+    return phi
+
+
+def limit_params(**changes) -> C.ControlParams:
+    """Controller settings of Sec. V-B: K_V of the paper, Delta T = 1 s, fixing state
+    (sigma = 1) until the operator's command at t = 2 s, no automatic switching."""
+    base = dict(switch_at=SWITCH_AT, enter_ratio=2.0, delta_t=1.0)
+    base.update(changes)
+    return C.paper_params(**base)
+
+
+def limit_setup(amplitude: Array = ZIGZAG_AMPLITUDE, dtype=None) -> tuple[S.SnakeState, S.Target]:
+    """(initial state, target) of the joint-limit experiment (gripper tip held, psi_3
+    -> 110 deg); `amplitude` may be traced."""
+    dtype = dtype or jnp.result_type(float)
+    signs = jnp.asarray((-1.0) ** np.arange(P.N_B), dtype)
+    phi = jnp.asarray(P.INITIAL_PHI, dtype).at[P.N_H :].set(jnp.asarray(amplitude, dtype) * signs)
+    x0 = S.initial_state(phi)
+    return x0, S.hold_target(x0, point="tip", psi3=jnp.asarray(P.SCP_TARGET, dtype))
+
+
+def accuracy_setup(dtype=None) -> tuple[S.SnakeState, S.Target]:
+    """(initial state, target batch of 6) of Sec. V-A: head controlled, target ramps."""
+    dtype = dtype or jnp.result_type(float)
+    x0 = S.initial_state(jnp.asarray(P.INITIAL_PHI, dtype))
+    w0 = C.controlled_variable(S.point_pose(x0, point="head"), x0.phi)
+    delta = jnp.zeros((6, 7), dtype).at[jnp.arange(6), jnp.arange(6)].set(jnp.asarray(ACCURACY_DELTAS, dtype))
+    targets = S.Target(
+        jnp.broadcast_to(w0, (6, 7)),
+        delta,
+        jnp.full(6, T_START, dtype),
+        jnp.full(6, RAMP, dtype),
+    )
+    return x0, targets
+
+
+def relative_displacement(t: np.ndarray, w: np.ndarray, t_end: float) -> np.ndarray:
+    """Table III's Delta w_h: mean of w over [t_end + 4, t_end + 5] minus the mean over
+    [0, 1] (t (n,), w (n, 6), last axis; angles unwrapped first)."""
+    t, w = np.asarray(t), np.asarray(w, float).copy()
+    w[..., 3:] = np.unwrap(w[..., 3:], axis=-2)
+    late = (t >= t_end + 4.0 - 1e-9) & (t <= t_end + 5.0 + 1e-9)
+    early = t <= 1.0 + 1e-9
+    return w[..., late, :].mean(-2) - w[..., early, :].mean(-2)
+
+
+def accuracy_errors(displacements: np.ndarray) -> np.ndarray:
+    """Errors [%] of the six experiments' changed components (6 x 6 displacements)."""
+    changed = np.diagonal(np.asarray(displacements))
+    return 100.0 * np.abs(changed - ACCURACY_DELTAS) / np.abs(ACCURACY_DELTAS)
+
+
+def run_accuracy_kinematic(dt: float = 0.02, feedback: bool = False) -> dict[str, np.ndarray]:
+    """Table III in the kinematic simulation: displacements (6, 6) and errors (6,) [%]."""
+    x0, targets = accuracy_setup()
+    steps = int(round(ACCURACY_HORIZON / dt)) + 1
+    config = S.RolloutConfig(steps=steps, dt=dt, point="head", feedback=feedback)
+    cp = C.ControlParams(enter_ratio=2.0)  # fixing state throughout
+    recs = jax.jit(jax.vmap(lambda tg: S.rollout(x0, tg, cp, config)))(targets)
+    disp = relative_displacement(np.asarray(recs["t"][0]), np.asarray(recs["w"]), T_START + RAMP)
+    return {"displacement": disp, "error": accuracy_errors(disp), "records": recs}
+
+
+# ------------------------------------------------------------------------- metrics
+def base_limit_ratio(phi: Array) -> Array:
+    """max over the base yaw joints theta_4..theta_9 of |theta| / limit (phi (..., 12))."""
+    return jnp.max(jnp.abs(phi[..., P.N_H :]) / P.YAW_LIMIT, axis=-1)
+
+
+def limit_metrics(recs: dict[str, Array], recover_ratio: Array = 0.7, near_ratio: Array = 0.95) -> dict[str, Array]:
+    """Scalar metrics of one joint-limit rollout (records of `kinsim.rollout` or of the
+    MuJoCo scenario with the same keys): recovery_time [s] (first t with every base
+    joint below recover_ratio of its limit; the horizon if never), recovered, V0,
+    final_V, max_pos_error [m], max_att_error [rad] (norms of the controlled point's
+    position / roll-pitch-yaw errors), min_margin [m], time_near_limit [s] (time with
+    some base joint at >= near_ratio of its limit)."""
+    t = recs["t"]
+    dt = t[1] - t[0]
+    ratio = base_limit_ratio(recs["phi"])
+    below = ratio <= recover_ratio
+    recovered = jnp.any(below)
+    t_rec = jnp.where(recovered, t[jnp.argmax(below)], t[-1] + dt)
+    pos = jnp.linalg.norm(recs["error"][:, :3], axis=-1)
+    att = jnp.linalg.norm(recs["error"][:, 3:6], axis=-1)
+    near = ratio >= near_ratio
+    return {
+        "recovery_time": t_rec,
+        "recovered": recovered,
+        "V0": recs["V"][0],
+        "final_V": recs["V"][-1],
+        "max_pos_error": jnp.max(pos),
+        "max_att_error": jnp.max(att),
+        "min_margin": jnp.min(recs["margin"]),
+        "time_near_limit": jnp.sum(near) * dt,
+    }
+
+
+def release_times(t: np.ndarray, phi: np.ndarray, ratio: float = 0.7) -> np.ndarray:
+    """Per base joint theta_4..theta_9: the first time |theta| <= ratio * limit and
+    stays so to the end (nan if never): the order in which the joints leave the limits."""
+    t = np.asarray(t)
+    inside = np.abs(np.asarray(phi)[:, P.N_H :]) <= ratio * P.YAW_LIMIT
+    out = np.full(P.N_B, np.nan)
+    for j in range(P.N_B):
+        bad = np.flatnonzero(~inside[:, j])
+        first = 0 if bad.size == 0 else bad[-1] + 1
+        if first < t.size:
+            out[j] = t[first]
+    return out

@@ -1,0 +1,210 @@
+"""Pure-JAX kinematic simulation of T² Snake-3 under the task-space controller
+(`control`): the wheels do not skid, the base part stays flat on the ground z = 0 and
+the joints follow their commanded speeds up to the servos' limits. jit, vmap (over
+gains, targets, initial postures) and grad (for tuning) work on `rollout`.
+
+The plant. State: the planar pose [x, y, heading] of the first base link (link 7,
+`kinematics.base_of`), phi (12) and the wheel angles rho (7). Per control period dt
+(explicit Euler):
+  * the applied input is the command clipped to the servo speeds (`PlantParams`:
+    MX-106R joints 4.7 rad/s = 45 rpm no load, MX-28AR wheels 6 rad/s as the MJCF),
+  * w_dot is the least-squares solution of the mode's constraints A_sigma w_dot =
+    B_sigma u (Eq. 7): exact when u satisfies them (the controller's u does, Eqs.
+    13-14), the best no-skid fit when clipping made it inconsistent,
+  * the base pose moves with d(base)/d(w, phi) (w_dot, phi_dot), so the base can never
+    leave the plane by integration drift, and phi stops at its limits (Table I).
+
+Controller variants (Sec. IV-C2, V-A): feedforward (the paper's experiments): the
+controller integrates its own commanded u on a copy of the same model and never reads
+the plant; feedback: it reads the plant's w and phi (Fig. 7(b), "measured by the motion
+capture system"). Both are exact copies of each other until the servos saturate or a
+joint reaches its limit; the MuJoCo scenario (`scenarios`) adds the real errors.
+
+Targets: w~_d(t) = w~_0 + delta s(t) with a smooth step s from `t0` over `duration`
+(zero speed at both ends), the paper's "target value begins to change at t = 1".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+
+from jaxloco import linalg
+from jaxloco.robots.snake import control as C
+from jaxloco.robots.snake import kinematics as K
+from jaxloco.robots.snake import params as P
+
+Array = jax.Array
+JOINT_SPEED_MAX = 4.7  # [rad/s] Dynamixel MX-106R, 45 rpm at 12 V
+WHEEL_SPEED_MAX = 6.0  # [rad/s] MX-28AR (55 rpm), as `model.WHEEL_SPEED`
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class Target:
+    """w~_d(t) = w0 + delta * s((t - t0) / duration), s a smooth step 0 -> 1."""
+
+    w0: Array  # (7,) [w (6), psi_3]
+    delta: Array  # (7,)
+    t0: Array = 1.0  # [s]
+    duration: Array = 4.0  # [s]
+
+    def at(self, t: Array) -> tuple[Array, Array]:
+        """(w~_d (7,), w~_d_dot (7,)) at time t."""
+        tau = jnp.clip((t - self.t0) / self.duration, 0.0, 1.0)
+        s = tau - jnp.sin(2 * jnp.pi * tau) / (2 * jnp.pi)
+        inside = (t > self.t0) & (t < self.t0 + self.duration)
+        s_dot = jnp.where(inside, (1.0 - jnp.cos(2 * jnp.pi * tau)) / self.duration, 0.0)
+        return self.w0 + self.delta * s, self.delta * s_dot
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class PlantParams:
+    """Servo limits of the kinematic plant."""
+
+    joint_speed_max: Array = JOINT_SPEED_MAX  # [rad/s]
+    wheel_speed_max: Array = WHEEL_SPEED_MAX  # [rad/s]
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class SnakeState:
+    """Kinematic state: base = [x, y, heading] of link 7 (m, rad), phi (12,), rho (7,)."""
+
+    base: Array
+    phi: Array
+    rho: Array
+
+
+def initial_state(phi: Array, base: Array | None = None) -> SnakeState:
+    phi = jnp.asarray(phi)
+    base = jnp.zeros(3, phi.dtype) if base is None else jnp.asarray(base, phi.dtype)
+    return SnakeState(base, phi, jnp.zeros(P.N_W, phi.dtype))
+
+
+def head_pose(state: SnakeState, params=None) -> Array:
+    """w_h (6,) of a state (base flat on the ground)."""
+    return K.base_frame_pose(state.base, state.phi, params=params)
+
+
+def point_pose(state: SnakeState, params=None, point: str = "tip") -> Array:
+    """Pose w (6,) of the controlled point ("tip" or "head")."""
+    return K.head_to_point(head_pose(state, params), point, params)
+
+
+def integrate(
+    state: SnakeState, u: Array, matrices: tuple[Array, Array], dt: Array, params=None, point: str = "tip"
+) -> tuple[SnakeState, Array]:
+    """One Euler step of the no-skid model with input u (19,) in the mode whose
+    augmented matrices (A~, B~) (kinematics.augmented_matrices) are given: (next state,
+    w_dot (6,) of the controlled point). Joints stop at their limits."""
+    At, Bt = matrices
+    A, B = At[: K.N_ROWS, :6], Bt[: K.N_ROWS]
+    rhs = B @ u
+    w_dot = linalg.spd_solve(A.T @ A, A.T @ rhs)
+    phi_dot = u[: P.N_PHI]
+    w = point_pose(state, params, point)
+
+    def base_fn(w_, phi_):
+        return K.base_of(K.point_to_head(w_, point, params), phi_, params=params)
+
+    _, base_dot = jax.jvp(base_fn, (w, state.phi), (w_dot, phi_dot))
+    lim = jnp.asarray(C.PHI_LIMITS, state.phi.dtype)
+    phi = jnp.clip(state.phi + dt * phi_dot, -lim, lim)
+    return SnakeState(state.base + dt * base_dot, phi, state.rho + dt * u[P.N_PHI :]), w_dot
+
+
+def saturate(u: Array, plant: PlantParams) -> Array:
+    """The servos' speed limits applied to a command u (19,)."""
+    joint = jnp.clip(u[: P.N_PHI], -plant.joint_speed_max, plant.joint_speed_max)
+    wheel = jnp.clip(u[P.N_PHI :], -plant.wheel_speed_max, plant.wheel_speed_max)
+    return jnp.concatenate([joint, wheel])
+
+
+@dataclass(frozen=True)
+class RolloutConfig:
+    """Static settings of a rollout (they fix the compiled program)."""
+
+    steps: int = 1000  # control periods
+    dt: float = 0.02  # [s] control period
+    point: str = "tip"  # controlled point: "tip" (w) or "head" (w_h, Sec. V-A)
+    feedback: bool = False  # False: the paper's feedforward control (Sec. IV-C2)
+    record_every: int = 1
+
+
+def rollout(
+    x0: SnakeState,
+    target: Target,
+    cp: C.ControlParams,
+    config: RolloutConfig = RolloutConfig(),
+    plant: PlantParams = PlantParams(),
+    params: P.SnakeParams | None = None,
+) -> dict[str, Array]:
+    """Closed loop from x0 for `config.steps` periods: records (n, ...) of
+    t [s], w (6,) and psi3 of the plant, w_h (6,), base (3,), phi (12,), error (7,)
+    (plant w~ - w~_d, angles wrapped), ctrl_error (7,) (what the controller saw), V
+    (the cost at the plant state, Eq. 19/20), sigma, switching, margin (static
+    stability margin of the grounded wheels' support polygon [m]), u (19,) (applied)
+    and limit_ratio (max |phi_i| / limit_i)."""
+    dtype = x0.phi.dtype
+    dt = jnp.asarray(config.dt, dtype)
+    point = config.point
+
+    def aug(state: SnakeState, grounded):
+        w = point_pose(state, params, point)
+        return w, K.augmented_matrices(w, state.phi, grounded, params=params, point=point)
+
+    def step(carry, k):
+        truth, est, mode = carry
+        t = k * dt
+        seen = truth if config.feedback else est
+        mode, sigma = C.update_mode(t, seen.phi, mode, cp)
+        grounded = C.grounded_of(sigma)
+        wd, wd_dot = target.at(t)
+        w_seen, mats_seen = aug(seen, grounded)
+        terms = C.control_terms(w_seen, seen.phi, wd, wd_dot, grounded, cp, params, point, mats_seen)
+        u = saturate(terms.u, plant)
+        if config.feedback:
+            w_true, mats_true = w_seen, mats_seen
+            est_next = est
+        else:
+            w_true, mats_true = aug(truth, grounded)
+            est_next, _ = integrate(est, terms.u, mats_seen, dt, params, point)
+        wt_true = C.controlled_variable(w_true, truth.phi)
+        rec = {
+            "t": t,
+            "w": w_true,
+            "psi3": truth.phi[P.SCP_INDEX],
+            "base": truth.base,
+            "phi": truth.phi,
+            "error": C.task_error(wt_true, wd),
+            "ctrl_error": terms.error,
+            "V": C.cost(w_true, truth.phi, grounded, cp, params, point),
+            "sigma": sigma,
+            "switching": mode.switching,
+            "margin": C.support_distances(K.point_to_head(w_true, point, params), truth.phi, grounded, params)[2],
+            "u": u,
+            "limit_ratio": C.limit_ratio(truth.phi),
+        }
+        truth_next, _ = integrate(truth, u, mats_true, dt, params, point)
+        return (truth_next, est_next, mode), rec
+
+    mode0 = C.initial_mode_state(dtype)
+    ks = jnp.arange(config.steps)
+    _, recs = jax.lax.scan(step, (x0, x0, mode0), ks.astype(dtype))
+    if config.record_every > 1:
+        recs = jax.tree_util.tree_map(lambda r: r[:: config.record_every], recs)
+    return recs
+
+
+def hold_target(x0: SnakeState, params=None, point: str = "tip", psi3: Array | None = None) -> Target:
+    """The target that holds the controlled point where x0 puts it (and psi_3 at
+    `psi3`, default its initial value): the joint-limit experiment's w~_d (Sec. V-B)."""
+    w0 = C.controlled_variable(point_pose(x0, params, point), x0.phi)
+    if psi3 is not None:
+        w0 = w0.at[6].set(psi3)
+    return Target(w0, jnp.zeros_like(w0), jnp.asarray(0.0, w0.dtype), jnp.asarray(1.0, w0.dtype))
+

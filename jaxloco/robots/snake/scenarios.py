@@ -1,0 +1,500 @@
+"""T² Snake-3 in MuJoCo (Tanaka et al., IEEE T-RO 35(1), 2019): the actuator command of a
+control law's output (joint targets, base wheel speeds, mode) with the wheels of the mode
+lifted by the base pitch joints (Sec. II-A), and a flat-ground `jaxloco.sim.Scenario`
+that runs it closed loop (native backend).
+
+Wheel lifting (`lift_angles`). Sec. II-A: "If some of the pitch joints slightly rotate,
+the robot can lift each wheel from the ground"; psi_b = psi_4..psi_8 only lift wheels.
+Design: a height profile h_i along the base, 0 for the grounded pairs and `lift_height`
+for the lifted ones (Table II row = grounded mask of base pairs 1..7). Base pairs 1..6
+are coaxial with psi_3..psi_8, 2 l apart along the base; pair 7 is on the tail link,
+l + TAIL_AXLE = 2 l - r behind psi_8 (segment 6 = links 17, 18, on which pairs 6 and 7
+sit). Straight base: segment i (pair i -> pair i + 1, i = 1..6, length L_i) inclines by
+
+    beta_i = asin((h_{i+1} - h_i) / L_i)      (beta > 0: its rear end higher)
+
+about its axle (link frames R_seg = Rz(heading) Ry(beta)), and since R_rear = R_front
+Ry(psi) (`kinematics`), the pitch angle at pair i + 1 is psi_{3+i} = beta_{i+1} - beta_i
+(i = 1..5): psi > 0 raises the front link, as in `params`. Implemented exactly for any
+base yaw angles theta_4..theta_9 (argument theta_b): walking the chain from link 7 (flat,
+unrolled, on pair 1's axle), the height of the next axle is a sinusoid A cos(psi) + B
+sin(psi) + C of the next pitch angle (the first one being beta_1 of link 7 itself), solved
+in closed form, the root nearest 0 kept; for a straight base this is the asin formula.
+Axle midpoints are the design variables: a wheel's lowest point is r below its axle
+whatever the link's pitch, so a lifted pair of a straight base clears the ground by
+exactly lift_height; `kinematics.wheel_pairs`' link-fixed contact points differ by
+r (1 - cos beta) < 0.6 mm at 20 mm lift. A bent base also rolls the links behind a
+bent yaw joint slightly (axle tilt ~ sin(beta) sin(theta)), which the design ignores:
+at theta = +-0.6 rad the link-fixed contact points of grounded pairs sit up to 0.7 mm
+off the ground (tested).
+
+Head part attitude (`dpsi3`). The first base segment carries pair 1 (psi_3) and the head
+part hangs on psi_3: when it tilts (beta_1 != 0: mode 6 lifts pair 2), the head part
+would pitch with it (R_link6 = R_link7 Ry(-psi_3)). Adding dpsi3 = beta_1 to the psi_3
+servo target keeps R_link6, i.e. the head part's attitude (it turns about the psi_3 axle,
+which stays on the ground: pair 1 is grounded in every mode of Table II).
+
+Actuator command (`actuator_command`): the 17 joint position targets (phi entries,
+psi_b of `lift_angles`, psi_3 + dpsi3), base wheels (model pairs 3..9) at rho_dot
+[rad/s], head wheels (model pairs 1, 2) at rest. Lifted pairs' rho_dot are passed
+through unchanged (the control law's free variables; they spin in the air).
+
+Scenario (`snake_scenario`): the robot (`models/t2snake3.xml`) on flat ground
+(`jaxloco.sim.terrain.flat`, top face z = 0), control period `control_dt`. Terrain
+friction params["mu"] per simulation (`friction_field` on the ground and on the robot's
+geoms: MuJoCo combines the two geoms' frictions by their maximum, and the robot's own
+is 1, so setting only the ground would leave every mu < 1 without effect). Initial
+state: the posture `phi0` with the base on the ground at params["x0"], ["y0"],
+["heading0"] and the wheels of params["mode"] lifted by `lift_angles` (exact: the base
+segments inclined, lifted wheels `lift_height` above the ground, the servos holding it),
+at rest.
+
+Geometry read from the state (qpos, qvel; exact, no Euler-angle singularity): the chain
+of `kinematics.link_frames` relative to the head, put in the world by the free joint's
+position and quaternion. Per wheel pair: the clearance (lowest point of its two wheel
+cylinders above z = 0, the flat ground), contact = clearance < CONTACT_TOL; the lateral
+slip = velocity of the pair's contact point (`kinematics.wheel_pairs`, r below the axle
+midpoint, body-fixed) along the axle (the quantity Eq. 2 sets to zero; the paper blames
+its 34 % y error on the head-end base wheel slipping, Sec. V-A); the rolling slip of the
+active wheel = forward velocity of the wheel's material point at its contact (link
+motion minus r times the measured wheel spin: Eq. 3's residual).
+
+Observation (dict; what a controller sees; `state_geometry` plus time, phi, contact):
+time (), head (6,) w_h = [x, y, z, roll, pitch, yaw] (R = Rz Ry Rx,
+`jaxloco.sim.metrics.quat_to_rpy`), tip (6,) the gripper tip pose w (head attitude),
+base (6,) pose of link 7, joints (17,) theta_1, psi_1, ..., theta_9, joint_vel (17,),
+phi (12,) the measured phi, wheel_speed (9,) active wheels [rad/s], clearance (9,)
+model pairs 1..9 [m], contact (7,) bool base pairs 1..7, slip (9,), roll_slip (9,)
+[m/s] model pairs (unmasked), tilt () [rad]. All from the state after the last
+physics step (qpos, qvel), none from MuJoCo's derived fields.
+
+Records: head (6,), tip (6,), base (6,) pose of link 7 (first base link, on the psi_3
+axle), joints (17,), phi (12,), contact (7,), clearance (9,), slip (7,) [m/s] lateral
+slip of base pairs in contact (0 when lifted), roll_slip (7,) [m/s] rolling slip of base
+active wheels in contact (0 when lifted), and the last command of a `make_controller`
+controller: phi_cmd (12,), rho_dot_cmd (7,), grounded_cmd (7,) (measured phi, zeros and
+the measured contacts before its first step; zeros for other controllers).
+
+Metrics: final_x, final_y, final_z, final_roll, final_pitch, final_yaw (head, last
+record), max_slip (largest |lateral slip| of a grounded pair), max_roll_slip, min_contacts
+(fewest base pairs in contact in a record), max_tilt (largest angle of link 7's z from the
+vertical; it includes the designed inclination beta_1, 0.11 rad in mode 6), fell
+(max_tilt > params["fall_tilt"]), status (0 ok, 1 fell).
+
+Params (`PARAM_DEFAULTS`, `params_batch`): mu, lift_height [m], mode (int 1..6, the
+initial mode: lifted wheels at t = 0, and the mode of `constant_controller`), rho_dot
+[rad/s] (`constant_controller`'s base wheel speed), x0, y0 [m], heading0 [rad] (initial
+base placement), fall_tilt [rad]; a controller's own keys are added with
+`params_batch(..., defaults=...)`.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+from jaxloco import geometry as geo
+from jaxloco.robots.snake import kinematics as K
+from jaxloco.robots.snake import model as snake_model
+from jaxloco.robots.snake import params as P
+from jaxloco.sim import metrics as sm
+from jaxloco.sim import terrain as tr
+from jaxloco.sim.data import SimData
+from jaxloco.sim.scenario import Controller, InitialState, Scenario, friction_field
+from jaxloco.sim.scenario import params_batch as sim_params_batch
+
+Array = jax.Array
+Policy = Callable[[Mapping[str, Any], Any, Any], tuple[Any, Array, Array, Array]]
+
+LIFT_HEIGHT = 0.02  # [m] default lift of a wheel pair (wheel lowest point above ground)
+CONTACT_TOL = 0.002  # [m] a wheel pair touches when its clearance is below this
+CONTROL_DT = 0.02  # [s] default control period (50 Hz)
+STATUSES = ("ok", "fell")
+
+PARAM_DEFAULTS: dict[str, float] = {
+    "mu": 1.0,  # ground friction
+    "lift_height": LIFT_HEIGHT,  # [m]
+    "mode": 1,  # Table II mode at t = 0 (and of constant_controller)
+    "rho_dot": 0.0,  # [rad/s] constant_controller's base wheel speed
+    "x0": 0.0,  # [m] initial base placement: psi_3 axle (x, y) ...
+    "y0": 0.0,  # [m]
+    "heading0": 0.0,  # [rad] ... and heading of link 7
+    "fall_tilt": 0.5,  # [rad] link 7 tilted more than this: fell
+}
+INT_KEYS = ("mode",)
+
+_PAIR_LINK = np.asarray(P.PAIR_LINKS) - 1  # 0-based link of each of the 9 pairs
+_BASE_LINK = _PAIR_LINK[P.BASE_PAIRS[0]]  # link 7 (0-based 6)
+
+
+# ----------------------------------------------------------------------- wheel lifting
+def _wrap(x: Array) -> Array:
+    return jnp.arctan2(jnp.sin(x), jnp.cos(x))
+
+
+def lift_angles(
+    grounded: Array,
+    lift_height: Array,
+    theta_b: Array | None = None,
+    params: P.SnakeParams | None = None,
+) -> tuple[Array, Array]:
+    """Base pitch angles psi_b = psi_4..psi_8 (5,) [rad] that put the axle midpoints of
+    base pairs 1..7 at heights r + (0 if grounded else lift_height) above the plane of
+    pair 1's axle with link 7 unrolled, and dpsi3 () [rad] = beta_1, the correction to
+    add to the psi_3 target so that the head part keeps its attitude (module docstring).
+
+    grounded (7,) bool: a row of `params.MODES` (data: jit / vmap over modes);
+    lift_height [m]; theta_b (6,) the base yaw angles theta_4..theta_9 (phi[6:]; default
+    0, a straight base). Each pitch angle is the exact solution of its axle-height
+    equation (a sinusoid in the angle) along the chain, so a bent base lifts the pairs by
+    exactly the same heights; the solution nearest 0 is taken.
+    """
+    params = P.default_params() if params is None else params
+    dtype = jnp.result_type(lift_height, float) if theta_b is None else jnp.result_type(lift_height, theta_b, float)
+    grounded = jnp.asarray(grounded, bool)
+    h = jnp.where(grounded, 0.0, jnp.asarray(lift_height, dtype))  # (7,)
+    theta = jnp.zeros(P.N_B, dtype) if theta_b is None else jnp.asarray(theta_b, dtype)
+    l = jnp.asarray(params.link_length, dtype)
+    rear = jnp.concatenate([jnp.full(P.N_B - 1, l), jnp.asarray(params.tail_axle, dtype)[None]])
+    R = jnp.eye(3, dtype=dtype)  # frame of the link in front of the current pitch joint
+    angles = []
+    for i in range(P.N_B):  # segment i: pair i + 1 -> pair i + 2 (0-based i)
+        # axle-to-axle vector in the frame behind the pitch joint (before its rotation)
+        u = jnp.stack([-l, 0.0 * l, 0.0 * l]) + geo.rot_z(-theta[i]) @ jnp.stack([-rear[i], 0.0 * l, 0.0 * l])
+        g = R[2]  # world z in the current frame: height change = g . Ry(psi) u
+        A = g[0] * u[0] + g[2] * u[2]
+        B = g[0] * u[2] - g[2] * u[0]
+        C = g[1] * u[1]
+        amp = jnp.sqrt(A * A + B * B)
+        ang = jnp.arctan2(B, A)
+        c = jnp.arccos(jnp.clip((h[i + 1] - h[i] - C) / amp, -1.0, 1.0))
+        psi_m, psi_p = _wrap(ang - c), _wrap(ang + c)
+        psi = jnp.where(jnp.abs(psi_m) <= jnp.abs(psi_p), psi_m, psi_p)
+        angles.append(psi)
+        R = R @ geo.rot_y(psi) @ geo.rot_z(-theta[i])  # the next segment's rear link
+    beta = jnp.stack(angles)  # beta_1 (link 7's inclination), then psi_4 .. psi_8
+    return beta[1:], beta[0]
+
+
+@functools.cache
+def _actuator_ids() -> tuple[np.ndarray, np.ndarray]:
+    """Actuator indices of the 17 joint servos (JOINT_NAMES order) and of the 9 wheel
+    velocity servos (model pairs 1..9), from the model file."""
+    m = snake_model.load_model()
+    joints = np.array([m.actuator(n).id for n in P.JOINT_NAMES])
+    wheels = np.array([m.actuator(n).id for n in snake_model.WHEEL_NAMES])
+    return joints, wheels
+
+
+def joint_targets(
+    phi_target: Array, grounded: Array, lift_height: Array, params: P.SnakeParams | None = None
+) -> Array:
+    """The 17 joint position targets (theta_1, psi_1, ..., theta_9): phi_target with
+    psi_b of `lift_angles` (the base yaw angles of phi_target) and psi_3 + dpsi3."""
+    phi_target = jnp.asarray(phi_target)
+    psi_b, dpsi3 = lift_angles(grounded, lift_height, phi_target[P.N_H:], params)
+    dtype = jnp.result_type(phi_target, psi_b)
+    phi = phi_target.astype(dtype).at[P.SCP_INDEX].add(dpsi3.astype(dtype))
+    return K.full_joint_angles(phi, psi_b.astype(dtype))
+
+
+def actuator_command(
+    phi_target: Array,
+    rho_dot: Array,
+    grounded: Array,
+    lift_height: Array,
+    params: P.SnakeParams | None = None,
+) -> Array:
+    """ctrl (nu = 26,) of the model: joint servo targets (`joint_targets`), base wheels
+    (model pairs 3..9) at rho_dot (7,) [rad/s], head wheels (pairs 1, 2) at 0.
+
+    phi_target (12,) [rad]; grounded (7,) bool (the mode); lift_height [m]."""
+    joint_ids, wheel_ids = _actuator_ids()
+    q = joint_targets(phi_target, grounded, lift_height, params)
+    wheels = jnp.zeros(P.N_PAIRS, q.dtype).at[P.BASE_PAIRS].set(jnp.asarray(rho_dot, q.dtype))
+    nu = len(joint_ids) + len(wheel_ids)
+    return jnp.zeros(nu, q.dtype).at[joint_ids].set(q).at[wheel_ids].set(wheels)
+
+
+# --------------------------------------------------------------------- initial placement
+def _axis_quat(axis: int, angle: Array) -> Array:
+    half = 0.5 * jnp.asarray(angle)
+    q = jnp.zeros((4,), half.dtype).at[0].set(jnp.cos(half))
+    return q.at[axis + 1].set(jnp.sin(half))
+
+
+def _quat_conj(q: Array) -> Array:
+    return q * jnp.asarray([1.0, -1.0, -1.0, -1.0], q.dtype)
+
+
+def placed_head_pose(
+    base: Array,
+    joints: Array,
+    grounded: Array,
+    lift_height: Array,
+    params: P.SnakeParams | None = None,
+) -> tuple[Array, Array]:
+    """Head position (3,) and quaternion (4,) (free joint qpos) that put the base on the
+    ground for joint angles `joints` (17,) designed by `joint_targets`: link 7's origin
+    (the psi_3 axle) at (base[0], base[1], r + h_1), link 7 oriented Rz(base[2])
+    Ry(beta_1) (its segment's inclination of `lift_angles`)."""
+    params = P.default_params() if params is None else params
+    joints = jnp.asarray(joints)
+    dtype = joints.dtype
+    base = jnp.asarray(base, dtype)
+    grounded = jnp.asarray(grounded, bool)
+    _, beta1 = lift_angles(grounded, lift_height, joints[P.N_H + 2 * np.arange(P.N_B)], params)
+    h1 = jnp.where(grounded[0], 0.0, jnp.asarray(lift_height, dtype))
+    Rs, ps = K.link_frames(jnp.zeros(6, dtype), joints, params)
+    # link 7 relative to the head: the product of the joint rotations before it
+    q_rel = jnp.asarray([1.0, 0.0, 0.0, 0.0], dtype)
+    for k in range(_BASE_LINK):
+        qk = _axis_quat(1, joints[k]) if P.JOINT_IS_PITCH[k] else _axis_quat(2, -joints[k])
+        q_rel = tr.quat_mul(q_rel, qk)
+    q7 = tr.quat_mul(tr.quat_z(base[2]), _axis_quat(1, beta1.astype(dtype)))
+    quat = tr.quat_mul(q7, _quat_conj(q_rel))
+    quat = quat / jnp.linalg.norm(quat)
+    p7 = jnp.stack([base[0], base[1], jnp.asarray(params.wheel_radius, dtype) + h1])
+    pos = p7 - tr.quat_to_matrix(quat) @ ps[_BASE_LINK]
+    return pos, quat
+
+
+# ------------------------------------------------------------------- state geometry
+@functools.cache
+def _layout() -> dict[str, np.ndarray]:
+    m = snake_model.load_model()
+    return {
+        "joint_qpos": np.array([m.joint(n).qposadr[0] for n in P.JOINT_NAMES]),
+        "joint_dof": np.array([m.joint(n).dofadr[0] for n in P.JOINT_NAMES]),
+        "wheel_dof": np.array([m.joint(f"{n}_active").dofadr[0] for n in snake_model.WHEEL_NAMES]),
+    }
+
+
+def state_geometry(qpos: Array, qvel: Array, params: P.SnakeParams | None = None) -> dict[str, Array]:
+    """What the scenario reads from one simulation's state (see the module docstring):
+    head, tip, base (6,) poses, joints, joint_vel (17,), wheel_speed (9,), clearance
+    (9,), slip (9,) lateral slip of each pair's contact point, roll_slip (9,) rolling slip
+    of each active wheel, tilt () of link 7 [rad]."""
+    params = P.default_params() if params is None else params
+    lay = _layout()
+    qpos, qvel = jnp.asarray(qpos), jnp.asarray(qvel)
+    dtype = qpos.dtype
+    p_h, quat = qpos[:3], qpos[3:7] / jnp.linalg.norm(qpos[3:7])
+    R_h = tr.quat_to_matrix(quat)
+    v_h, w_b = qvel[:3], qvel[3:6]  # free joint: world linear, body angular velocity
+    joints, jvel = qpos[lay["joint_qpos"]], qvel[lay["joint_dof"]]
+    spin = qvel[lay["wheel_dof"]]
+    zero = jnp.zeros(6, dtype)
+    d = jnp.asarray(P.ACTIVE_SIDE * params.wheel_y, dtype)
+
+    def rel(q):  # in the head frame: pair contact points, active wheels' contacts, axes
+        axle, contact, R = K.wheel_pairs(zero, q, params)
+        return contact, contact + d * R[:, :, 1], axle, R
+
+    (c_rel, a_rel, axle_rel, R_rel), (dc, da, _, _) = jax.jvp(rel, (joints,), (jvel,))
+
+    def world_vel(point, dpoint):
+        return v_h + (jnp.cross(w_b, point) + dpoint) @ R_h.T
+
+    R_pair = jnp.einsum("ij,pjk->pik", R_h, R_rel)  # (9, 3, 3)
+    x_ax, y_ax = R_pair[:, :, 0], R_pair[:, :, 1]
+    slip = jnp.sum(world_vel(c_rel, dc) * y_ax, -1)
+    roll_slip = jnp.sum(world_vel(a_rel, da) * x_ax, -1) - params.wheel_radius * spin
+    # clearance: lowest point of each wheel cylinder (radius r, half width hw, axle y)
+    axle = p_h + axle_rel @ R_h.T
+    a_z = y_ax[:, 2]
+    drop = params.wheel_radius * jnp.sqrt(jnp.clip(1.0 - a_z**2, 0.0, 1.0)) + P.WHEEL_HALF_WIDTH * jnp.abs(a_z)
+    centre_z = axle[:, 2][:, None] + params.wheel_y * jnp.stack([a_z, -a_z], -1)
+    clearance = jnp.min(centre_z, -1) - drop
+    Rs, ps = K.link_frames(zero, joints, params)
+    R7, p7 = R_h @ Rs[_BASE_LINK], p_h + R_h @ ps[_BASE_LINK]
+    rpy = sm.quat_to_rpy(quat)
+    head = jnp.concatenate([p_h, rpy])
+    tip = jnp.concatenate([p_h + params.gripper_tip * R_h[:, 0], rpy])
+    return {
+        "head": head,
+        "tip": tip,
+        "base": jnp.concatenate([p7, geo.matrix_to_rpy(R7)]),
+        "joints": joints,
+        "joint_vel": jvel,
+        "wheel_speed": spin,
+        "clearance": clearance,
+        "slip": slip,
+        "roll_slip": roll_slip,
+        "tilt": jnp.arccos(jnp.clip(R7[2, 2], -1.0, 1.0)),
+    }
+
+
+# ----------------------------------------------------------------------- controllers
+def make_controller(init: Callable[[Mapping[str, Any], Any], Any], policy: Policy, name: str = "snake") -> Controller:
+    """A `Controller` from a policy that outputs the control law's quantities:
+    init(params, obs) -> state, policy(params, state, obs) -> (state, phi_target (12,),
+    rho_dot (7,) [rad/s], grounded (7,) bool). The action is `actuator_command` with
+    params["lift_height"]. The controller's state is a dict: "policy" (the policy's
+    state) and the last command "phi_target", "rho_dot", "grounded" (recorded by the
+    scenario)."""
+
+    def c_init(p, obs):
+        dtype = obs["phi"].dtype
+        return {
+            "policy": init(p, obs),
+            "phi_target": obs["phi"],
+            "rho_dot": jnp.zeros(P.N_W, dtype),
+            "grounded": obs["contact"],
+        }
+
+    def c_step(p, state, obs):
+        s, phi_t, rho, grounded = policy(p, state["policy"], obs)
+        dtype = obs["phi"].dtype
+        phi_t = jnp.asarray(phi_t, dtype)
+        rho = jnp.asarray(rho, dtype)
+        grounded = jnp.asarray(grounded, bool)
+        ctrl = actuator_command(phi_t, rho, grounded, jnp.asarray(p["lift_height"], dtype))
+        return {"policy": s, "phi_target": phi_t, "rho_dot": rho, "grounded": grounded}, ctrl
+
+    return Controller(init=c_init, step=c_step, name=name)
+
+
+def mode_mask(mode: Array) -> Array:
+    """Grounded mask (7,) of Table II mode `mode` (1..6, traced ok)."""
+    return jnp.asarray(P.MODES)[jnp.clip(jnp.asarray(mode) - 1, 0, P.N_MODES - 1)]
+
+
+def constant_controller(phi: np.ndarray | None = None) -> Controller:
+    """Holds phi (default params.INITIAL_PHI), every base wheel at params["rho_dot"], mode
+    params["mode"] (for holding / driving tests and benchmarks)."""
+    phi = np.asarray(P.INITIAL_PHI if phi is None else phi, float)
+
+    def policy(p, s, obs):
+        dtype = obs["phi"].dtype
+        rho = jnp.full(P.N_W, jnp.asarray(p["rho_dot"], dtype))
+        return s, jnp.asarray(phi, dtype), rho, mode_mask(p["mode"])
+
+    return make_controller(lambda p, obs: jnp.zeros(()), policy, name="constant")
+
+
+# --------------------------------------------------------------------------- scenario
+def build_model() -> tuple[mujoco.MjModel, tr.Terrain]:
+    """The robot (`models/t2snake3.xml`) on flat ground (top face z = 0)."""
+    spec = snake_model.load_spec()
+    terrain = tr.flat(half_extent=10.0, half_depth=0.5)
+    terrain.add_to(spec, friction=(PARAM_DEFAULTS["mu"], 0.005, 0.0001))
+    return spec.compile(), terrain
+
+
+def snake_scenario(
+    horizon_s: float = 5.0,
+    control_dt: float = CONTROL_DT,
+    controller: Controller | None = None,
+    phi0: np.ndarray | None = None,
+    record_every: int = 1,
+) -> Scenario:
+    """T² Snake-3 on flat ground for `horizon_s` seconds at the control period
+    `control_dt` [s] (a multiple of the 2 ms physics step), recording every
+    `record_every` control periods, driven by `controller` (default
+    `constant_controller(phi0)`), starting in the posture phi0 (12,) (default
+    params.INITIAL_PHI, Sec. V-A) with the wheels of params["mode"] lifted."""
+    m, terrain = build_model()
+    phi0 = np.asarray(P.INITIAL_PHI if phi0 is None else phi0, float)
+    controller = controller or constant_controller(phi0)
+    substeps = max(1, round(control_dt / m.opt.timestep))
+    ctrl_dt = substeps * m.opt.timestep
+    horizon = max(record_every, round(horizon_s / ctrl_dt))
+    horizon -= horizon % record_every
+    rows = tr.mocap_ids(m, terrain)
+    ground = np.array([m.geom(n).id for n in terrain.body_names()])
+    robot = np.array([g for g in range(m.ngeom) if m.geom_contype[g] == snake_model.ROBOT_CONTYPE])
+    lay = _layout()  # of the robot-only model: the ground (a mocap body) adds no joints
+    assert all(m.joint(n).qposadr[0] == a for n, a in zip(P.JOINT_NAMES, lay["joint_qpos"], strict=True))
+    assert all(m.actuator(n).id == a for n, a in zip(P.JOINT_NAMES, _actuator_ids()[0], strict=True))
+    wheel_qpos = np.array([m.joint(f"wheel{i + 1}_{s}").qposadr[0] for i in range(P.N_PAIRS)
+                           for s in ("active", "passive")])
+    sp = P.default_params()
+    base_pairs = np.asarray(P.BASE_PAIRS)
+
+    def initial_state(p, key):
+        dtype = jnp.result_type(p["lift_height"], float)
+        pos, quat = terrain.place({"height": 0.0 * p["lift_height"]})
+        full_pos = jnp.zeros((m.nmocap, 3), dtype).at[rows].set(pos)
+        full_quat = jnp.zeros((m.nmocap, 4), dtype).at[rows].set(quat)
+        grounded = mode_mask(p["mode"])
+        lift = jnp.asarray(p["lift_height"], dtype)
+        ctrl = actuator_command(jnp.asarray(phi0, dtype), jnp.zeros(P.N_W, dtype), grounded, lift)
+        joints = joint_targets(jnp.asarray(phi0, dtype), grounded, lift)
+        base = jnp.stack([p["x0"], p["y0"], p["heading0"]]).astype(dtype)
+        p_h, q_h = placed_head_pose(base, joints, grounded, lift, sp)
+        qpos = jnp.asarray(m.qpos0, dtype).at[:3].set(p_h).at[3:7].set(q_h)
+        qpos = qpos.at[lay["joint_qpos"]].set(joints).at[wheel_qpos].set(0.0)
+        return InitialState(qpos=qpos, qvel=jnp.zeros(m.nv, dtype), ctrl=ctrl, mocap_pos=full_pos,
+                            mocap_quat=full_quat)
+
+    def observe(data: SimData):
+        g = state_geometry(data.qpos, data.qvel, sp)
+        contact = g["clearance"][base_pairs] < CONTACT_TOL
+        return {"time": data.time, "phi": g["joints"][P.PHI_JOINTS], "contact": contact, **g}
+
+    def record(p, data: SimData, obs, c, e):
+        g = obs
+        contact = obs["contact"]
+        dtype = obs["phi"].dtype
+        if isinstance(c, dict) and "phi_target" in c:
+            cmd = (c["phi_target"], c["rho_dot"], c["grounded"])
+        else:
+            cmd = (jnp.zeros(P.N_PHI, dtype), jnp.zeros(P.N_W, dtype), jnp.zeros(P.N_W, bool))
+        return {
+            "head": obs["head"],
+            "tip": obs["tip"],
+            "base": g["base"],
+            "joints": obs["joints"],
+            "phi": obs["phi"],
+            "contact": contact,
+            "clearance": obs["clearance"],
+            "slip": jnp.where(contact, g["slip"][base_pairs], 0.0),
+            "roll_slip": jnp.where(contact, g["roll_slip"][base_pairs], 0.0),
+            "tilt": g["tilt"],
+            "phi_cmd": cmd[0],
+            "rho_dot_cmd": cmd[1],
+            "grounded_cmd": cmd[2],
+        }
+
+    def summarize(p, r, final):
+        head = r["head"][-1]
+        max_tilt = jnp.max(r["tilt"])
+        fell = max_tilt > p["fall_tilt"]
+        names = ("final_x", "final_y", "final_z", "final_roll", "final_pitch", "final_yaw")
+        return {
+            **{k: head[i] for i, k in enumerate(names)},
+            "max_slip": jnp.max(jnp.abs(r["slip"])),
+            "max_roll_slip": jnp.max(jnp.abs(r["roll_slip"])),
+            "min_contacts": jnp.min(jnp.sum(r["contact"], -1)),
+            "max_tilt": max_tilt,
+            "fell": fell,
+            "status": jnp.where(fell, 1, 0),
+        }
+
+    return Scenario(
+        name="snake.flat",
+        model=m,
+        controller=controller,
+        initial_state=initial_state,
+        observe=observe,
+        record=record,
+        summarize=summarize,
+        horizon=horizon,
+        substeps=substeps,
+        record_every=record_every,
+        model_fields=(friction_field(np.concatenate([ground, robot])),),
+        statuses=STATUSES,
+    )
+
+
+def params_batch(n: int = 1, defaults: Mapping[str, float] | None = None, **overrides) -> dict[str, jax.Array]:
+    """A batch of n parameter dicts: PARAM_DEFAULTS (plus a controller's `defaults`) with
+    `overrides` (scalars or arrays of length n); "mode" is int."""
+    return sim_params_batch({**PARAM_DEFAULTS, **(defaults or {})}, n, overrides, int_keys=INT_KEYS)

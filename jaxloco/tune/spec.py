@@ -1,0 +1,191 @@
+"""Tune specs: a TOML file (or a dict) -> a validated, resolved `TuneSpec`.
+
+Structure is checked with pydantic (the sweep spec's models and messages), meaning
+against the objective registry. Every user mistake raises `SpecError` with one line:
+`<source>: <key>: <problem>`.
+
+Spec format::
+
+    [tune]
+    objective = "snake.kv"         # required (see `jaxloco objectives`)
+    name = "..."                   # default: file stem ("tune" for a dict)
+    output = "results/..."         # default: results/<name>, relative to the working directory
+    optimizer = "adam"             # adam, sgd or adamw (optax)
+    learning_rate = 0.05           # > 0, in the optimised (unconstrained) coordinates
+    steps = 100                    # optimizer updates, >= 1
+    params = ["a", "b"]            # the tunables to optimise (the others stay at [init])
+    clip_norm = 1.0                # optional: clip the gradient's global norm
+    formats = ["parquet", "csv"]   # parquet is always written; drop "csv" to skip the CSVs
+
+    [init]                         # starting values of tunables (default: their defaults);
+                                   # a tunable not in params keeps this value throughout
+    [settings]                     # the objective's fixed settings (default: their defaults)
+"""
+
+from __future__ import annotations
+
+import os
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BeforeValidator, Field
+
+from jaxloco.analysis import SpecError
+from jaxloco.sweep.spec import _plain
+from jaxloco.sweep.spec_model import NonEmptyStr, _Strict, error, validate
+from jaxloco.tune import objective as registry
+from jaxloco.tune.objective import Objective
+
+OPTIMIZERS = ("adam", "sgd", "adamw")
+MAX_STEPS = 10_000_000
+
+
+def _fspath(v: Any) -> Any:
+    return os.fspath(v) if isinstance(v, os.PathLike) else v
+
+
+class TuneSection(_Strict):
+    objective: NonEmptyStr
+    name: NonEmptyStr | None = None
+    output: Annotated[NonEmptyStr, BeforeValidator(_fspath)] | None = None
+    optimizer: Literal["adam", "sgd", "adamw"] = "adam"
+    learning_rate: float = Field(0.05, gt=0)
+    steps: int = Field(100, ge=1, le=MAX_STEPS)
+    params: list[NonEmptyStr]
+    clip_norm: float | None = Field(None, gt=0)
+    formats: list[Literal["parquet", "csv"]] = ["parquet", "csv"]
+
+
+class TuneDoc(_Strict):
+    tune: TuneSection
+    init: dict[str, Any] = {}
+    settings: dict[str, Any] = {}
+
+
+@dataclass(frozen=True, eq=False)
+class TuneSpec:
+    """A validated tuning run. `init` holds every tunable's starting value and `settings`
+    every setting, in the objective's order, already checked."""
+
+    objective: Objective
+    name: str
+    output: Path
+    optimizer: str
+    learning_rate: float
+    steps: int
+    params: tuple[str, ...]
+    clip_norm: float | None
+    init: Mapping[str, float]
+    settings: Mapping[str, Any]
+    formats: tuple[str, ...]
+    source: str
+
+    def content(self) -> dict[str, Any]:
+        """What decides the run (recorded in the output files' metadata)."""
+        return {
+            "objective": self.objective.name,
+            "optimizer": self.optimizer,
+            "learning_rate": self.learning_rate,
+            "steps": self.steps,
+            "params": list(self.params),
+            "clip_norm": self.clip_norm,
+            "init": dict(self.init),
+            "settings": {k: v if isinstance(v, (str, int, float, bool)) else repr(v) for k, v in self.settings.items()},
+        }
+
+    def with_options(self, *, output: str | Path | None = None, steps: int | None = None) -> TuneSpec:
+        """This spec with command-line overrides applied (validated)."""
+        changes: dict[str, Any] = {}
+        if output is not None:
+            changes["output"] = Path(output)
+        if steps is not None:
+            if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
+                raise SpecError(f"--steps: must be an integer in [1, {MAX_STEPS:,}], got {steps!r}")
+            changes["steps"] = steps
+        return replace(self, **changes)
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """A TOML file as a dict; SpecError (one line, naming the file) if it cannot be read."""
+    label = os.fspath(path)
+    try:
+        data = Path(path).read_bytes()
+    except FileNotFoundError:
+        raise SpecError(f"{label}: no such file") from None
+    except IsADirectoryError:
+        raise SpecError(f"{label}: is a directory, expected a TOML file") from None
+    except OSError as exc:
+        raise SpecError(f"{label}: cannot read ({exc.strerror or exc})") from None
+    try:
+        return tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise SpecError(f"{label}: not UTF-8 text (bad byte at offset {exc.start})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SpecError(f"{label}: invalid TOML: {exc}") from None
+
+
+def load_spec(path: str | Path) -> TuneSpec:
+    """Read and validate a TOML tune spec; SpecError (one line, naming the file) if wrong."""
+    return _resolve(read_toml(path), os.fspath(path), default_name=Path(path).stem)
+
+
+def spec_from_dict(d: Mapping[str, Any], source: str = "<dict>") -> TuneSpec:
+    """Validate a spec given as a dict with the TOML layout ({"tune": ..., "init": ...})."""
+    if not isinstance(d, Mapping):
+        raise SpecError(f"{source}: expected a mapping with a 'tune' table, got {type(d).__name__}")
+    return _resolve(_plain(d), source, default_name="tune")
+
+
+def _resolve(doc: Mapping[str, Any], source: str, default_name: str) -> TuneSpec:
+    raw: TuneDoc = validate(TuneDoc, doc, source)
+    sec = raw.tune
+    try:
+        objective = registry.get(sec.objective)
+    except SpecError as exc:
+        raise error(source, "tune.objective", str(exc)) from None
+    try:
+        if not sec.params:
+            raise SpecError("tune.params: empty list; name at least one tunable to optimise")
+        for i, name in enumerate(sec.params):
+            objective.tunable(name, where=f"tune.params[{i}]")
+            if name in sec.params[:i]:
+                raise SpecError(f"tune.params[{i}]: '{name}' is listed twice")
+        given = {
+            name: objective.tunable(name, where=f"init.{name}").check(value, where=f"init.{name}")
+            for name, value in raw.init.items()
+        }
+        init = {t.name: given.get(t.name, t.default) for t in objective.tunables}
+        chosen = {
+            name: objective.setting(name, where=f"settings.{name}").check(value, where=f"settings.{name}")
+            for name, value in raw.settings.items()
+        }
+        settings: dict[str, Any] = {}
+        for p in objective.settings:
+            if p.name in chosen:
+                settings[p.name] = chosen[p.name]
+            elif p.default is None:
+                raise SpecError(f"settings.{p.name}: '{p.name}' has no default; set it in [settings]")
+            else:
+                settings[p.name] = p.check(p.default, where=f"default of {objective.name}.{p.name}")
+    except SpecError as exc:
+        raise SpecError(f"{source}: {exc}") from None
+
+    name = sec.name or default_name
+    return TuneSpec(
+        objective=objective,
+        name=name,
+        output=Path(sec.output) if sec.output else Path("results") / name,
+        optimizer=sec.optimizer,
+        learning_rate=sec.learning_rate,
+        steps=sec.steps,
+        params=tuple(sec.params),
+        clip_norm=sec.clip_norm,
+        init=init,
+        settings=settings,
+        formats=tuple(dict.fromkeys(["parquet", *sec.formats])),
+        source=source,
+    )
+
