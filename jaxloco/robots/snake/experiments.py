@@ -103,13 +103,14 @@ def accuracy_setup(dtype=None) -> tuple[S.SnakeState, S.Target]:
     return x0, targets
 
 
-def relative_displacement(t: np.ndarray, w: np.ndarray, t_end: float) -> np.ndarray:
+def relative_displacement(t: np.ndarray, w: np.ndarray, t_end: float, t_start: float = T_START) -> np.ndarray:
     """Table III's Delta w_h: mean of w over [t_end + 4, t_end + 5] minus the mean over
-    [0, 1] (t (n,), w (n, 6), last axis; angles unwrapped first)."""
+    the second before the change starts, [t_start - 1, t_start] (the paper: [0, 1]);
+    t (n,), w (..., n, 6), angles unwrapped first."""
     t, w = np.asarray(t), np.asarray(w, float).copy()
     w[..., 3:] = np.unwrap(w[..., 3:], axis=-2)
     late = (t >= t_end + 4.0 - 1e-9) & (t <= t_end + 5.0 + 1e-9)
-    early = t <= 1.0 + 1e-9
+    early = (t >= t_start - 1.0 - 1e-9) & (t <= t_start + 1e-9)
     return w[..., late, :].mean(-2) - w[..., early, :].mean(-2)
 
 

@@ -1,0 +1,119 @@
+"""T² Snake-3: the paper's experiments (Tanaka et al. 2019, Sec. V-A, V-B) in the
+kinematic simulation and in MuJoCo, beside the paper's figures.
+
+    python benchmarks/snake_experiments.py [--tuned results/snake_kv_tune/tuned.csv]
+
+Prints two tables:
+  1. Table III (relative position accuracy): errors [%] of the paper, of the
+     kinematic simulation (feedforward; no slip, so ~0), of MuJoCo with the paper's
+     feedforward control and with feedback of the simulated head pose (Fig. 7(b)).
+  2. Joint-limit avoidance (Figs. 8-10) from the zigzag posture: recovery time (every
+     base joint below 70 % of its limit), V, the gripper tip's largest errors, the
+     smallest static margin, the footprint area at the end and the order in which the
+     base joints leave their limits, for the paper's K_V, Eq. 20 (a2 = 100) and, with
+     --tuned, the values of a `jaxloco tune sweeps/snake_kv_tune.toml` run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxloco import runtime
+from jaxloco.robots.snake import analysis as A
+from jaxloco.robots.snake import experiments as E
+from jaxloco.robots.snake import sim_control as SCT
+
+KV_KEYS = ("kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio", "k_eta")
+
+
+def accuracy_table() -> None:
+    t = time.perf_counter()
+    kin = E.run_accuracy_kinematic()
+    t_kin = time.perf_counter() - t
+    t = time.perf_counter()
+    ff = SCT.run_accuracy(feedback=False)
+    fb = SCT.run_accuracy(feedback=True)
+    t_mj = time.perf_counter() - t
+    print(f"\nTable III, relative position accuracy: error [%] (kinematic {t_kin:.1f} s, MuJoCo 12 runs {t_mj:.1f} s)")
+    print("| target | paper | kinematic | MuJoCo feedforward | MuJoCo feedback | MuJoCo max side slip [m/s] |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for i, name in enumerate(E.ACCURACY_NAMES):
+        print(f"| d{name} = {E.ACCURACY_DELTAS[i]:+.3f} | {E.PAPER_ACCURACY_ERROR[i]:.1f} | {kin['error'][i]:.3f} | "
+              f"{ff['error'][i]:.1f} | {fb['error'][i]:.1f} | {ff['max_slip'][i]:.3f} |")
+    print("\nMuJoCo feedforward, full displacement rows (x, y, z [m], roll, pitch, yaw [rad]):")
+    for i, name in enumerate(E.ACCURACY_NAMES):
+        ours = " ".join(f"{v:+.4f}" for v in ff["displacement"][i])
+        paper = " ".join(f"{v:+.4f}" for v in E.PAPER_ACCURACY_ROWS[i])
+        print(f"  d{name}: ours {ours}   paper {paper}")
+
+
+def _rows(tuned: dict[str, float] | None) -> list[tuple[str, dict[str, float]]]:
+    rows = [("paper K_V (Eq. 19)", {}), ("Eq. 20, a2 = 100", {"a2": 100.0})]
+    if tuned:
+        rows.append(("tuned (kinematic)", tuned))
+    return rows
+
+
+def _metrics(recs: dict[str, np.ndarray], i: int) -> dict[str, float]:
+    r = {k: jnp.asarray(v[i]) for k, v in recs.items() if k != "slip"}
+    return {k: float(v) for k, v in E.limit_metrics(r).items()}
+
+
+def limit_table(tuned: dict[str, float] | None) -> None:
+    rows = _rows(tuned)
+    fixed = A.KV.defaults()
+    fn = jax.jit(A.make_batch_fn(fixed))
+    names = [p.name for p in A.PARAMS if p.sweepable]
+    n = len(rows)
+    swept = {k: jnp.asarray([float(r[1].get(k, fixed[k])) for r in rows]) for k in names if k != "mode_order"}
+    t = time.perf_counter()
+    kin = {k: np.asarray(v) for k, v in fn(swept, jnp.zeros((n, 2), jnp.uint32)).items()}
+    t_kin = time.perf_counter() - t
+    over = {k: np.asarray([float(r[1].get(k, SCT.PARAM_DEFAULTS[k])) for r in rows]) for k in KV_KEYS + ("a2",)}
+    t = time.perf_counter()
+    res, recs = SCT.run_joint_limit(over, n=n)
+    t_mj = time.perf_counter() - t
+    print(f"\nJoint-limit avoidance from the zigzag posture, {E.LIMIT_HORIZON:g} s (kinematic {t_kin:.1f} s, "
+          f"MuJoCo {n} runs {t_mj:.1f} s); paper: V decreases, the joints leave the limits, head error about "
+          "30 mm / 0.1 rad")
+    print("| setting | sim | recovery [s] | V0 -> final V | max tip error [mm] | max att. error [rad] "
+          "| min margin [mm] | footprint at end [m^2] | base joints theta_4..9 below 70 % at [s] |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for i, (label, _) in enumerate(rows):
+        print(f"| {label} | kinematic | {kin['recovery_time'][i]:.1f} | {kin['V0'][i]:.1f} -> {kin['final_V'][i]:.1f} "
+              f"| {1e3 * kin['max_pos_error'][i]:.1f} | {kin['max_att_error'][i]:.3f} | {1e3 * kin['min_margin'][i]:.0f} "
+              f"| {kin['final_area'][i]:.3f} | - |")
+        m = _metrics(recs, i)
+        order = E.release_times(recs["t"][i], recs["phi"][i])
+        print(f"| {label} | MuJoCo | {m['recovery_time']:.1f} | {m['V0']:.1f} -> {m['final_V']:.1f} "
+              f"| {1e3 * m['max_pos_error']:.1f} | {m['max_att_error']:.3f} | {1e3 * m['min_margin']:.0f} | - "
+              f"| {' '.join(f'{x:.1f}' for x in order)} |")
+    print(f"MuJoCo: status {list(res.status)}, largest side slip {np.asarray(res.metrics['max_slip']).round(3)} m/s, "
+          f"largest base tilt {np.asarray(res.metrics['max_tilt']).round(3)} rad")
+
+
+def read_tuned(path: str) -> dict[str, float]:
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            if row["label"] == "tuned":
+                return {k: float(row[k]) for k in KV_KEYS}
+    raise SystemExit(f"{path}: no 'tuned' row")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--tuned", help="tuned.csv of a `jaxloco tune sweeps/snake_kv_tune.toml` run")
+    args = ap.parse_args()
+    runtime.configure(x64=True)
+    accuracy_table()
+    limit_table(read_tuned(args.tuned) if args.tuned else None)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,231 @@
+"""The task-space controller (`control`, Eqs. 12-20) driving T² Snake-3 in MuJoCo
+(`scenarios.snake_scenario`, native backend), and the paper's two experiments run there.
+
+Per control period (Sec. IV-C): the mode schedule (`control.update_mode`), the input u
+of Eq. 12 at the controller's view of the robot, clipped to the servo speeds
+(`kinsim.saturate`); the joint targets integrate the commanded joint speeds (the
+paper's "target angle calculated using the numerical integral"), the base active
+wheels get the commanded speeds, and the mode's wheels are lifted by the base pitch
+joints (`scenarios.actuator_command`).
+
+The controller's view (Sec. IV-C2, V-A):
+  * feedforward (`feedback=False`, the paper's robot): a copy of the no-skid model
+    (`kinsim.integrate`) integrated with the commanded u from the posture at t = 0; the
+    simulator is never read after the first observation;
+  * feedback (`feedback=True`, Fig. 7(b)): w from the simulated head / gripper-tip pose
+    ("motion capture") and phi from the joint encoders; the joint targets still
+    integrate the commanded speeds, so a steady servo error is integrated away.
+
+Parameters (keys of the simulation's params dict, `PARAM_DEFAULTS`, batchable): the
+gains and schedule of `ControlParams` (K_V from the four numbers of
+`control.kv_diagonal`), the servo speed limits, and the target: w~_d(t) = w~(0) +
+delta s(t) (`kinsim.Target`) with w~(0) the controlled variable at t = 0 and delta =
+(d_x, d_y, d_z, d_roll, d_pitch, d_yaw, d_psi3) [m, rad]; `psi3_target` (if finite)
+replaces the SCP's start value.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxloco.robots.snake import control as C
+from jaxloco.robots.snake import experiments as E
+from jaxloco.robots.snake import kinematics as K
+from jaxloco.robots.snake import kinsim as S
+from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import scenarios as SC
+from jaxloco.sim.rollout import RolloutResult, rollout
+from jaxloco.sim.scenario import Controller
+
+Array = jax.Array
+DELTA_KEYS = ("d_x", "d_y", "d_z", "d_roll", "d_pitch", "d_yaw", "d_psi3")
+
+PARAM_DEFAULTS: dict[str, float] = {
+    "k_eta": 0.1,
+    "kv_head_yaw": C.PAPER_KV_HEAD_YAW,
+    "kv_head_pitch": C.PAPER_KV_HEAD_PITCH,
+    "kv_base": C.PAPER_KV_BASE,
+    "kv_ratio": C.PAPER_KV_RATIO,
+    "gain": 1.0,  # K [1/s]
+    "a2": 0.0,  # Eq. 20 weight
+    "delta_t": 1.0,  # [s]
+    "mode_order": 0,  # row of analysis.MODE_ORDERS
+    "fixed_mode": 1,
+    "switch_at": float("inf"),  # [s]
+    "enter_ratio": 2.0,  # automatic switching off
+    "exit_ratio": 0.9,
+    "joint_speed_max": S.JOINT_SPEED_MAX,  # [rad/s]
+    "wheel_speed_max": S.WHEEL_SPEED_MAX,  # [rad/s]
+    "t0": E.T_START,  # [s] the target starts to change
+    "duration": E.RAMP,  # [s] ... over this time
+    **{k: 0.0 for k in DELTA_KEYS},
+    "psi3_target": float("nan"),  # [rad] SCP target (nan: hold its start value)
+    "hold_until": 0.0,  # [s] no null-space motion (k_eta = 0) before this time (settling)
+}
+
+
+def control_params(p: Mapping[str, Array]) -> C.ControlParams:
+    """`ControlParams` from one simulation's params dict."""
+    from jaxloco.robots.snake.analysis import MODE_ORDERS
+
+    dtype = jnp.asarray(p["k_eta"]).dtype
+    kv = C.kv_diagonal(p["kv_head_yaw"], p["kv_head_pitch"], p["kv_base"], p["kv_ratio"]).astype(dtype)
+    return C.ControlParams(
+        gain=jnp.full(C.N_TASK, p["gain"], dtype),
+        weights=C.default_weights().astype(dtype),
+        k_eta=p["k_eta"],
+        kv=kv,
+        a2=p["a2"],
+        delta_t=p["delta_t"],
+        mode_order=jnp.asarray(MODE_ORDERS)[jnp.asarray(p["mode_order"]).astype(jnp.int32)],
+        fixed_mode=jnp.asarray(p["fixed_mode"]).astype(jnp.int32),
+        switch_at=p["switch_at"],
+        enter_ratio=p["enter_ratio"],
+        exit_ratio=p["exit_ratio"],
+    )
+
+
+def task_space_controller(control_dt: float, point: str = "tip", feedback: bool = False) -> Controller:
+    """The Eq. 12 controller as a `jaxloco.sim` controller (module docstring); `point`:
+    the controlled point ("tip": the gripper tip, "head": w_h of Sec. V-A)."""
+    dt = float(control_dt)
+
+    def seen_pose(obs):
+        return obs["tip"] if point == "tip" else obs["head"]
+
+    def init(p, obs):
+        dtype = obs["phi"].dtype
+        base = obs["base"]  # link 7's pose (6,): x, y, z, roll, pitch, yaw
+        est = S.SnakeState(jnp.stack([base[0], base[1], base[5]]), obs["phi"], jnp.zeros(P.N_W, dtype))
+        w0 = S.point_pose(est, point=point) if not feedback else seen_pose(obs)
+        wt0 = C.controlled_variable(w0, obs["phi"])
+        wt0 = wt0.at[6].set(jnp.where(jnp.isfinite(p["psi3_target"]), p["psi3_target"], wt0[6]))
+        delta = jnp.stack([jnp.asarray(p[k], dtype) for k in DELTA_KEYS])
+        target = S.Target(wt0, delta, jnp.asarray(p["t0"], dtype), jnp.asarray(p["duration"], dtype))
+        return {"est": est, "target": target, "mode": C.initial_mode_state(dtype), "phi_cmd": obs["phi"]}
+
+    def policy(p, s, obs):
+        t = obs["time"]
+        cp = control_params(p)
+        cp = cp.with_(k_eta=jnp.where(t < p["hold_until"], 0.0, cp.k_eta))
+        est = s["est"]
+        if feedback:
+            w, phi = seen_pose(obs), obs["phi"]
+        else:
+            w, phi = S.point_pose(est, point=point), est.phi
+        mode, sigma = C.update_mode(t, phi, s["mode"], cp)
+        grounded = C.grounded_of(sigma)
+        wd, wd_dot = s["target"].at(t)
+        mats = K.augmented_matrices(w, phi, grounded, point=point)
+        terms = C.control_terms(w, phi, wd, wd_dot, grounded, cp, None, point, mats)
+        plant = S.PlantParams(p["joint_speed_max"], p["wheel_speed_max"])
+        u = S.saturate(terms.u, plant)
+        lim = jnp.asarray(C.PHI_LIMITS, phi.dtype)
+        phi_cmd = jnp.clip(s["phi_cmd"] + dt * u[: P.N_PHI], -lim, lim)
+        if not feedback:
+            est, _ = S.integrate(est, terms.u, mats, jnp.asarray(dt, phi.dtype), None, point)
+        state = {"est": est, "target": s["target"], "mode": mode, "phi_cmd": phi_cmd}
+        return state, phi_cmd, u[P.N_PHI :], grounded
+
+    return SC.make_controller(init, policy, name=f"task_space_{'fb' if feedback else 'ff'}_{point}")
+
+
+def params_batch(n: int = 1, **overrides) -> dict[str, Array]:
+    """Scenario + controller parameters for n simulations (`scenarios.params_batch`)."""
+    return SC.params_batch(n, defaults=PARAM_DEFAULTS, **overrides)
+
+
+# ---------------------------------------------------------------- Table III in MuJoCo
+SETTLE = 2.0  # [s] settling before the experiment's clock starts (the head part sags under its servos)
+
+
+def run_accuracy(feedback: bool = False, mu: float = 1.0, control_dt: float = 0.02, settle: float = SETTLE,
+                 progress: bool = False) -> dict[str, Any]:
+    """Sec. V-A in MuJoCo: six simulations (one per Table III row), head controlled,
+    fixing state sigma = 1: displacements (6, 6), errors (6,) [%], the largest wheel
+    side slip [m/s] per row and the rollout. The simulation starts with the servos at
+    their targets and no load; the robot settles for `settle` s (the head part sags by
+    several cm) before the paper's clock starts (its t = 0, the change at t = 1)."""
+    horizon = settle + E.ACCURACY_HORIZON + 0.1
+    sc = SC.snake_scenario(horizon, control_dt, task_space_controller(control_dt, "head", feedback))
+    deltas = {k: np.zeros(6) for k in DELTA_KEYS}
+    for i, k in enumerate(DELTA_KEYS[:6]):
+        deltas[k][i] = E.ACCURACY_DELTAS[i]
+    t0 = settle + E.T_START
+    res = rollout(sc, params_batch(6, mu=mu, t0=t0, **deltas), progress=progress)
+    disp = E.relative_displacement(res.times, np.asarray(res.records["head"]), t0 + E.RAMP, t0)
+    return {
+        "displacement": disp,
+        "error": E.accuracy_errors(disp),
+        "max_slip": np.asarray(res.metrics["max_slip"]),
+        "result": res,
+    }
+
+
+# ------------------------------------------------------------ Figs. 8-10 in MuJoCo
+def run_joint_limit(overrides: Mapping[str, Any] | None = None, n: int = 1, horizon: float = E.LIMIT_HORIZON,
+                    feedback: bool = False, control_dt: float = 0.02, mu: float = 1.0, settle: float = SETTLE,
+                    progress: bool = False) -> tuple[RolloutResult, dict[str, np.ndarray]]:
+    """Sec. V-B in MuJoCo: the zigzag posture, gripper tip held, fixing state until
+    2 s then switching every Delta T (params overrides, batch of n), after `settle` s of
+    settling with the null-space term off (the paper's clock starts then: switch_at is
+    counted from it). Returns the rollout and `limit_records` from the paper's t = 0."""
+    phi0 = E.zigzag_phi()
+    ctrl = task_space_controller(control_dt, "tip", feedback)
+    sc = SC.snake_scenario(settle + horizon, control_dt, ctrl, phi0=phi0)
+    over = {"switch_at": E.SWITCH_AT, "psi3_target": P.SCP_TARGET, "mu": mu, **(overrides or {})}
+    over["switch_at"] = np.asarray(over["switch_at"], float) + settle
+    over["hold_until"] = settle
+    params = params_batch(n, **over)
+    res = rollout(sc, params, progress=progress)
+    return res, limit_records(res, params, settle)
+
+
+def limit_records(res: RolloutResult, params: Mapping[str, Array], settle: float = 0.0) -> dict[str, np.ndarray]:
+    """Records of a MuJoCo joint-limit rollout in `kinsim.rollout`'s layout (batch
+    first) from t = settle on (t counted from there): t, w (measured tip pose), phi
+    (measured), error (tip pose and psi_3 against the target: the tip pose measured at
+    t = settle, psi_3 -> psi3_target; angles wrapped), V (Eq. 19 / 20 at the measured pose),
+    margin (static margin of the commanded mode's support polygon at the measured
+    posture), limit_ratio, sigma (the commanded mode), slip (lateral wheel slip)."""
+    keep = res.times >= settle - 1e-9
+    tip = np.asarray(res.records["tip"])[:, keep]
+    phi = np.asarray(res.records["phi"])[:, keep]
+    grounded = np.asarray(res.records["grounded_cmd"])[:, keep]
+    times = res.times[keep] - settle
+    n = tip.shape[0]
+    psi3_t = np.asarray(params["psi3_target"])
+    target = np.concatenate([tip[:, :1], phi[:, :1, P.SCP_INDEX : P.SCP_INDEX + 1]], -1)
+    target[:, 0, 6] = np.where(np.isfinite(psi3_t), psi3_t, target[:, 0, 6])
+    wt = np.concatenate([tip, phi[..., P.SCP_INDEX : P.SCP_INDEX + 1]], -1)
+
+    def per_sim(p, wt_i, phi_i, g_i, tgt):
+        cp = control_params(p)
+        err = jax.vmap(lambda a: C.task_error(a, tgt))(wt_i)
+        V = jax.vmap(lambda w, f, g: C.cost(w, f, g, cp))(wt_i[:, :6], phi_i, g_i)
+        w_h = jax.vmap(lambda w: K.point_to_head(w, "tip"))(wt_i[:, :6])
+        margin = jax.vmap(lambda h, f, g: C.support_distances(h, f, g)[2])(w_h, phi_i, g_i)
+        return err, V, margin
+
+    p = {k: jnp.asarray(v) for k, v in params.items()}
+    err, V, margin = jax.jit(jax.vmap(per_sim))(p, jnp.asarray(wt), jnp.asarray(phi), jnp.asarray(grounded),
+                                                jnp.asarray(target[:, 0]))
+    modes = np.asarray(P.MODES)
+    sigma = 1 + np.argmax(np.all(grounded[..., None, :] == modes, axis=-1), axis=-1)
+    t = np.broadcast_to(times, (n, times.size))
+    return {
+        "t": t,
+        "w": tip,
+        "phi": phi,
+        "error": np.asarray(err),
+        "V": np.asarray(V),
+        "margin": np.asarray(margin),
+        "limit_ratio": np.asarray(jax.vmap(C.limit_ratio)(jnp.asarray(phi.reshape(-1, P.N_PHI)))).reshape(n, -1),
+        "sigma": sigma,
+        "slip": np.asarray(res.records["slip"])[:, keep],
+    }
