@@ -27,7 +27,6 @@ import hashlib
 import json
 import math
 import os
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -42,6 +41,7 @@ from jaxloco.sweep.spec_model import (
     SpecDoc,
     SweepSection,
     error,
+    read_toml,
     validate,
 )
 
@@ -118,25 +118,7 @@ class SweepSpec:
 
 def load_spec(path: str | Path) -> SweepSpec:
     """Read and validate a TOML sweep spec; SpecError (one line, naming the file) if wrong."""
-    label = os.fspath(path)
-    p = Path(path)
-    try:
-        data = p.read_bytes()
-    except FileNotFoundError:
-        raise SpecError(f"{label}: no such file") from None
-    except IsADirectoryError:
-        raise SpecError(f"{label}: is a directory, expected a TOML file") from None
-    except OSError as exc:
-        raise SpecError(f"{label}: cannot read ({exc.strerror or exc})") from None
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise SpecError(f"{label}: not UTF-8 text (bad byte at offset {exc.start})") from None
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SpecError(f"{label}: invalid TOML: {exc}") from None
-    return _resolve(doc, label, default_name=p.stem)
+    return _resolve(read_toml(path), os.fspath(path), default_name=Path(path).stem)
 
 
 def spec_from_dict(d: Mapping[str, Any], source: str = "<dict>") -> SweepSpec:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import difflib
 import os
+import tomllib
+from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
@@ -144,3 +146,22 @@ def validate(model: type[BaseModel], data: Any, source: str, prefix: tuple[Any, 
 
 def error(source: str, key: str, problem: str) -> SpecError:
     return SpecError(f"{source}: {key}: {problem}")
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """A TOML file as a dict; SpecError (one line, naming the file) if it cannot be read."""
+    label = os.fspath(path)
+    try:
+        data = Path(path).read_bytes()
+    except FileNotFoundError:
+        raise SpecError(f"{label}: no such file") from None
+    except IsADirectoryError:
+        raise SpecError(f"{label}: is a directory, expected a TOML file") from None
+    except OSError as exc:
+        raise SpecError(f"{label}: cannot read ({exc.strerror or exc})") from None
+    try:
+        return tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise SpecError(f"{label}: not UTF-8 text (bad byte at offset {exc.start})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SpecError(f"{label}: invalid TOML: {exc}") from None

@@ -11,7 +11,13 @@ Modules: `objective` (the registry: `Objective`, `Tunable`, `register`, `get`), 
 
 from jaxloco.analysis import SpecError
 from jaxloco.tune.objective import Objective, Tunable, get, names, register
-from jaxloco.tune.runner import ObjectiveError, TuneDiverged, TuneInterrupted, TuneResult, run
+from jaxloco.tune.runner import (
+    ObjectiveError,
+    TuneDiverged,
+    TuneInterrupted,
+    TuneResult,
+    run,
+)
 from jaxloco.tune.spec import TuneSpec, load_spec, spec_from_dict
 
 __all__ = [

@@ -125,7 +125,7 @@ def run(
     def transform(u: dict[str, Any]) -> dict[str, Any]:
         return {t.name: from_free(t, u[t.name]) for t in tuned}
 
-    def apply(u, state, grads, values):  # noqa: ANN001, ANN202
+    def apply(u, state, grads, values):
         _, pullback = jax.vjp(transform, u)
         (g,) = pullback({t.name: grads[t.name].astype(dtype) for t in tuned})
         norm = optax.tree.norm(g)
@@ -189,7 +189,7 @@ def run(
     )
 
 
-def _optimizer(spec: TuneSpec):  # noqa: ANN202
+def _optimizer(spec: TuneSpec):
     import optax
 
     base = {"adam": optax.adam, "sgd": optax.sgd, "adamw": optax.adamw}[spec.optimizer](spec.learning_rate)

@@ -25,7 +25,6 @@ Spec format::
 from __future__ import annotations
 
 import os
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -35,7 +34,7 @@ from pydantic import BeforeValidator, Field
 
 from jaxloco.analysis import SpecError
 from jaxloco.sweep.spec import _plain
-from jaxloco.sweep.spec_model import NonEmptyStr, _Strict, error, validate
+from jaxloco.sweep.spec_model import NonEmptyStr, _Strict, error, read_toml, validate
 from jaxloco.tune import objective as registry
 from jaxloco.tune.objective import Objective
 
@@ -106,25 +105,6 @@ class TuneSpec:
                 raise SpecError(f"--steps: must be an integer in [1, {MAX_STEPS:,}], got {steps!r}")
             changes["steps"] = steps
         return replace(self, **changes)
-
-
-def read_toml(path: str | Path) -> dict[str, Any]:
-    """A TOML file as a dict; SpecError (one line, naming the file) if it cannot be read."""
-    label = os.fspath(path)
-    try:
-        data = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise SpecError(f"{label}: no such file") from None
-    except IsADirectoryError:
-        raise SpecError(f"{label}: is a directory, expected a TOML file") from None
-    except OSError as exc:
-        raise SpecError(f"{label}: cannot read ({exc.strerror or exc})") from None
-    try:
-        return tomllib.loads(data.decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        raise SpecError(f"{label}: not UTF-8 text (bad byte at offset {exc.start})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SpecError(f"{label}: invalid TOML: {exc}") from None
 
 
 def load_spec(path: str | Path) -> TuneSpec:

@@ -45,7 +45,7 @@ def to_free(t: Tunable, value: float) -> float:
     return z
 
 
-def from_free(t: Tunable, u):  # noqa: ANN001, ANN201  (a JAX scalar in, a JAX scalar out)
+def from_free(t: Tunable, u):
     """The value of `u` (traceable)."""
     import jax
     import jax.numpy as jnp

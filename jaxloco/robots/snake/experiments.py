@@ -73,7 +73,7 @@ def zigzag_phi(amplitude: float = ZIGZAG_AMPLITUDE) -> np.ndarray:
 def limit_params(**changes) -> C.ControlParams:
     """Controller settings of Sec. V-B: K_V of the paper, Delta T = 1 s, fixing state
     (sigma = 1) until the operator's command at t = 2 s, no automatic switching."""
-    base = dict(switch_at=SWITCH_AT, enter_ratio=2.0, delta_t=1.0)
+    base = {"switch_at": SWITCH_AT, "enter_ratio": 2.0, "delta_t": 1.0}
     base.update(changes)
     return C.paper_params(**base)
 
@@ -123,7 +123,7 @@ def accuracy_errors(displacements: np.ndarray) -> np.ndarray:
 def run_accuracy_kinematic(dt: float = 0.02, feedback: bool = False) -> dict[str, np.ndarray]:
     """Table III in the kinematic simulation: displacements (6, 6) and errors (6,) [%]."""
     x0, targets = accuracy_setup()
-    steps = int(round(ACCURACY_HORIZON / dt)) + 1
+    steps = round(ACCURACY_HORIZON / dt) + 1
     config = S.RolloutConfig(steps=steps, dt=dt, point="head", feedback=feedback)
     cp = C.ControlParams(enter_ratio=2.0)  # fixing state throughout
     recs = jax.jit(jax.vmap(lambda tg: S.rollout(x0, tg, cp, config)))(targets)

@@ -26,7 +26,7 @@ Targets: w~_d(t) = w~_0 + delta s(t) with a smooth step s from `t0` over `durati
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
