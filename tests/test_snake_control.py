@@ -103,8 +103,8 @@ def _case(seed: int, sigma: int):
                          kv=jnp.asarray(rng.uniform(0.1, 10.0, 12)))
     terms = _TERMS(jnp.asarray(w), jnp.asarray(phi), jnp.asarray(wt_d), jnp.asarray(wt_d_dot), jnp.asarray(g), cp)
     At, Bt = (np.asarray(x) for x in _AUG(jnp.asarray(w), jnp.asarray(phi), jnp.asarray(g)))
-    return dict(w=w, phi=phi, g=g, wt=wt, wt_d=wt_d, wt_d_dot=wt_d_dot, cp=cp, At=At, Bt=Bt,
-                terms=jax.tree_util.tree_map(np.asarray, terms))
+    return {"w": w, "phi": phi, "g": g, "wt": wt, "wt_d": wt_d, "wt_d_dot": wt_d_dot, "cp": cp, "At": At,
+            "Bt": Bt, "terms": jax.tree_util.tree_map(np.asarray, terms)}
 
 
 CASES = [(seed, sigma) for seed in (0, 1) for sigma in range(1, P.N_MODES + 1)]
@@ -243,7 +243,8 @@ def test_cost_eq19_and_eq20_against_mujoco_and_scipy(posture, mj):
         com, pts = _mujoco_support(model, data, phi, base, g)
         assert np.abs(pts[:, 2]).max() < 1e-9  # the wheels touch the ground
         d = _hull_line_distances(com[:2], pts[:, :2])
-        assert len(d) == (4 if posture == "straight" else len(d))
+        if posture == "straight":
+            assert len(d) == 4  # a rectangle, however many wheels lie on its long sides
         v20 = float(_COST(*args, C.ControlParams(kv=jnp.asarray(kv), a1=a1, a2=a2)))
         assert v20 == pytest.approx(a1 * joint + a2 / np.linalg.norm(d), rel=1e-9)
         # support_distances: the static margin is the distance to the nearest side when
@@ -251,8 +252,8 @@ def test_cost_eq19_and_eq20_against_mujoco_and_scipy(posture, mj):
         dd, E, margin = C.support_distances(K.point_to_head(args[0], "tip"), args[1], args[2])
         inside = ConvexHull(pts[:, :2]).equations
         signed = -np.max(inside[:, :2] @ com[:2] + inside[:, 2])
-        if signed > 0:
-            assert float(margin) == pytest.approx(d.min(), abs=1e-9)
+        assert signed > 0  # P_G inside the polygon in these postures
+        assert float(margin) == pytest.approx(d.min(), abs=1e-9)
         assert np.sum(np.asarray(dd)[np.asarray(E)] ** 2) == pytest.approx(np.sum(d**2), rel=1e-9)
 
 
@@ -278,6 +279,24 @@ def test_eta_is_the_gradient_of_the_cost(a2):
         np.testing.assert_allclose(eta[:12], 2 * 0.7 * kv * phi, rtol=1e-12)
     else:
         assert np.abs(eta[:12] - 0.7 * 2 * kv * phi).max() > 1e-4  # the support term matters
+
+
+def _v_of_a2(a2):
+    _, phi, w = _posture(4)
+    return _COST(jnp.asarray(w), jnp.asarray(phi), jnp.asarray(MODES[0]), C.ControlParams(a2=a2))
+
+
+def test_cost_derivative_in_a2():
+    """V is affine in a2 (Eq. 20): dV/da2 = 1/||d||, the slope between two values."""
+    slope = float(_v_of_a2(0.05) - _v_of_a2(0.02)) / 0.03
+    assert slope > 0.1
+    assert float(jax.grad(_v_of_a2)(0.05)) == pytest.approx(slope, rel=1e-8)
+
+
+def test_cost_derivative_in_a2_at_zero():
+    """dV/da2 = 1/||d|| also at a2 = 0 (Eq. 19): gradient tuning of a2 can start there."""
+    slope = float(_v_of_a2(1e-3) - _v_of_a2(0.0)) / 1e-3
+    assert float(jax.grad(_v_of_a2)(0.0)) == pytest.approx(slope, rel=1e-8)
 
 
 _CONTROL = jax.jit(C.control_input)

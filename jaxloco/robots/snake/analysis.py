@@ -72,7 +72,7 @@ PARAMS = (
     Param("joint_speed_max", S.JOINT_SPEED_MAX, "servo speed limit of the joints", "rad/s", lo=0.0, hi=100.0,
           lo_open=True),
     Param("recover_ratio", 0.7, "recovered once every base joint is below this fraction of its limit", "",
-          lo=0.0, hi=1.0, lo_open=True),
+          lo=0.0, hi=1.0, lo_open=True, hi_open=True),
     Param("w_limit", 1.0, "loss weight of the time near the limits against the head error", "", lo=0.0, hi=1e3),
     Param("horizon", 30.0, "simulated time", "s", lo=0.1, hi=600.0, sweepable=False),
     Param("dt", 0.02, "control period (explicit Euler step of the kinematic plant)", "s", lo=1e-4, hi=0.2,

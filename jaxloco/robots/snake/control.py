@@ -162,13 +162,10 @@ def cost(
 ) -> Array:
     """V of Eq. 20 (Eq. 19 when a2 = 0) at the controlled-point pose w and joints phi."""
     v = cp.a1 * cost_joint(phi, cp.kv)
-    a2 = jnp.asarray(cp.a2, v.dtype)
-
-    def with_support(_):
-        w_h = K.point_to_head(w, point, params)
-        return v + a2 / support_norm(w_h, phi, grounded, params)
-
-    return jax.lax.cond(jnp.any(a2 != 0), with_support, lambda _: v, None)
+    w_h = K.point_to_head(w, point, params)
+    # always evaluated (no branch on a2): V is affine in a2, and its derivative in a2
+    # at a2 = 0 is 1 / ||d||, which a branch would hide from gradient tuning
+    return v + jnp.asarray(cp.a2, v.dtype) / support_norm(w_h, phi, grounded, params)
 
 
 def eta(

@@ -6,8 +6,11 @@ gains, targets, initial postures) and grad (for tuning) work on `rollout`.
 The plant. State: the planar pose [x, y, heading] of the first base link (link 7,
 `kinematics.base_of`), phi (12) and the wheel angles rho (7). Per control period dt
 (explicit Euler):
-  * the applied input is the command clipped to the servo speeds (`PlantParams`:
-    MX-106R joints 4.7 rad/s = 45 rpm no load, MX-28AR wheels 6 rad/s as the MJCF),
+  * position servos: the controller's commanded joint speeds are integrated into target
+    angles (as on the robot, Sec. IV-C2) and each joint moves towards its target at most
+    at the servo speed (`PlantParams`: MX-106R joints 4.7 rad/s = 45 rpm no load), so
+    a target that ran ahead is caught up later; the wheels turn at the commanded speed
+    up to the MX-28AR's 6 rad/s (as the MJCF),
   * w_dot is the least-squares solution of the mode's constraints A_sigma w_dot =
     B_sigma u (Eq. 7): exact when u satisfies them (the controller's u does, Eqs.
     13-14), the best no-skid fit when clipping made it inconsistent,
@@ -17,7 +20,7 @@ The plant. State: the planar pose [x, y, heading] of the first base link (link 7
 Controller variants (Sec. IV-C2, V-A): feedforward (the paper's experiments): the
 controller integrates its own commanded u on a copy of the same model and never reads
 the plant; feedback: it reads the plant's w and phi (Fig. 7(b), "measured by the motion
-capture system"). Both are exact copies of each other until the servos saturate or a
+capture system"). Both are exact copies of each other until the servos fall behind their targets or a
 joint reaches its limit; the MuJoCo scenario (`scenarios`) adds the real errors.
 
 Targets: w~_d(t) = w~_0 + delta s(t) with a smooth step s from `t0` over `duration`
@@ -100,27 +103,32 @@ def integrate(
 ) -> tuple[SnakeState, Array]:
     """One Euler step of the no-skid model with input u (19,) in the mode whose
     augmented matrices (A~, B~) (kinematics.augmented_matrices) are given: (next state,
-    w_dot (6,) of the controlled point). Joints stop at their limits."""
+    w_dot (6,) of the controlled point). Joints stop at their limits: a joint speed
+    that would pass its stop is cut to reach it, and the body moves with the joint
+    speeds actually realized (the least-squares w_dot of the cut input)."""
     At, Bt = matrices
     A, B = At[: K.N_ROWS, :6], Bt[: K.N_ROWS]
-    rhs = B @ u
+    lim = jnp.asarray(C.PHI_LIMITS, state.phi.dtype)
+    phi = jnp.clip(state.phi + dt * u[: P.N_PHI], -lim, lim)
+    phi_dot = (phi - state.phi) / dt
+    rhs = B @ jnp.concatenate([phi_dot, u[P.N_PHI :]])
     w_dot = linalg.spd_solve(A.T @ A, A.T @ rhs)
-    phi_dot = u[: P.N_PHI]
     w = point_pose(state, params, point)
 
     def base_fn(w_, phi_):
         return K.base_of(K.point_to_head(w_, point, params), phi_, params=params)
 
     _, base_dot = jax.jvp(base_fn, (w, state.phi), (w_dot, phi_dot))
-    lim = jnp.asarray(C.PHI_LIMITS, state.phi.dtype)
-    phi = jnp.clip(state.phi + dt * phi_dot, -lim, lim)
     return SnakeState(state.base + dt * base_dot, phi, state.rho + dt * u[P.N_PHI :]), w_dot
 
 
-def saturate(u: Array, plant: PlantParams) -> Array:
-    """The servos' speed limits applied to a command u (19,)."""
-    joint = jnp.clip(u[: P.N_PHI], -plant.joint_speed_max, plant.joint_speed_max)
-    wheel = jnp.clip(u[P.N_PHI :], -plant.wheel_speed_max, plant.wheel_speed_max)
+def servo_input(phi: Array, phi_cmd: Array, rho_dot: Array, dt: Array, plant: PlantParams) -> Array:
+    """The input u (19,) the servos realize in one period: each joint moves towards its
+    target angle phi_cmd (position servo) at most at joint_speed_max, so a target that
+    ran ahead is caught up later; the wheels turn at the commanded speed up to
+    wheel_speed_max."""
+    joint = jnp.clip((phi_cmd - phi) / dt, -plant.joint_speed_max, plant.joint_speed_max)
+    wheel = jnp.clip(rho_dot, -plant.wheel_speed_max, plant.wheel_speed_max)
     return jnp.concatenate([joint, wheel])
 
 
@@ -147,7 +155,8 @@ def rollout(
     t [s], w (6,) and psi3 of the plant, w_h (6,), base (3,), phi (12,), error (7,)
     (plant w~ - w~_d, angles wrapped), ctrl_error (7,) (what the controller saw), V
     (the cost at the plant state, Eq. 19/20), sigma, switching, margin (static
-    stability margin of the grounded wheels' support polygon [m]), u (19,) (applied)
+    stability margin of the grounded wheels' support polygon [m]), u (19,) (the
+    servos' input, `servo_input`)
     and limit_ratio (max |phi_i| / limit_i)."""
     dtype = x0.phi.dtype
     dt = jnp.asarray(config.dt, dtype)
@@ -157,8 +166,10 @@ def rollout(
         w = point_pose(state, params, point)
         return w, K.augmented_matrices(w, state.phi, grounded, params=params, point=point)
 
+    lim = jnp.asarray(C.PHI_LIMITS, dtype)
+
     def step(carry, k):
-        truth, est, mode = carry
+        truth, est, mode, phi_cmd = carry
         t = k * dt
         seen = truth if config.feedback else est
         mode, sigma = C.update_mode(t, seen.phi, mode, cp)
@@ -166,7 +177,8 @@ def rollout(
         wd, wd_dot = target.at(t)
         w_seen, mats_seen = aug(seen, grounded)
         terms = C.control_terms(w_seen, seen.phi, wd, wd_dot, grounded, cp, params, point, mats_seen)
-        u = saturate(terms.u, plant)
+        phi_cmd = jnp.clip(phi_cmd + dt * terms.u[: P.N_PHI], -lim, lim)  # the servos' target angles
+        u = servo_input(truth.phi, phi_cmd, terms.u[P.N_PHI :], dt, plant)
         if config.feedback:
             w_true, mats_true = w_seen, mats_seen
             est_next = est
@@ -190,11 +202,11 @@ def rollout(
             "limit_ratio": C.limit_ratio(truth.phi),
         }
         truth_next, _ = integrate(truth, u, mats_true, dt, params, point)
-        return (truth_next, est_next, mode), rec
+        return (truth_next, est_next, mode, phi_cmd), rec
 
     mode0 = C.initial_mode_state(dtype)
     ks = jnp.arange(config.steps)
-    _, recs = jax.lax.scan(step, (x0, x0, mode0), ks.astype(dtype))
+    _, recs = jax.lax.scan(step, (x0, x0, mode0, x0.phi), ks.astype(dtype))
     if config.record_every > 1:
         recs = jax.tree_util.tree_map(lambda r: r[:: config.record_every], recs)
     return recs

@@ -2,11 +2,11 @@
 (`scenarios.snake_scenario`, native backend), and the paper's two experiments run there.
 
 Per control period (Sec. IV-C): the mode schedule (`control.update_mode`), the input u
-of Eq. 12 at the controller's view of the robot, clipped to the servo speeds
-(`kinsim.saturate`); the joint targets integrate the commanded joint speeds (the
-paper's "target angle calculated using the numerical integral"), the base active
-wheels get the commanded speeds, and the mode's wheels are lifted by the base pitch
-joints (`scenarios.actuator_command`).
+of Eq. 12 at the controller's view of the robot; the joint targets integrate the
+commanded joint speeds (the paper's "target angle calculated using the numerical
+integral"; the position servos follow as fast as their torque allows), the base
+active wheels get the commanded speeds up to `wheel_speed_max`, and the mode's wheels
+are lifted by the base pitch joints (`scenarios.actuator_command`).
 
 The controller's view (Sec. IV-C2, V-A):
   * feedforward (`feedback=False`, the paper's robot): a copy of the no-skid model
@@ -18,7 +18,7 @@ The controller's view (Sec. IV-C2, V-A):
 
 Parameters (keys of the simulation's params dict, `PARAM_DEFAULTS`, batchable): the
 gains and schedule of `ControlParams` (K_V from the four numbers of
-`control.kv_diagonal`), the servo speed limits, and the target: w~_d(t) = w~(0) +
+`control.kv_diagonal`), the wheels' speed limit, and the target: w~_d(t) = w~(0) +
 delta s(t) (`kinsim.Target`) with w~(0) the controlled variable at t = 0 and delta =
 (d_x, d_y, d_z, d_roll, d_pitch, d_yaw, d_psi3) [m, rad]; `psi3_target` (if finite)
 replaces the SCP's start value.
@@ -59,7 +59,6 @@ PARAM_DEFAULTS: dict[str, float] = {
     "switch_at": float("inf"),  # [s]
     "enter_ratio": 2.0,  # automatic switching off
     "exit_ratio": 0.9,
-    "joint_speed_max": S.JOINT_SPEED_MAX,  # [rad/s]
     "wheel_speed_max": S.WHEEL_SPEED_MAX,  # [rad/s]
     "t0": E.T_START,  # [s] the target starts to change
     "duration": E.RAMP,  # [s] ... over this time
@@ -123,14 +122,13 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
         wd, wd_dot = s["target"].at(t)
         mats = K.augmented_matrices(w, phi, grounded, point=point)
         terms = C.control_terms(w, phi, wd, wd_dot, grounded, cp, None, point, mats)
-        plant = S.PlantParams(p["joint_speed_max"], p["wheel_speed_max"])
-        u = S.saturate(terms.u, plant)
         lim = jnp.asarray(C.PHI_LIMITS, phi.dtype)
-        phi_cmd = jnp.clip(s["phi_cmd"] + dt * u[: P.N_PHI], -lim, lim)
+        phi_cmd = jnp.clip(s["phi_cmd"] + dt * terms.u[: P.N_PHI], -lim, lim)
+        rho_dot = jnp.clip(terms.u[P.N_PHI :], -p["wheel_speed_max"], p["wheel_speed_max"])
         if not feedback:
             est, _ = S.integrate(est, terms.u, mats, jnp.asarray(dt, phi.dtype), None, point)
         state = {"est": est, "target": s["target"], "mode": mode, "phi_cmd": phi_cmd}
-        return state, phi_cmd, u[P.N_PHI :], grounded
+        return state, phi_cmd, rho_dot, grounded
 
     return SC.make_controller(init, policy, name=f"task_space_{'fb' if feedback else 'ff'}_{point}")
 

@@ -1,0 +1,238 @@
+"""`snake.kv` sweep analysis and tuning objective (T² Snake-3 joint-limit avoidance,
+Sec. V-B, in the kinematic simulation):
+
+  * the batch function equals `run_one` row by row; statuses agree with the metrics;
+  * `limit_loss` against its formula, and larger for a posture kept near the limits;
+  * a short sweep through `jaxloco.sweep.run`: the table and `summarize` (ranking, the
+    paper's K_V row marked);
+  * `jaxloco tune` with `KV_TUNE`: 3 Adam steps lower the loss, the "paper" reference;
+    the loss's gradient (reverse mode through the rollout) against finite differences;
+  * the committed spec files load and validate.
+
+Short horizons (1-2 s, dt 0.05) keep the compiled programs small."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxloco.sweep
+import jaxloco.tune
+from jaxloco.robots.snake import analysis as A
+from jaxloco.robots.snake import control as C
+from jaxloco.robots.snake import experiments as E
+from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import tuning as TU
+
+SWEEPS = Path(__file__).resolve().parents[1] / "sweeps"
+HORIZON, DT = 2.0, 0.05
+DEFAULTS = {p.name: p.default for p in A.PARAMS}
+SWEPT = {  # three rows: paper gains; k_eta 0.5 in the reverse mode order; a low zigzag
+    "k_eta": [0.1, 0.5, 0.1],
+    "mode_order": [0, 1, 2],
+    "amplitude": [1.1, 1.1, 0.5],
+}
+STATUS = {name: i for i, name in enumerate(A.STATUSES)}
+
+
+def _row_values(i: int) -> dict[str, jax.Array]:
+    values = {}
+    for p in A.PARAMS:
+        if not p.sweepable:
+            continue
+        v = SWEPT[p.name][i] if p.name in SWEPT else DEFAULTS[p.name]
+        values[p.name] = jnp.asarray(v, jnp.int32 if p.name == "mode_order" else jnp.float64)
+    return values
+
+
+@pytest.fixture(scope="module")
+def rows():
+    """(batch metrics, [run_one metrics and records per row])."""
+    fixed = {k: v for k, v in DEFAULTS.items() if k not in SWEPT} | {"horizon": HORIZON, "dt": DT}
+    batch_fn = jax.jit(A.make_batch_fn(fixed))
+    swept = {k: jnp.asarray(v, jnp.int32 if k == "mode_order" else jnp.float64) for k, v in SWEPT.items()}
+    keys = jnp.zeros((3, 2), jnp.uint32)
+    batch = {k: np.asarray(v) for k, v in batch_fn(swept, keys).items()}
+    config = A._config(HORIZON, DT, False)
+    one = jax.jit(lambda v: A.run_one(v, config))
+    singles = [jax.tree_util.tree_map(np.asarray, one(_row_values(i))) for i in range(3)]
+    return batch, singles
+
+
+def test_batch_fn_equals_run_one_row_by_row(rows):
+    batch, singles = rows
+    assert set(batch) == {m.name for m in A.METRICS} | {"status"}
+    for i, (m, recs) in enumerate(singles):
+        for key in batch:
+            np.testing.assert_allclose(batch[key][i], m[key], rtol=1e-9, atol=1e-12, err_msg=f"row {i}: {key}")
+        assert recs["t"].shape == (round(HORIZON / DT) + 1,)
+        # the rows' own settings reached the rollout: the mode schedule of their order
+        order = A.MODE_ORDERS[SWEPT["mode_order"][i]]
+        switching = recs["t"] >= E.SWITCH_AT - 1e-9
+        assert np.all(recs["sigma"][~switching] == 1)
+        assert np.all(recs["sigma"][switching] == order[0])  # t in [2, 3)
+    # the three rows differ where they should
+    assert len({round(float(x), 12) for x in batch["loss"]}) == 3
+
+
+def test_statuses_agree_with_the_metrics(rows):
+    batch, singles = rows
+    for i, (m, recs) in enumerate(singles):
+        pos = np.linalg.norm(recs["error"][:, :3], axis=-1).max()
+        att = np.linalg.norm(recs["error"][:, 3:6], axis=-1).max()
+        assert m["max_pos_error"] == pytest.approx(pos, rel=1e-12)
+        assert m["max_att_error"] == pytest.approx(att, rel=1e-12)
+        assert bool(m["head_ok"]) == (pos <= 0.03 and att <= 0.1)
+        ratio = np.abs(recs["phi"][:, P.N_H :]).max(axis=1) / P.YAW_LIMIT
+        below = ratio <= DEFAULTS["recover_ratio"]
+        assert bool(m["recovered"]) == below.any()
+        expected_t = recs["t"][np.argmax(below)] if below.any() else recs["t"][-1] + DT
+        assert m["recovery_time"] == pytest.approx(expected_t)
+        expected = "ok" if (below.any() and m["head_ok"]) else (
+            "failed: base joints not recovered within the horizon" if not below.any()
+            else "failed: head error above 30 mm / 0.1 rad")
+        assert int(m["status"]) == STATUS[expected]
+    # 2 s from the zigzag at 97 % is too short to recover; the 0.5 rad zigzag (44 %) starts recovered
+    assert [int(s) for s in batch["status"]] == [1, 1, 0]
+    assert batch["recovery_time"][2] == 0.0
+    # the posture kept near the limits costs more
+    assert batch["loss"][0] > 1.0 > batch["loss"][2]
+    assert batch["time_near_limit"][0] > 1.0 and batch["time_near_limit"][2] == 0.0
+
+
+def _softplus(x):
+    return np.logaddexp(0.0, x)
+
+
+def test_limit_loss_formula_and_its_limits():
+    """mean_t[(|e_p|/30 mm)^2 + (|e_a|/0.1 rad)^2] + w_limit mean_t sum_j T softplus((r_j -
+    r0)/T)/(1 - r0): one per base joint at its limit, ~0 far below r0, 1 for a 30 mm or
+    0.1 rad head error."""
+    n, T, r0 = 5, 0.02, 0.7
+    rng = np.random.default_rng(0)
+    phi = np.zeros((n, 12))
+    error = np.zeros((n, 7))
+
+    def loss(phi, error, w_limit=1.0):
+        return float(A.limit_loss({"phi": jnp.asarray(phi), "error": jnp.asarray(error)}, r0, w_limit))
+
+    phi[:, P.N_H :] = P.YAW_LIMIT  # every base joint at its limit
+    assert loss(phi, error) == pytest.approx(6.0, abs=1e-5)
+    phi[:, P.N_H :] = 0.3 * P.YAW_LIMIT
+    assert loss(phi, error) < 1e-6
+    phi[:, :P.N_H] = 1.5  # head joints (and psi_3) do not count
+    assert loss(phi, error) < 1e-6
+    error[:, 0] = 0.03
+    assert loss(phi, error) == pytest.approx(1.0, rel=1e-5)
+    error[:, 0], error[:, 5] = 0.0, 0.1
+    assert loss(phi, error) == pytest.approx(1.0, rel=1e-5)
+    error[:, 6] = 0.5  # the psi_3 error is not in the head error
+    assert loss(phi, error) == pytest.approx(1.0, rel=1e-5)
+    # a random case against the formula
+    phi = rng.uniform(-1.1, 1.1, (n, 12))
+    error = rng.normal(0, 0.02, (n, 7))
+    ratio = np.abs(phi[:, P.N_H :]) / P.YAW_LIMIT
+    head = np.mean(np.sum(error[:, :3] ** 2, 1) / 0.03**2 + np.sum(error[:, 3:6] ** 2, 1) / 0.1**2)
+    joints = np.mean(np.sum(T * _softplus((ratio - r0) / T) / (1 - r0), axis=1))
+    assert loss(phi, error, 2.5) == pytest.approx(head + 2.5 * joints, rel=1e-10)
+
+
+# ------------------------------------------------------------------------------ sweep
+@pytest.fixture(scope="module")
+def swept(tmp_path_factory):
+    out = tmp_path_factory.mktemp("snake_kv") / "out"
+    spec = {
+        "sweep": {"analysis": "snake.kv", "output": str(out), "combine": "zip"},
+        "fixed": {"horizon": HORIZON, "dt": DT},
+        "params": SWEPT,
+    }
+    return jaxloco.sweep.run(spec, progress=False, configure_jax=False)
+
+
+def test_sweep_table_and_summary(swept, rows):
+    t = swept.table.to_pydict()
+    assert t["row"] == [0, 1, 2] and t["k_eta"] == SWEPT["k_eta"] and t["amplitude"] == SWEPT["amplitude"]
+    batch, _ = rows
+    np.testing.assert_allclose(t["loss"], batch["loss"], rtol=1e-9)
+    assert t["status"] == [A.STATUSES[int(s)] for s in batch["status"]]
+    summary = A.summarize(swept.table)
+    assert summary == swept.summary  # the runner used the analysis' summarize
+    assert summary.title.endswith("1/3 rows recovered with the head held")
+    assert summary.columns[0] == "row" and all(len(r) == len(summary.columns) for r in summary.rows)
+    # ranked: the ok row first, then the others by loss; rows 0 and 2 have the paper's K_V
+    # and k_eta = 0.1 and are marked
+    failed = sorted([0, 1], key=lambda i: t["loss"][i])
+    labels = [r[0] for r in summary.rows]
+    assert labels == [("paper " if i in (0, 2) else "") + str(i) for i in [2, *failed]]
+    # the varying parameters are shown (k_eta, mode order, amplitude), the fixed ones not
+    for r in summary.rows:
+        i = int(r[0].split()[-1])
+        assert {f"{t['k_eta'][i]:g}", f"{t['mode_order'][i]:g}", f"{t['amplitude'][i]:g}"} <= set(r[1:])
+    assert len(summary.columns) == len(A.summarize(swept.table.slice(0, 2)).columns) + 1  # amplitude varies in 3 rows only
+
+
+# ------------------------------------------------------------------------------- tune
+@pytest.fixture(scope="module")
+def tuned(tmp_path_factory):
+    out = tmp_path_factory.mktemp("snake_kv_tune") / "out"
+    spec = {
+        "tune": {"objective": "snake.kv", "params": [t.name for t in TU.TUNABLES], "steps": 3,
+                 "learning_rate": 0.15, "formats": ["parquet"]},
+        "settings": {"horizon": HORIZON, "dt": DT},
+    }
+    return jaxloco.tune.run(spec, progress=False, out=out, configure_jax=False)
+
+
+def test_three_adam_steps_lower_the_loss_and_report_the_paper_row(tuned, rows):
+    curve = tuned.curve.to_pydict()
+    assert curve["step"] == [0, 1, 2, 3]
+    initial, best, paper = tuned.row("initial"), tuned.row("tuned"), tuned.row("paper")
+    assert best["loss"] < initial["loss"]
+    assert best["loss"] == min(curve["loss"])
+    assert tuned.values("initial") == pytest.approx(TU.PAPER)  # the defaults are the paper's
+    assert {k: paper[k] for k in TU.PAPER} == pytest.approx(TU.PAPER)
+    assert paper["loss"] == pytest.approx(initial["loss"], rel=1e-12)
+    # the loss is the sweep's: row 0 of the batch has the same settings (2 s, paper K_V)
+    batch, _ = rows
+    assert initial["loss"] == pytest.approx(float(batch["loss"][0]), rel=1e-9)
+    assert initial["recovery_time"] == pytest.approx(float(batch["recovery_time"][0]))
+    assert tuned.values("tuned") != tuned.values("initial")
+
+
+def test_loss_gradient_matches_finite_differences():
+    """Reverse mode through the 1 s rollout (joint stops, mode schedule) against central
+    differences of the same loss in each tunable (relative step 1e-5)."""
+    settings = {p.name: p.default for p in TU.SETTINGS} | {"horizon": 1.0, "dt": DT}
+    loss_fn = TU.KV_TUNE.make_loss(settings)
+    evaluate = jax.jit(jax.value_and_grad(loss_fn, has_aux=True))
+    values = {t.name: jnp.asarray(t.default, jnp.float64) for t in TU.TUNABLES}
+    (loss, aux), grad = evaluate(values)
+    assert set(aux) == set(TU.AUX) and np.isfinite(float(loss))
+    assert abs(float(grad["k_eta"])) > 1e-3  # k_eta matters
+    for name, value in values.items():
+        h = 1e-5 * float(value)
+        up = float(evaluate({**values, name: value + h})[0][0])
+        down = float(evaluate({**values, name: value - h})[0][0])
+        fd = (up - down) / (2 * h)
+        assert float(grad[name]) == pytest.approx(fd, rel=1e-4, abs=1e-6 * abs(float(loss))), name
+
+
+# ---------------------------------------------------------------------------- specs
+def test_committed_spec_files_load_and_validate():
+    sweep = jaxloco.sweep.load_spec(SWEEPS / "snake_kv.toml")
+    assert sweep.analysis.name == "snake.kv" and sweep.name == "snake_kv"
+    assert sweep.n_rows == 288  # 3 x 3 x 2 x 4 x 2 x 2, as its comment says
+    assert sweep.fixed["horizon"] == 30.0 and sweep.fixed["dt"] == 0.02
+    assert set(sweep.swept) == {"kv_head_yaw", "kv_base", "kv_ratio", "k_eta", "delta_t", "mode_order"}
+    assert 15.0 in sweep.swept["kv_head_yaw"] and 9.6 in sweep.swept["kv_base"]  # the paper's K_V is a row
+    assert len(jaxloco.sweep.expand(sweep)) == 288
+    tune = jaxloco.tune.load_spec(SWEEPS / "snake_kv_tune.toml")
+    assert tune.objective is TU.KV_TUNE and tune.steps == 40 and tune.optimizer == "adam"
+    assert set(tune.params) == {t.name for t in TU.TUNABLES}
+    assert tune.settings["horizon"] == 20.0 and tune.settings["dt"] == 0.05
+    assert dict(tune.init) == pytest.approx(TU.PAPER)
+    assert C.PAPER_KV_BASE == TU.PAPER["kv_base"]
