@@ -13,15 +13,17 @@ The plant. State: the planar pose [x, y, heading] of the first base link (link 7
     up to the MX-28AR's 6 rad/s (as the MJCF),
   * w_dot is the least-squares solution of the mode's constraints A_sigma w_dot =
     B_sigma u (Eq. 7): exact when u satisfies them (the controller's u does, Eqs.
-    13-14), the best no-skid fit when clipping made it inconsistent,
+    13-14), the best no-skid fit when a lagging servo or a joint stop made it
+    inconsistent (the real wheels would skid),
   * the base pose moves with d(base)/d(w, phi) (w_dot, phi_dot), so the base can never
     leave the plane by integration drift, and phi stops at its limits (Table I).
 
 Controller variants (Sec. IV-C2, V-A): feedforward (the paper's experiments): the
 controller integrates its own commanded u on a copy of the same model and never reads
 the plant; feedback: it reads the plant's w and phi (Fig. 7(b), "measured by the motion
-capture system"). Both are exact copies of each other until the servos fall behind their targets or a
-joint reaches its limit; the MuJoCo scenario (`scenarios`) adds the real errors.
+capture system"). Both are exact copies of each other until the servos fall behind
+their targets or a joint reaches its limit; the MuJoCo scenario (`sim_control`) adds
+the real errors (compliant servos, wheel slip, lift transients).
 
 Targets: w~_d(t) = w~_0 + delta s(t) with a smooth step s from `t0` over `duration`
 (zero speed at both ends), the paper's "target value begins to change at t = 1".
