@@ -1,7 +1,7 @@
 """Gradient tuning: a TOML spec -> an objective's loss -> optax steps -> the loss curve and
 the tuned values, compared with the initial values and the objective's references.
 
-    spec = load_spec("tunes/x.toml")       # or spec_from_dict({...})
+    spec = load_spec("sweeps/snake_kv_tune.toml")       # or spec_from_dict({...})
     result = run(spec)                     # result.curve, result.comparison, result.values()
 
 Modules: `objective` (the registry: `Objective`, `Tunable`, `register`, `get`), `spec`
