@@ -40,13 +40,7 @@ from jaxloco.robots.snake import kinematics as K
 from jaxloco.robots.snake import kinsim as S
 from jaxloco.robots.snake import params as P
 
-MODE_ORDERS = np.array(
-    [
-        [2, 3, 4, 5, 6],  # 0: the paper's, lifting from the tail towards the head
-        [6, 5, 4, 3, 2],  # 1: from the head towards the tail
-        [2, 4, 6, 3, 5],  # 2: interleaved
-    ]
-)
+MODE_ORDERS = C.MODE_ORDERS
 POS_TOL, ATT_TOL = E.PAPER_HEAD_ERROR  # 0.03 m, 0.1 rad
 
 PARAMS = (

@@ -61,6 +61,14 @@ PHI_LIMITS = np.array(
     [P.PITCH_LIMIT if P.JOINT_IS_PITCH[k] else P.YAW_LIMIT for k in P.PHI_JOINTS]
 )  # (12,) [rad], Table I
 
+MODE_ORDERS = np.array(
+    [
+        [2, 3, 4, 5, 6],  # 0: the paper's, lifting from the tail towards the head
+        [6, 5, 4, 3, 2],  # 1: from the head towards the tail
+        [2, 4, 6, 3, 5],  # 2: interleaved
+    ]
+)  # switching orders (rows), `ControlParams.mode_order` takes one
+
 # Sec. V-B, Figs. 8-10: K_V = diag(15, 0.015, 15, 0.015, 15, 0.015, 9.6, ..., 0.3)
 PAPER_KV_HEAD_YAW = 15.0
 PAPER_KV_HEAD_PITCH = 0.015

@@ -54,7 +54,7 @@ PARAM_DEFAULTS: dict[str, float] = {
     "gain": 1.0,  # K [1/s]
     "a2": 0.0,  # Eq. 20 weight
     "delta_t": 1.0,  # [s]
-    "mode_order": 0,  # row of analysis.MODE_ORDERS
+    "mode_order": 0,  # row of control.MODE_ORDERS
     "fixed_mode": 1,
     "switch_at": float("inf"),  # [s]
     "enter_ratio": 2.0,  # automatic switching off
@@ -70,8 +70,6 @@ PARAM_DEFAULTS: dict[str, float] = {
 
 def control_params(p: Mapping[str, Array]) -> C.ControlParams:
     """`ControlParams` from one simulation's params dict."""
-    from jaxloco.robots.snake.analysis import MODE_ORDERS
-
     dtype = jnp.asarray(p["k_eta"]).dtype
     kv = C.kv_diagonal(p["kv_head_yaw"], p["kv_head_pitch"], p["kv_base"], p["kv_ratio"]).astype(dtype)
     return C.ControlParams(
@@ -81,7 +79,7 @@ def control_params(p: Mapping[str, Array]) -> C.ControlParams:
         kv=kv,
         a2=p["a2"],
         delta_t=p["delta_t"],
-        mode_order=jnp.asarray(MODE_ORDERS)[jnp.asarray(p["mode_order"]).astype(jnp.int32)],
+        mode_order=jnp.asarray(C.MODE_ORDERS)[jnp.asarray(p["mode_order"]).astype(jnp.int32)],
         fixed_mode=jnp.asarray(p["fixed_mode"]).astype(jnp.int32),
         switch_at=p["switch_at"],
         enter_ratio=p["enter_ratio"],
@@ -184,6 +182,19 @@ def run_joint_limit(overrides: Mapping[str, Any] | None = None, n: int = 1, hori
     return res, limit_records(res, params, settle)
 
 
+def _limit_signals_one(p, wt_i, phi_i, g_i, tgt):
+    """Task error, V and static margin over one simulation's records."""
+    cp = control_params(p)
+    err = jax.vmap(lambda a: C.task_error(a, tgt))(wt_i)
+    V = jax.vmap(lambda w, f, g: C.cost(w, f, g, cp))(wt_i[:, :6], phi_i, g_i)
+    w_h = jax.vmap(lambda w: K.point_to_head(w, "tip"))(wt_i[:, :6])
+    margin = jax.vmap(lambda h, f, g: C.support_distances(h, f, g)[2])(w_h, phi_i, g_i)
+    return err, V, margin
+
+
+_limit_signals = jax.jit(jax.vmap(_limit_signals_one))
+
+
 def limit_records(res: RolloutResult, params: Mapping[str, Array], settle: float = 0.0) -> dict[str, np.ndarray]:
     """Records of a MuJoCo joint-limit rollout in `kinsim.rollout`'s layout (batch
     first) from t = settle on (t counted from there): t, w (measured tip pose), phi
@@ -202,17 +213,9 @@ def limit_records(res: RolloutResult, params: Mapping[str, Array], settle: float
     target[:, 0, 6] = np.where(np.isfinite(psi3_t), psi3_t, target[:, 0, 6])
     wt = np.concatenate([tip, phi[..., P.SCP_INDEX : P.SCP_INDEX + 1]], -1)
 
-    def per_sim(p, wt_i, phi_i, g_i, tgt):
-        cp = control_params(p)
-        err = jax.vmap(lambda a: C.task_error(a, tgt))(wt_i)
-        V = jax.vmap(lambda w, f, g: C.cost(w, f, g, cp))(wt_i[:, :6], phi_i, g_i)
-        w_h = jax.vmap(lambda w: K.point_to_head(w, "tip"))(wt_i[:, :6])
-        margin = jax.vmap(lambda h, f, g: C.support_distances(h, f, g)[2])(w_h, phi_i, g_i)
-        return err, V, margin
-
     p = {k: jnp.asarray(v) for k, v in params.items()}
-    err, V, margin = jax.jit(jax.vmap(per_sim))(p, jnp.asarray(wt), jnp.asarray(phi), jnp.asarray(grounded),
-                                                jnp.asarray(target[:, 0]))
+    err, V, margin = _limit_signals(p, jnp.asarray(wt), jnp.asarray(phi), jnp.asarray(grounded),
+                                    jnp.asarray(target[:, 0]))
     modes = np.asarray(P.MODES)
     sigma = 1 + np.argmax(np.all(grounded[..., None, :] == modes, axis=-1), axis=-1)
     t = np.broadcast_to(times, (n, times.size))
