@@ -139,15 +139,33 @@ def tune(
     spec: Annotated[Path, typer.Argument(help="the tune spec (TOML)", show_default=False)],
     out: Annotated[Path | None, typer.Option("--out", help="output directory (overrides the spec)")] = None,
     steps: Annotated[int | None, typer.Option("--steps", help="optimizer steps (overrides the spec)")] = None,
+    validate: Annotated[
+        bool,
+        typer.Option("--validate", help="then run the spec's [validate] sweep once per compared set "
+                     "(initial, tuned, references) and compare them"),
+    ] = False,
+    validate_sweep: Annotated[
+        Path | None, typer.Option("--validate-sweep", help="validate with this sweep spec (implies --validate)")
+    ] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
     """Tune an objective's parameters by gradient descent (optax) and compare them with the
-    initial values and the objective's references."""
+    initial values and the objective's references; --validate hands them to a sweep."""
     from jaxloco.tune import TuneDiverged, load_spec, run
     from jaxloco.tune.display import print_result
 
     with _user_errors():
         loaded = load_spec(spec).with_options(output=out, steps=steps)
+        plan = loaded.validation
+        if validate_sweep is not None:
+            from jaxloco.tune.spec import Validation
+
+            plan = Validation(validate_sweep, plan.mapping if plan else None, plan.labels if plan else None)
+            from jaxloco.sweep import load_spec as load_sweep
+
+            load_sweep(validate_sweep)  # a bad sweep spec fails before the tuning
+        elif validate and plan is None:
+            raise SpecError(f"{spec}: --validate needs a [validate] section (or --validate-sweep SPEC)")
         try:
             result = run(loaded, progress=not quiet)
         except KeyboardInterrupt as exc:  # TuneInterrupted says what was saved
@@ -159,6 +177,30 @@ def tune(
         typer.echo(f"warning: {warning}", err=True)
     print_result(result, _stdout())
     for path in result.written:
+        typer.echo(f"wrote {path}")
+    if validate or validate_sweep is not None:
+        assert plan is not None
+        _validate(result.path, plan.sweep, plan.mapping, plan.labels, None, quiet)
+
+
+def _validate(tuned: Path, sweep_spec: Path, mapping, labels, out: Path | None, quiet: bool) -> None:
+    """Run a tuning run's validation sweep and print the comparison (shared by tune and sweep)."""
+    from jaxloco.sweep import SweepInterrupted
+    from jaxloco.tune.display import validation_table
+    from jaxloco.tune.handoff import validate as run_validation
+
+    with _user_errors():
+        try:
+            done = run_validation(tuned, sweep_spec, mapping=mapping, labels=labels, output=out, progress=not quiet)
+        except SweepInterrupted as exc:
+            typer.echo(str(exc), err=True)
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+    names = ", ".join(f"{k} -> {v}" if k != v else k for k, v in done.mapping.items())
+    per_set = done.sweep.table.num_rows // max(len(done.sets), 1)
+    title = f"validation by {sweep_spec}: {per_set} rows per set ({names}); metric means over each set's rows"
+    _stdout().print(validation_table(done.comparison, title))
+    typer.echo(f"wrote {done.sweep.table_path} ({done.sweep.table.num_rows} rows)")
+    for path in done.written:
         typer.echo(f"wrote {path}")
 
 

@@ -114,3 +114,17 @@ def print_result(result: TuneResult, console: Console | None = None) -> None:
     console = console or Console()
     console.print(result_table(result))
     console.print(Text("* tuned; the others stay at their initial values"))
+
+
+def validation_table(comparison, title: str) -> Table:
+    """A validation (`jaxloco.tune.handoff.compare`): quantities down, parameter sets across."""
+    rows = comparison.to_pylist()
+    table = Table(title=Text(title), title_justify="left")
+    table.add_column("", no_wrap=True)
+    for row in rows:
+        table.add_column(Text(row["label"]), justify="right")
+    for name in comparison.column_names[1:]:
+        if name.endswith(("_min", "_max")):
+            continue
+        table.add_row(Text(name), *(_number(row[name]) for row in rows))
+    return table

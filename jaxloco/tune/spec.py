@@ -20,6 +20,11 @@ Spec format::
     [init]                         # starting values of tunables (default: their defaults);
                                    # a tunable not in params keeps this value throughout
     [settings]                     # the objective's fixed settings (default: their defaults)
+
+    [validate]                     # optional: `jaxloco tune --validate` hands the compared
+    sweep = "other_sweep.toml"     #   sets to this sweep spec (path relative to this file)
+    map = {a = "a"}                #   tunable -> sweep parameter (default: equal names)
+    labels = ["initial", "tuned"]  #   which rows of tuned.parquet (default: all)
 """
 
 from __future__ import annotations
@@ -58,10 +63,27 @@ class TuneSection(_Strict):
     formats: list[Literal["parquet", "csv"]] = ["parquet", "csv"]
 
 
+class ValidateSection(_Strict):
+    sweep: Annotated[NonEmptyStr, BeforeValidator(_fspath)]
+    map: dict[str, NonEmptyStr] | None = None
+    labels: list[NonEmptyStr] | None = Field(None, min_length=1)
+
+
 class TuneDoc(_Strict):
     tune: TuneSection
     init: dict[str, Any] = {}
     settings: dict[str, Any] = {}
+    validation: ValidateSection | None = Field(None, alias="validate")
+
+
+@dataclass(frozen=True)
+class Validation:
+    """Where `jaxloco tune --validate` sends the compared sets: a sweep spec (resolved
+    path), the mapping tunable -> sweep parameter (None: equal names) and the labels."""
+
+    sweep: Path
+    mapping: Mapping[str, str] | None = None
+    labels: tuple[str, ...] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,6 +103,7 @@ class TuneSpec:
     settings: Mapping[str, Any]
     formats: tuple[str, ...]
     source: str
+    validation: Validation | None = None
 
     def content(self) -> dict[str, Any]:
         """What decides the run (recorded in the output files' metadata)."""
@@ -153,6 +176,9 @@ def _resolve(doc: Mapping[str, Any], source: str, default_name: str) -> TuneSpec
     except SpecError as exc:
         raise SpecError(f"{source}: {exc}") from None
 
+    validation = None
+    if raw.validation is not None:
+        validation = _validation(raw.validation, objective, source)
     name = sec.name or default_name
     return TuneSpec(
         objective=objective,
@@ -167,5 +193,35 @@ def _resolve(doc: Mapping[str, Any], source: str, default_name: str) -> TuneSpec
         settings=settings,
         formats=tuple(dict.fromkeys(["parquet", *sec.formats])),
         source=source,
+        validation=validation,
     )
+
+
+def _validation(sec: ValidateSection, objective: Objective, source: str) -> Validation:
+    """Resolve [validate]: the sweep path relative to the tune spec's directory (the working
+    directory for a dict), checked to load, and the mapping's names checked both ways."""
+    from jaxloco.sweep.spec import load_spec as load_sweep
+
+    path = Path(sec.sweep)
+    if not path.is_absolute() and source != "<dict>":
+        path = Path(source).parent / path
+    if not path.is_file():
+        raise error(source, "validate.sweep", f"no sweep spec at {path}")
+    sweep = load_sweep(path)
+    mapping = dict(sec.map) if sec.map is not None else None
+    if mapping is not None:
+        for tunable, param in mapping.items():
+            try:
+                objective.tunable(tunable, where=f"validate.map.{tunable}")
+                sweep.analysis.param(param, where=f"validate.map.{tunable}")
+            except SpecError as exc:
+                raise SpecError(f"{source}: {exc}") from None
+    elif not any(t.name in {p.name for p in sweep.analysis.params} for t in objective.tunables):
+        raise error(source, "validate.map", f"no tunable is a parameter of '{sweep.analysis.name}'; give map")
+    if sec.labels is not None:
+        known = ["initial", "tuned", *objective.references]
+        for i, label in enumerate(sec.labels):
+            if label not in known:
+                raise error(source, f"validate.labels[{i}]", f"'{label}' is not one of {', '.join(known)}")
+    return Validation(path, mapping, tuple(sec.labels) if sec.labels is not None else None)
 
