@@ -127,6 +127,7 @@ class Objective:
 # name -> "module:attribute" (imported lazily) or an Objective registered at run time.
 _BUILTIN: dict[str, str] = {
     "snake.kv": "jaxloco.robots.snake.tuning:KV_TUNE",
+    "octopus.sigma": "jaxloco.robots.octopus.tuning:SIGMA_TUNE",
 }
 _REGISTERED: dict[str, Objective] = {}
 
