@@ -1,0 +1,57 @@
+"""docs/add_a_robot.md runs as written: its Python blocks, executed in order, register a toy
+analysis and objective, sweep, tune and validate; the numbers they produce are checked
+against the closed forms of the toy."""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import pytest
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "add_a_robot.md"
+
+
+@pytest.fixture(scope="module")
+def namespace(tmp_path_factory):
+    blocks = re.findall(r"```python\n(.*?)```", DOC.read_text(), flags=re.S)
+    assert len(blocks) >= 4, "the page lost its code blocks"
+    ns = {"OUT": tmp_path_factory.mktemp("add_a_robot")}
+    for i, block in enumerate(blocks):
+        exec(compile(block, f"{DOC.name}[block {i}]", "exec"), ns)
+    return ns
+
+
+def test_margins_match_the_closed_form(namespace):
+    margins = namespace["margins"]
+    sm, ne = margins(0.3, 0.2, 0.25, 0.0)
+    assert float(sm) == pytest.approx(0.2) and float(ne) == pytest.approx(math.hypot(0.2, 0.25) - 0.25)
+    # walking up a slope moves the projected COG downhill by height * tan(slope); the
+    # margin is measured in the horizontal plane, so distances up the slope shrink by cos
+    sm, _ = margins(0.3, 0.25, 0.25, 0.4)
+    assert float(sm) == pytest.approx(uphill(0.3, 0.4), rel=1e-9)
+
+
+def uphill(half_length, slope, height=0.25):
+    return (half_length - height * math.tan(slope)) * math.cos(slope)
+
+
+def test_the_sweep_rows_follow_the_model(namespace):
+    table = namespace["result"].table
+    assert table.num_rows == 21
+    for row in table.to_pylist():
+        expected = min(0.2, uphill(row["half_length"], row["slope"]))
+        assert row["static_margin"] == pytest.approx(expected, abs=1e-9)
+        assert row["status"] == ("ok" if expected > 0.05 else "margin below min_margin")
+
+
+def test_the_tuned_stance_is_near_the_smallest_safe_one(namespace):
+    values = namespace["tuned"].values("tuned")
+    # smallest stance with a 0.05 m static margin at 0.3 rad: w = 0.05, l = 0.05 / cos 0.3 + 0.25 tan 0.3
+    assert values["half_width"] == pytest.approx(0.05, abs=0.01)
+    assert values["half_length"] == pytest.approx(0.05 / math.cos(0.3) + 0.25 * math.tan(0.3), abs=0.01)
+    rows = {r["label"]: r for r in namespace["check"].comparison.to_pylist()}
+    assert rows["hand-set"]["ok_fraction"] == 1.0
+    assert rows["tuned"]["static_margin_min"] == pytest.approx(
+        min(values["half_width"], uphill(values["half_length"], 0.3)), abs=1e-9)
