@@ -128,6 +128,7 @@ class Objective:
 _BUILTIN: dict[str, str] = {
     "snake.kv": "jaxloco.robots.snake.tuning:KV_TUNE",
     "octopus.sigma": "jaxloco.robots.octopus.tuning:SIGMA_TUNE",
+    "titan.stride": "jaxloco.robots.titan.tuning:STRIDE_TUNE",
 }
 _REGISTERED: dict[str, Objective] = {}
 
