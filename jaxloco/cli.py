@@ -1,4 +1,5 @@
-"""The `jaxloco` command line: sweep, summary, analyses, describe, tune, objectives, info.
+"""The `jaxloco` command line: sweep, summary, analyses, describe, tune, objectives, render,
+view, info.
 
 User errors print one line, `error: ...`, on stderr and exit with code 2; an interrupted
 sweep or tuning exits with 130, a tuning whose loss stops being finite with 1. JAX is
@@ -63,15 +64,48 @@ def sweep(
         int | None, typer.Option("--chunk-size", help="rows per compiled batch (overrides the spec)")
     ] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+    executor: Annotated[
+        str, typer.Option("--executor", help="where chunks run: local (this process) or ray (one Ray task per chunk)")
+    ] = "local",
+    address: Annotated[
+        str | None,
+        typer.Option("--address", help="Ray cluster: auto, host:6379 or ray://host:10001 (default: start a local one)"),
+    ] = None,
+    ray_cpus: Annotated[float, typer.Option("--ray-cpus-per-task", help="CPUs each Ray task asks for")] = 1.0,
+    ray_gpus: Annotated[float, typer.Option("--ray-gpus-per-task", help="GPUs each Ray task asks for")] = 0.0,
+    from_tune: Annotated[
+        Path | None,
+        typer.Option("--from-tune", help="a `jaxloco tune` output directory: run the sweep once per compared set "
+                     "(initial, tuned, references), those parameters replaced, and compare the sets"),
+    ] = None,
+    maps: Annotated[
+        list[str] | None,
+        typer.Option("--map", help="with --from-tune: TUNABLE=PARAM when the names differ (repeatable)"),
+    ] = None,
 ) -> None:
-    """Run a parameter sweep and write its table (Parquet, optionally CSV)."""
+    """Run a parameter sweep and write its table (Parquet, optionally CSV); with --from-tune,
+    validate a tuning run's values with it."""
     from jaxloco.sweep import SweepInterrupted, load_spec, run
     from jaxloco.sweep.display import print_summary
 
     with _user_errors():
         loaded = load_spec(spec).with_options(output=out, chunk_size=chunk_size, csv=True if csv else None)
+        chosen = _sweep_executor(executor, address, ray_cpus, ray_gpus)
+        if maps and from_tune is None:
+            raise SpecError("--map needs --from-tune")
+        if from_tune is not None:
+            if resume or overwrite:
+                raise SpecError("--from-tune resumes or replaces its validation sweep by itself; drop --resume/--overwrite")
+            mapping = None
+            if maps:
+                pairs = [m.split("=", 1) for m in maps]
+                if any(len(p) != 2 or not p[0] or not p[1] for p in pairs):
+                    raise SpecError(f"--map: expected TUNABLE=PARAM, got {', '.join(maps)}")
+                mapping = dict(pairs)
+            _validate(from_tune, loaded, mapping, None, out, quiet, executor=chosen)
+            return
         try:
-            result = run(loaded, resume=resume, overwrite=overwrite, progress=not quiet)
+            result = run(loaded, resume=resume, overwrite=overwrite, progress=not quiet, executor=chosen)
         except SweepInterrupted as exc:
             typer.echo(str(exc), err=True)
             raise typer.Exit(EXIT_INTERRUPTED) from None
@@ -87,6 +121,19 @@ def sweep(
     typer.echo(f"wrote {result.table_path} ({result.table.num_rows} rows)")
     for path in result.written[1:]:
         typer.echo(f"wrote {path}")
+
+
+def _sweep_executor(name: str, address: str | None, cpus: float, gpus: float):
+    """The executor `jaxloco sweep` asked for (SpecError for a wrong combination)."""
+    from jaxloco.sweep.executors import EXECUTORS, RayExecutor
+
+    if name not in EXECUTORS:
+        raise SpecError(f"--executor: unknown executor '{name}' (known: {', '.join(EXECUTORS)})")
+    if name == "ray":
+        return RayExecutor(address, cpus_per_task=cpus, gpus_per_task=gpus)
+    if address is not None or cpus != 1.0 or gpus != 0.0:
+        raise SpecError("--address, --ray-cpus-per-task and --ray-gpus-per-task need --executor ray")
+    return name
 
 
 @app.command()
@@ -183,7 +230,7 @@ def tune(
         _validate(result.path, plan.sweep, plan.mapping, plan.labels, None, quiet)
 
 
-def _validate(tuned: Path, sweep_spec: Path, mapping, labels, out: Path | None, quiet: bool) -> None:
+def _validate(tuned: Path, sweep_spec, mapping, labels, out: Path | None, quiet: bool, **run_options) -> None:
     """Run a tuning run's validation sweep and print the comparison (shared by tune and sweep)."""
     from jaxloco.sweep import SweepInterrupted
     from jaxloco.tune.display import validation_table
@@ -191,13 +238,15 @@ def _validate(tuned: Path, sweep_spec: Path, mapping, labels, out: Path | None, 
 
     with _user_errors():
         try:
-            done = run_validation(tuned, sweep_spec, mapping=mapping, labels=labels, output=out, progress=not quiet)
+            done = run_validation(tuned, sweep_spec, mapping=mapping, labels=labels, output=out, progress=not quiet,
+                                  **run_options)
         except SweepInterrupted as exc:
             typer.echo(str(exc), err=True)
             raise typer.Exit(EXIT_INTERRUPTED) from None
     names = ", ".join(f"{k} -> {v}" if k != v else k for k, v in done.mapping.items())
     per_set = done.sweep.table.num_rows // max(len(done.sets), 1)
-    title = f"validation by {sweep_spec}: {per_set} rows per set ({names}); metric means over each set's rows"
+    source = getattr(sweep_spec, "source", sweep_spec)
+    title = f"validation by {source}: {per_set} rows per set ({names}); metric means over each set's rows"
     _stdout().print(validation_table(done.comparison, title))
     typer.echo(f"wrote {done.sweep.table_path} ({done.sweep.table.num_rows} rows)")
     for path in done.written:
@@ -233,6 +282,74 @@ def objectives(
             doc = f"(cannot load: {type(cause).__name__}: {cause})"
         rows.append((known, doc))
     console.print(objectives_table(rows))
+
+
+_SOURCE_HELP = "a sweep spec (TOML; its output table is used if it exists) or a sweep table (table.parquet)"
+
+
+@app.command()
+def render(
+    source: Annotated[Path, typer.Argument(help=_SOURCE_HELP, show_default=False)],
+    row: Annotated[int, typer.Option("--row", help="row index in the sweep's order")] = 0,
+    out: Annotated[Path, typer.Option("--out", help=".gif, .mp4 (needs imageio-ffmpeg) or .png (the last frame)")] = Path(
+        "run.gif"),
+    fps: Annotated[int, typer.Option("--fps", help="frames per second of the video")] = 15,
+    width: Annotated[int, typer.Option("--width", help="image width [px]")] = 480,
+    height: Annotated[int, typer.Option("--height", help="image height [px]")] = 360,
+    camera: Annotated[str, typer.Option("--camera", help="track (follows the robot), side, front, top, free "
+                                        "(still, frames the whole run) or a camera of the model")] = "track",
+    every: Annotated[int | None, typer.Option("--every", help="draw every N-th recorded state (default: at most "
+                                              "150 frames spread over the run)", show_default=False)] = None,
+    seconds: Annotated[float | None, typer.Option("--seconds", help="replay only the first S seconds of motion",
+                                                  show_default=False)] = None,
+) -> None:
+    """Replay one row of a sweep in MuJoCo and write a video (GIF/MP4) or a still (PNG) with
+    the row's parameters, status and key metrics drawn on it.
+
+    Simulated analyses rerun the row on native MuJoCo; kinematic ones pose the robot's
+    MJCF model from the robot's own JAX code. Offscreen rendering uses MUJOCO_GL: on Linux
+    without a display and MUJOCO_GL unset it is set to egl (GPU / headless), falling back
+    to osmesa (CPU) if EGL cannot create a context; glfw needs a display."""
+    with _user_errors():
+        from jaxloco.render import gl
+        from jaxloco.render.video import render_row
+
+        result = render_row(source, row, out, fps=fps, width=width, height=height, camera=camera, every=every,
+                            seconds=seconds)
+    for note in (*gl.notes, *result.replay.row.notes):
+        typer.echo(f"note: {note}", err=True)
+    for problem in result.replay.mismatches():
+        typer.echo(f"warning: the replay differs from the table: {problem}", err=True)
+    replay = result.replay
+    what = f"{replay.row.analysis.name} row {replay.row.index} ({replay.kind})"
+    if result.n_frames == 1:
+        typer.echo(f"{what}: a still at t = {float(replay.times[result.indices[-1]]):.1f} s")
+        typer.echo(f"wrote {result.path} ({result.width}x{result.height})")
+    else:
+        typer.echo(f"{what}: {result.n_frames} frames over {result.span:.1f} s of motion")
+        typer.echo(f"wrote {result.path} ({result.width}x{result.height}, {result.n_frames / result.fps:.1f} s at "
+                   f"{result.fps} fps)")
+
+
+@app.command()
+def view(
+    source: Annotated[Path, typer.Argument(help=_SOURCE_HELP, show_default=False)],
+    row: Annotated[int, typer.Option("--row", help="row index in the sweep's order")] = 0,
+    speed: Annotated[float, typer.Option("--speed", help="playback speed (1 = real time)")] = 1.0,
+    every: Annotated[int | None, typer.Option("--every", help="show every N-th recorded state",
+                                              show_default=False)] = None,
+    seconds: Annotated[float | None, typer.Option("--seconds", help="replay only the first S seconds of motion",
+                                                  show_default=False)] = None,
+) -> None:
+    """Replay one row of a sweep in MuJoCo's interactive viewer, looping in real time.
+
+    Needs a display; on a headless machine use `jaxloco render` (MUJOCO_GL=egl or osmesa)."""
+    with _user_errors():
+        from jaxloco.render.video import check_options
+        from jaxloco.render.viewer import view_row
+
+        check_options(every=every, seconds=seconds)
+        view_row(source, row, speed=speed, every=every, seconds=seconds)
 
 
 @app.command()

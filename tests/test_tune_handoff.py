@@ -234,3 +234,24 @@ def test_cli_validate_without_a_section_or_with_a_bad_path_exits_2(specs):
     (specs / "specs" / "badlabel.toml").write_text(TUNE_TOML.replace('"tuned"]', '"best"]'))
     result = invoke("tune", "specs/badlabel.toml", "--quiet")
     assert result.exit_code == 2 and "validate.labels[1]: 'best' is not one of initial, tuned, paper, far" in result.output
+
+
+def test_cli_sweep_from_tune_with_a_map(specs):
+    assert invoke("tune", "specs/tune.toml", "--quiet", "--out", "t").exit_code == 0
+    result = invoke("sweep", "specs/toy_sweep.toml", "--quiet", "--from-tune", "t", "--map", "a=a", "--out", "v")
+    assert result.exit_code == 0, result.output
+    text = " ".join(result.stdout.split())
+    assert "validation by specs/toy_sweep.toml: 6 rows per set (a)" in text  # only a; b stays swept
+    table = pa.csv.read_csv(specs / "v" / "validation.csv")
+    assert table.column("label").to_pylist() == ["initial=paper", "tuned", "far"]
+    assert "b" not in table.column_names  # b stays swept by the spec
+    for args, message in [
+        (("--map", "a"), "--map: expected TUNABLE=PARAM"),
+        (("--resume",), "--from-tune resumes or replaces"),
+    ]:
+        bad = invoke("sweep", "specs/toy_sweep.toml", "--quiet", "--from-tune", "t", *args)
+        assert bad.exit_code == 2 and message in bad.output, bad.output
+    bad = invoke("sweep", "specs/toy_sweep.toml", "--quiet", "--map", "a=a")
+    assert bad.exit_code == 2 and "--map needs --from-tune" in bad.output
+    bad = invoke("sweep", "specs/toy_sweep.toml", "--quiet", "--from-tune", "nowhere")
+    assert bad.exit_code == 2 and "no tuned.parquet here" in bad.output

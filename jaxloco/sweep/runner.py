@@ -1,28 +1,44 @@
 """Running a sweep: grid -> equally shaped chunks -> one jitted batch call each -> chunk files.
 
-Every check that can fail on user input (spec, output directory, `make_batch_fn(fixed)`)
-runs before the first chunk is computed and before anything is written.
+`run` is the driver: it validates everything, opens the output directory and writes each
+chunk file as it arrives. An executor (`jaxloco.sweep.executors`) computes the chunks, in
+this process ("local") or in Ray worker processes ("ray"). Computing a chunk,
+`compute_chunk(prepare(spec), index)`, depends on the spec and the chunk index only; a
+worker process receives a `ChunkJob` (a picklable description of the spec), rebuilds the
+spec and keeps the prepared, jitted batch function per spec hash (`compute_job_chunk`).
+The table, its spec hash and provenance do not depend on the executor, so a run started
+with one executor can be resumed with another.
+
+Every check that can fail on user input (spec, output directory, `make_batch_fn(fixed)`,
+the executor's connection) runs before the first chunk is computed and before anything
+is written.
 """
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
+from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
 
+from jaxloco import analysis as registry
 from jaxloco import info
-from jaxloco.analysis import Summary
+from jaxloco.analysis import Analysis, Summary
 from jaxloco.sweep import store
 from jaxloco.sweep.errors import SweepInterrupted
 from jaxloco.sweep.grid import Grid, chunk_bounds, expand
 from jaxloco.sweep.schema import check_names, checked_outputs, chunk_table, table_schema
 from jaxloco.sweep.spec import SweepSpec, load_spec, spec_from_dict
 from jaxloco.sweep.summary import summarize
+
+if TYPE_CHECKING:
+    from jaxloco.sweep.executors import Executor
 
 ROW_ORDER = "product of [params] factors, last varying fastest; seeds innermost"
 
@@ -48,6 +64,19 @@ class SweepResult:
         return self.path / store.TABLE
 
 
+@dataclass(frozen=True, eq=False)
+class SweepWork:
+    """What an executor gets from the driver: the validated spec, its hash, the float64
+    flag JAX runs with, the driver's JAX CPU device count (None when JAX runs on GPUs)
+    and, for the local executor, the batch function already made."""
+
+    spec: SweepSpec
+    spec_hash: str
+    x64: bool
+    cpu_devices: int | None = None
+    batch_fn: Callable[..., Any] | None = None
+
+
 def run(
     spec: SweepSpec | str | Path | Mapping[str, Any],
     *,
@@ -57,27 +86,33 @@ def run(
     output: str | Path | None = None,
     configure_jax: bool = True,
     on_chunk: Callable[[int, int], None] | None = None,
+    executor: str | Executor = "local",
 ) -> SweepResult:
     """Run (or resume) a sweep and return its table.
 
     spec: a SweepSpec, a path to a TOML spec, or a dict in the TOML layout.
     output: overrides the spec's output directory. configure_jax: call
     `jaxloco.runtime.configure(x64=analysis.x64, cache_dir=True)` first.
-    on_chunk(index, n_chunks): called after each chunk file is saved.
+    on_chunk(index, n_chunks): called after each chunk file is saved (in the order the
+    chunks finish, which for the "ray" executor need not be index order).
+    executor: "local" (this process), "ray" (a local Ray instance, one task per chunk) or
+    an executor object such as `jaxloco.sweep.executors.RayExecutor(address=...)`.
     Raises SpecError for user errors (before computing anything) and SweepInterrupted
     (a KeyboardInterrupt) when interrupted; saved chunks stay for `resume=True`.
     """
+    from jaxloco.sweep.executors import get_executor
+
     if isinstance(spec, Mapping):
         spec = spec_from_dict(spec)
     elif not isinstance(spec, SweepSpec):
         spec = load_spec(spec)
     if output is not None:
         spec = spec.with_options(output=output)
+    chosen = get_executor(executor)
     analysis = spec.analysis
     check_names(analysis)
     out = spec.output
-    grid = expand(spec)
-    bounds = chunk_bounds(grid.n_rows, spec.chunk_size)
+    bounds = chunk_bounds(spec.n_rows, spec.chunk_size)
     spec_hash = spec.hash
     mode = store.check_output(out, spec_hash, resume=resume, overwrite=overwrite)
 
@@ -87,77 +122,46 @@ def run(
 
     if configure_jax:
         runtime.configure(x64=analysis.x64, cache_dir=True)
-    host = analysis.executor == "host"
-    fn = analysis.make_batch_fn(dict(spec.fixed))
-    if not host:
-        fn = jax.jit(fn)
+    fn = analysis.make_batch_fn(dict(spec.fixed))  # its user errors come before anything runs
+    work = SweepWork(
+        spec,
+        spec_hash,
+        x64=bool(jax.config.jax_enable_x64),
+        cpu_devices=jax.device_count() if jax.default_backend() == "cpu" else None,
+        batch_fn=fn if chosen.in_process else None,
+    )
 
-    versions = info.versions()
-    store.open_output(out, _manifest(spec, spec_hash, len(bounds), versions), mode)
-    done, warnings = store.saved_chunks(out, bounds, spec_hash) if mode == "resume" else (set(), [])
-    todo = [i for i in range(len(bounds)) if i not in done]
+    with chosen.session():  # e.g. connect to Ray: refused before anything is written
+        versions = info.versions()
+        store.open_output(out, _manifest(spec, spec_hash, len(bounds), versions), mode)
+        done, warnings = store.saved_chunks(out, bounds, spec_hash) if mode == "resume" else (set(), [])
+        todo = [i for i in range(len(bounds)) if i not in done]
+        done_rows = sum(stop - start for i, (start, stop) in enumerate(bounds) if i in done)
 
-    schema = table_schema(analysis, spec_hash, swept=tuple(spec.swept))
-    provenance = {
-        "analysis": analysis.name,
-        "jaxloco_version": versions["jaxloco"],
-        "jax_version": versions["jax"],
-        "mujoco_version": versions["mujoco"],
-    }
-    # the batch axis is sharded over every JAX device (all CPU cores, or the GPUs); one
-    # compiled call takes at most MAX_ROWS_PER_DEVICE rows per device, larger chunks are
-    # run in several calls of that shape
-    devices = jax.devices()
-    per_call = min(spec.chunk_size, grid.n_rows, MAX_ROWS_PER_DEVICE * len(devices))
-    batch = -(-per_call // len(devices)) * len(devices)
-    if host:  # the analysis batches itself: one call per chunk, no padding
-        batch = spec.chunk_size
-    sharding = jax.sharding.NamedSharding(jax.sharding.Mesh(np.array(devices), ("batch",)),
-                                          jax.sharding.PartitionSpec("batch"))
-    x64 = bool(jax.config.jax_enable_x64)
-    keys_by_seed = np.stack([np.asarray(jax.random.PRNGKey(int(s)), dtype=np.uint32) for s in grid.seed_values])
-    done_rows = sum(stop - start for i, (start, stop) in enumerate(bounds) if i in done)
+        from jaxloco.sweep.display import row_progress
 
-    from jaxloco.sweep.display import row_progress
-
-    try:
-        with row_progress(grid.n_rows, done_rows, enabled=progress) as bar:
-            for count, index in enumerate(todo):
-                bar.chunk_started(index, len(bounds), first=count == 0)
-                start, stop = bounds[index]
-                swept, seed_pos = grid.rows(start, stop)
-                parts = []
-                for lo in range(0, stop - start, batch):
-                    hi = min(lo + batch, stop - start)
-                    if host:
-                        inputs = {name: v[lo:hi] for name, v in swept.items()}
-                        raw = fn(inputs, keys_by_seed[seed_pos[lo:hi]])
-                        parts.append(checked_outputs(analysis, raw, hi - lo))
-                        continue
-                    inputs = {name: _padded(_device_array(v[lo:hi], x64), batch) for name, v in swept.items()}
-                    keys = _padded(keys_by_seed[seed_pos[lo:hi]], batch)
-                    raw = fn(*jax.device_put((inputs, keys), sharding))
-                    parts.append({k: v[: hi - lo] for k, v in checked_outputs(analysis, raw, batch).items()})
-                outputs = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
-                table = chunk_table(
-                    schema,
-                    analysis,
-                    start=start,
-                    swept=swept,
-                    fixed=spec.fixed,
-                    seeds=grid.seed_values[seed_pos],
-                    outputs=outputs,
-                    provenance=provenance,
-                )
-                store.write_chunk(out, index, table)
-                bar.advance(stop - start)
-                if on_chunk is not None:
-                    on_chunk(index, len(bounds))
-            bar.finish()
-        table = store.assemble(out, len(bounds))
-        written = store.write_table(out, table, csv="csv" in spec.formats)
-    except KeyboardInterrupt:
-        raise SweepInterrupted(store.count_saved(out, len(bounds)), len(bounds), out) from None
+        try:
+            with (
+                row_progress(spec.n_rows, done_rows, enabled=progress) as bar,
+                contextlib.closing(chosen.chunks(work, todo)) as results,
+            ):
+                pending = list(todo)
+                if pending:
+                    bar.chunk_started(pending[0], len(bounds), first=True)
+                for index, table in results:
+                    store.write_chunk(out, index, table)
+                    pending.remove(index)
+                    start, stop = bounds[index]
+                    bar.advance(stop - start)
+                    if on_chunk is not None:
+                        on_chunk(index, len(bounds))
+                    if pending:
+                        bar.chunk_started(pending[0], len(bounds), first=False)
+                bar.finish()
+            table = store.assemble(out, len(bounds))
+            written = store.write_table(out, table, csv="csv" in spec.formats)
+        except KeyboardInterrupt:
+            raise SweepInterrupted(store.count_saved(out, len(bounds)), len(bounds), out) from None
 
     summary, summary_error = None, None
     try:
@@ -174,6 +178,204 @@ def run(
         warnings=tuple(warnings),
         summary_error=summary_error,
     )
+
+
+# ------------------------------------------------------------- computing one chunk
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedSweep:
+    """Everything a process needs to compute any chunk of one sweep: the grid, the
+    (jitted, unless executor "host") batch function, the table schema, the call shape."""
+
+    spec: SweepSpec
+    grid: Grid
+    bounds: list[tuple[int, int]]
+    fn: Callable[..., Any]
+    host: bool
+    schema: pa.Schema
+    provenance: dict[str, str]
+    batch: int
+    sharding: Any
+    x64: bool
+    keys_by_seed: np.ndarray
+
+
+def prepare(spec: SweepSpec, batch_fn: Callable[..., Any] | None = None) -> PreparedSweep:
+    """Make (and jit) the batch function and fix the call shape of `spec`'s chunks.
+
+    JAX must already be configured (float64 flag, CPU devices). batch_fn: the result of
+    `analysis.make_batch_fn(fixed)` when the caller already has it.
+    """
+    import jax
+
+    analysis = spec.analysis
+    grid = expand(spec)
+    host = analysis.executor == "host"
+    fn = batch_fn if batch_fn is not None else analysis.make_batch_fn(dict(spec.fixed))
+    if not host:
+        fn = jax.jit(fn)
+    versions = info.versions()
+    provenance = {
+        "analysis": analysis.name,
+        "jaxloco_version": versions["jaxloco"],
+        "jax_version": versions["jax"],
+        "mujoco_version": versions["mujoco"],
+    }
+    # the batch axis is sharded over every JAX device (all CPU cores, or the GPUs); on CPU
+    # one compiled call takes at most MAX_ROWS_PER_DEVICE rows per device, larger chunks
+    # are run in several calls of that shape (accelerators take the whole chunk)
+    devices = jax.devices()
+    cap = MAX_ROWS_PER_DEVICE * len(devices) if devices[0].platform == "cpu" else spec.chunk_size
+    per_call = min(spec.chunk_size, grid.n_rows, cap)
+    batch = -(-per_call // len(devices)) * len(devices)
+    if host:  # the analysis batches itself: one call per chunk, no padding
+        batch = spec.chunk_size
+    sharding = jax.sharding.NamedSharding(
+        jax.sharding.Mesh(np.array(devices), ("batch",)), jax.sharding.PartitionSpec("batch")
+    )
+    keys_by_seed = np.stack([np.asarray(jax.random.PRNGKey(int(s)), dtype=np.uint32) for s in grid.seed_values])
+    return PreparedSweep(
+        spec=spec,
+        grid=grid,
+        bounds=chunk_bounds(grid.n_rows, spec.chunk_size),
+        fn=fn,
+        host=host,
+        schema=table_schema(analysis, spec.hash, swept=tuple(spec.swept)),
+        provenance=provenance,
+        batch=batch,
+        sharding=sharding,
+        x64=bool(jax.config.jax_enable_x64),
+        keys_by_seed=keys_by_seed,
+    )
+
+
+def compute_chunk(prepared: PreparedSweep, index: int) -> pa.Table:
+    """Chunk `index` of the sweep as its Arrow table (rows bounds[index], every column)."""
+    import jax
+
+    p = prepared
+    analysis = p.spec.analysis
+    start, stop = p.bounds[index]
+    swept, seed_pos = p.grid.rows(start, stop)
+    parts = []
+    for lo in range(0, stop - start, p.batch):
+        hi = min(lo + p.batch, stop - start)
+        if p.host:
+            inputs = {name: v[lo:hi] for name, v in swept.items()}
+            raw = p.fn(inputs, p.keys_by_seed[seed_pos[lo:hi]])
+            parts.append(checked_outputs(analysis, raw, hi - lo))
+            continue
+        inputs = {name: _padded(_device_array(v[lo:hi], p.x64), p.batch) for name, v in swept.items()}
+        keys = _padded(p.keys_by_seed[seed_pos[lo:hi]], p.batch)
+        raw = p.fn(*jax.device_put((inputs, keys), p.sharding))
+        parts.append({k: v[: hi - lo] for k, v in checked_outputs(analysis, raw, p.batch).items()})
+    outputs = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
+    return chunk_table(
+        p.schema,
+        analysis,
+        start=start,
+        swept=swept,
+        fixed=p.spec.fixed,
+        seeds=p.grid.seed_values[seed_pos],
+        outputs=outputs,
+        provenance=p.provenance,
+    )
+
+
+# ------------------------------------------------------- chunks in another process
+
+
+@dataclass(frozen=True)
+class ChunkJob:
+    """A sweep described for a worker process (plain data; pickles).
+
+    spec: the resolved spec in the TOML layout (every parameter value explicit), rebuilt
+    with `spec_from_dict` on the worker and checked against spec_hash. x64: the float64
+    flag the driver runs with. cpu_devices: JAX CPU devices to expose in the worker
+    (None: its core count; it only takes effect in a process whose JAX backend has not
+    started yet). analysis: sent along only for an analysis registered at run time (a
+    builtin is looked up by name on the worker).
+    """
+
+    spec: dict[str, Any]
+    spec_hash: str
+    x64: bool
+    cpu_devices: int | None = None
+    analysis: Analysis | None = None
+
+    @classmethod
+    def of(cls, spec: SweepSpec, *, x64: bool, cpu_devices: int | None = None) -> ChunkJob:
+        name = spec.analysis.name
+        builtin = name in registry._BUILTIN
+        return cls(
+            spec=spec_document(spec),
+            spec_hash=spec.hash,
+            x64=x64,
+            cpu_devices=cpu_devices,
+            analysis=None if builtin else spec.analysis,
+        )
+
+    def rebuild(self) -> SweepSpec:
+        """The spec again, validated; RuntimeError if it is not the driver's (hash differs)."""
+        if self.analysis is not None:
+            registry.register(self.analysis)
+        spec = spec_from_dict(self.spec, source=f"<sweep {self.spec_hash[:12]}>")
+        if spec.hash != self.spec_hash:
+            raise RuntimeError(
+                f"the worker rebuilt a different sweep (hash {spec.hash[:12]}, driver {self.spec_hash[:12]});"
+                " are the same jaxloco versions installed on the driver and the workers?"
+            )
+        return spec
+
+
+def spec_document(spec: SweepSpec) -> dict[str, Any]:
+    """`spec` in the TOML layout with every value explicit: `spec_from_dict` of it gives a
+    spec with the same rows, chunks and hash (output and formats are the driver's business)."""
+    sweep: dict[str, Any] = {
+        "analysis": spec.analysis.name,
+        "name": spec.name,
+        "chunk_size": spec.chunk_size,
+        "seeds": list(spec.seeds),
+    }
+    groups = [list(f) for f in spec.factors if len(f) > 1]
+    if groups:
+        sweep["zip"] = groups
+    return {
+        "sweep": sweep,
+        "fixed": dict(spec.fixed),
+        "params": {name: list(values) for name, values in spec.swept.items()},
+    }
+
+
+# per worker process: (spec hash, x64) -> prepared sweep, the most recently used last
+_PREPARED: OrderedDict[tuple[str, bool], PreparedSweep] = OrderedDict()
+PREPARED_PER_PROCESS = 4
+
+
+def compute_job_chunk(job: ChunkJob, index: int) -> pa.Table:
+    """Chunk `index` of `job`'s sweep, computed in this (worker) process.
+
+    The first call for a sweep configures JAX as the local runner does
+    (`runtime.configure(x64=job.x64, cache_dir=True)`), rebuilds the spec and makes and
+    jits the batch function; later calls for the same sweep reuse it.
+    """
+    import jax
+
+    from jaxloco import runtime
+
+    key = (job.spec_hash, job.x64)
+    prepared = _PREPARED.get(key)
+    if prepared is None:
+        runtime.configure(x64=job.x64, cache_dir=True, cpu_devices=job.cpu_devices)
+        prepared = prepare(job.rebuild())
+        _PREPARED[key] = prepared
+        while len(_PREPARED) > PREPARED_PER_PROCESS:
+            _PREPARED.popitem(last=False)
+    else:
+        _PREPARED.move_to_end(key)
+        jax.config.update("jax_enable_x64", job.x64)  # another sweep may have changed it
+    return compute_chunk(prepared, index)
 
 
 # jaxlib 0.10.2's batched LAPACK kernels on CPU were seen to deadlock when one call
@@ -215,4 +417,4 @@ def _manifest(spec: SweepSpec, spec_hash: str, n_chunks: int, versions: dict[str
     }
 
 
-__all__ = ["Grid", "SweepResult", "run"]
+__all__ = ["ChunkJob", "Grid", "PreparedSweep", "SweepResult", "compute_chunk", "compute_job_chunk", "prepare", "run"]

@@ -1,0 +1,369 @@
+"""Replaying one sweep row as a sequence of MuJoCo states (qpos and mocap poses per frame).
+
+`replay_row(row)` looks the row's analysis up in `REPLAYS` (name -> "module:function",
+imported lazily, like `jaxloco.analysis`) and returns a `Replay`: the model to draw, the
+full trajectory (every recorded state, times in seconds from the start), the metrics the
+replay itself recomputed, what to write on the frames and where the camera looks.
+
+Two kinds of replay:
+  * simulated analyses (executor "host": `leggrope.fragile_walk`, `octopus.step_climb`,
+    and any other host analysis that runs `jaxloco.sim.rollout.rollout`): the
+    analysis' own batch function runs the row once (batch of 1, the row's seed) on the
+    native backend while `capture_rollouts` adds qpos, mocap poses and time to the
+    scenario's records. The metrics therefore come from the analysis' own code, and the
+    states are those its metrics were computed from. A row swept on MJX is replayed on
+    native MuJoCo (its metrics may then differ slightly from the table's);
+  * kinematic analyses (`jaxloco.render.kinematic`): the robot's own JAX code computes the
+    row's trajectory or posture, which is written into the MJCF model's qpos.
+
+Frames: `frame_indices` picks the states to draw: all of them up to `seconds`, every
+`every`-th, or (default) at most `MAX_FRAMES` evenly spread over the run, ends included.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import importlib
+import math
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from jaxloco.analysis import SpecError
+from jaxloco.render.rows import Row
+
+MAX_FRAMES = 150  # default cap of a video's frames (a GIF of 480x360 renders in well under a minute)
+STATE_KEYS = ("_render_qpos", "_render_mocap_pos", "_render_mocap_quat", "_render_time")
+
+
+@dataclass
+class Replay:
+    """A row replayed as MuJoCo states (numpy; world frame, SI units).
+
+    qpos (T, nq), mocap_pos (T, nmocap, 3) and mocap_quat (T, nmocap, 4) (None: the
+    model's own), times (T,) [s]. metrics: what the replay recomputed (a subset of the
+    analysis' metrics), status: its status (None: not recomputed). headline: the 2-4
+    metrics drawn on the frames. captions: one line per state (phase, step, live
+    values) or None. markers: (T, K, 3) world points drawn as spheres (targets) or None.
+    track_body: the body whose subtree centre of mass the tracking camera follows.
+    """
+
+    row: Row
+    model: Any
+    qpos: np.ndarray
+    times: np.ndarray
+    metrics: dict[str, Any]
+    status: str | None
+    headline: tuple[str, ...]
+    kind: str
+    mocap_pos: np.ndarray | None = None
+    mocap_quat: np.ndarray | None = None
+    captions: Sequence[str] | None = None
+    markers: np.ndarray | None = None
+    marker_rgba: tuple[float, float, float, float] = (0.9, 0.1, 0.1, 0.8)
+    marker_size: float = 0.02
+    track_body: int | None = None
+    camera: dict[str, float] = field(default_factory=dict)  # azimuth, elevation, distance overrides
+
+    def __post_init__(self) -> None:
+        self.qpos = np.asarray(self.qpos, float)
+        self.times = np.asarray(self.times, float)
+        n = self.qpos.shape[0]
+        if self.qpos.ndim != 2 or self.qpos.shape[1] != self.model.nq or self.times.shape != (n,):
+            raise ValueError(f"replay: qpos {self.qpos.shape} and times {self.times.shape} do not match nq = "
+                             f"{self.model.nq}")
+        if self.track_body is None:
+            self.track_body = root_body(self.model)
+
+    @property
+    def n_states(self) -> int:
+        return int(self.qpos.shape[0])
+
+    def set_state(self, data: Any, i: int) -> None:
+        """Write state i into MjData `data` and run mj_forward (positions, frames, COM)."""
+        import mujoco
+
+        data.qpos[:] = self.qpos[i]
+        data.qvel[:] = 0.0
+        if self.mocap_pos is not None:
+            data.mocap_pos[:] = self.mocap_pos[i]
+            data.mocap_quat[:] = self.mocap_quat[i]
+        data.time = float(self.times[i])
+        mujoco.mj_forward(self.model, data)
+
+    def shown_metrics(self) -> dict[str, Any]:
+        """The headline metrics to draw: the table's values when the row has them, else
+        the replay's."""
+        table = self.row.metrics or {}
+        return {name: table.get(name, self.metrics.get(name)) for name in self.headline
+                if name in table or name in self.metrics}
+
+    def shown_status(self) -> str | None:
+        return self.row.status if self.row.status is not None else self.status
+
+    def mismatches(self, rtol: float = 1e-4, atol: float = 1e-6) -> list[str]:
+        """Metrics (and the status) on which the replay and the table row disagree."""
+        table = self.row.metrics
+        if table is None:
+            return []
+        out = []
+        for name, mine in self.metrics.items():
+            if name not in table:
+                continue
+            theirs = table[name]
+            if not _close(mine, theirs, rtol, atol):
+                out.append(f"{name}: replay {_short(mine)}, table {_short(theirs)}")
+        if self.status is not None and self.row.status is not None and self.status != self.row.status:
+            out.append(f"status: replay {self.status!r}, table {self.row.status!r}")
+        return out
+
+
+def _short(x: Any) -> str:
+    return f"{x:.6g}" if isinstance(x, float) else repr(x)
+
+
+def _close(a: Any, b: Any, rtol: float, atol: float) -> bool:
+    if a is None or b is None:
+        return a is b
+    if isinstance(a, (bool, np.bool_)) or isinstance(b, (bool, np.bool_)):
+        return bool(a) == bool(b)
+    a, b = float(a), float(b)
+    if math.isnan(a) or math.isnan(b):
+        return math.isnan(a) and math.isnan(b)
+    return math.isclose(a, b, rel_tol=rtol, abs_tol=atol)
+
+
+def root_body(model: Any) -> int:
+    """The root body of the model's first free joint (the robot), else the world (0)."""
+    import mujoco
+
+    free = np.flatnonzero(np.asarray(model.jnt_type) == mujoco.mjtJoint.mjJNT_FREE)
+    if not free.size:
+        return 0
+    return int(model.body_rootid[model.jnt_bodyid[free[0]]])
+
+
+def frame_indices(times: np.ndarray, seconds: float | None = None, every: int | None = None,
+                  max_frames: int = MAX_FRAMES) -> np.ndarray:
+    """Indices of the states to draw (see the module docstring)."""
+    times = np.asarray(times, float)
+    n = times.shape[0]
+    last = n if seconds is None else int(np.searchsorted(times, times[0] + seconds + 1e-9, side="right"))
+    last = max(1, min(n, last))
+    if every is not None:
+        return np.arange(0, last, int(every))
+    count = min(last, max_frames)
+    return np.unique(np.round(np.linspace(0, last - 1, count)).astype(int))
+
+
+def model_copy(model: Any) -> Any:
+    """A copy of an MjModel that rendering may modify (lights, framebuffer size)."""
+    return copy.deepcopy(model)
+
+
+# --------------------------------------------------------------------- simulated rows
+@dataclass
+class Captured:
+    """One rollout seen by `capture_rollouts`: the scenario that ran (with the state
+    records), its batched params, its result (state records removed) and the states."""
+
+    scenario: Any
+    params: Mapping[str, Any]
+    result: Any
+    state: dict[str, np.ndarray]
+
+
+def _with_state(record: Callable) -> Callable:
+    def recorded(p, data, obs, ctrl_state, env_state):
+        out = dict(record(p, data, obs, ctrl_state, env_state))
+        out.update(_render_qpos=data.qpos, _render_mocap_pos=data.mocap_pos, _render_mocap_quat=data.mocap_quat,
+                   _render_time=data.time)
+        return out
+
+    return recorded
+
+
+_WRAPPED: dict[int, tuple[Any, Any]] = {}  # id(scenario) -> (scenario, scenario recording its states)
+
+
+def recording_scenario(scenario: Any) -> Any:
+    """`scenario` with qpos, mocap poses and time added to its records; one object per
+    scenario (cached), so that repeated replays reuse its traced and compiled functions."""
+    hit = _WRAPPED.get(id(scenario))
+    if hit is None or hit[0] is not scenario:
+        hit = (scenario, scenario.with_(record=_with_state(scenario.record)))
+        _WRAPPED[id(scenario)] = hit
+    return hit[1]
+
+
+@contextlib.contextmanager
+def capture_rollouts() -> Iterator[list[Captured]]:
+    """While active, `jaxloco.sim.rollout.rollout` runs on the native backend with qpos,
+    mocap poses and time added to the scenario's records, and appends what it ran to the
+    yielded list (the caller's records are returned unchanged). Analyses import
+    `rollout` when their batch function is made, so make it inside the block."""
+    from jaxloco.sim import rollout as module
+
+    original = module.rollout
+    captured: list[Captured] = []
+
+    def recording(scenario, params, **kwargs):
+        kwargs["backend"] = "native"
+        scenario = recording_scenario(scenario)
+        result = original(scenario, params, **kwargs)
+        state = {key: np.asarray(result.records.pop(key)) for key in STATE_KEYS}
+        captured.append(Captured(scenario, params, result, state))
+        return result
+
+    module.rollout = recording
+    try:
+        yield captured
+    finally:
+        module.rollout = original
+
+
+def run_host_row(row: Row) -> tuple[dict[str, Any], str, Captured]:
+    """Run a host (simulated) analysis on one row as the sweep does (batch of 1, the
+    row's PRNG key) and capture its rollout: (metrics, status, captured)."""
+    analysis = row.analysis
+    with capture_rollouts() as captured:
+        fn = analysis.make_batch_fn(dict(row.values))
+        out = fn({}, row.key[None])
+    if not captured:
+        raise SpecError(f"analysis {analysis.name} has no replay yet (its batch function runs no jaxloco.sim rollout)")
+    metrics = {m.name: np.asarray(out[m.name])[0].item() for m in analysis.metrics if m.name in out}
+    status = analysis.statuses[int(np.asarray(out["status"])[0])]
+    return metrics, status, captured[0]
+
+
+def _row_params(captured: Captured, i: int = 0) -> dict[str, Any]:
+    return {k: np.asarray(v)[i] for k, v in captured.params.items()}
+
+
+def simulated_model(captured: Captured) -> Any:
+    """A copy of the scenario's model with the row's per-simulation model fields written in."""
+    import mujoco
+
+    model = model_copy(captured.scenario.model)
+    params = _row_params(captured)
+    set_const = False
+    for f in captured.scenario.model_fields:
+        arr = getattr(model, f.name)
+        index = f.index if isinstance(f.index, tuple) else (f.index,)
+        arr[index] = np.asarray(f.value(params))
+        set_const |= f.needs_set_const
+    if set_const:
+        mujoco.mj_setConst(model, mujoco.MjData(model))
+    return model
+
+
+def simulated_replay(row: Row, headline: Sequence[str] = (),
+                     caption: Callable[[Row, Mapping[str, np.ndarray]], Sequence[str]] | None = None,
+                     **extra: Any) -> Replay:
+    """The replay of a host analysis (module docstring). caption(row, records) gives one
+    line per recorded state from the scenario's own records (without the batch axis)."""
+    metrics, status, captured = run_host_row(row)
+    state = {k: v[0] for k, v in captured.state.items()}
+    records = {k: np.asarray(v)[0] for k, v in captured.result.records.items()}
+    headline = tuple(headline) or tuple(m.name for m in row.analysis.metrics[:3])
+    return Replay(
+        row=row,
+        model=simulated_model(captured),
+        qpos=state["_render_qpos"],
+        times=state["_render_time"] - state["_render_time"][0],
+        mocap_pos=state["_render_mocap_pos"],
+        mocap_quat=state["_render_mocap_quat"],
+        metrics=metrics,
+        status=status,
+        headline=headline,
+        kind="native MuJoCo simulation",
+        captions=None if caption is None else list(caption(row, records)),
+        **extra,
+    )
+
+
+def octopus_step_climb(row: Row) -> Replay:
+    """`octopus.step_climb`: the CLM/CCM climb, captioned with the controller phase."""
+    from jaxloco.robots.octopus import ccm, clm
+
+    names = clm.PHASE_NAMES if row.values.get("controller", "clm") == "clm" else ccm.PHASE_NAMES
+
+    def caption(row: Row, records: Mapping[str, np.ndarray]) -> list[str]:
+        phase = np.asarray(records["phase"]).astype(int)
+        pitch = -np.degrees(np.asarray(records["rpy"])[:, 1])
+        x = np.asarray(records["cog"])[:, 0]
+        return [f"phase {names[p] if 0 <= p < len(names) else '-'}  pitch {a:+.0f} deg  COG x {c:.2f} m"
+                for p, a, c in zip(phase, pitch, x)]
+
+    return simulated_replay(row, ("success", "climb_time", "min_margin", "max_pitch"), caption,
+                            camera={"azimuth": 60.0, "elevation": -15.0, "distance": 3.4})
+
+
+def leggrope_fragile_walk(row: Row) -> Replay:
+    """`leggrope.fragile_walk`: the simulated leg-grope cycle, captioned with grope and phase."""
+    from jaxloco.robots.leggrope import control
+    from jaxloco.robots.leggrope.params import LEG_NAMES
+
+    def caption(row: Row, records: Mapping[str, np.ndarray]) -> list[str]:
+        phase = np.asarray(records["phase"]).astype(int)
+        leg = np.asarray(records["leg"]).astype(int)
+        grope = np.asarray(records["grope"]).astype(int)
+        collapsed = np.asarray(records["collapsed"]).astype(int)
+        return [f"grope {min(g, 3) + 1}/4 {LEG_NAMES[l]}  phase {control.PHASES[p]}  collapsed {c}"
+                for g, l, p, c in zip(grope, leg, phase, collapsed)]
+
+    return simulated_replay(row, ("success", "completed_gropes", "max_attitude_change", "min_margin"), caption,
+                            camera={"azimuth": 150.0, "elevation": -25.0})
+
+
+def generic_host(row: Row) -> Replay:
+    """Any other host analysis that runs a `jaxloco.sim` rollout: its first three metrics."""
+    return simulated_replay(row)
+
+
+# -------------------------------------------------------------------------- registry
+REPLAYS: dict[str, str] = {
+    "titan.stride": "jaxloco.render.kinematic:titan_stride",
+    "snake.kv": "jaxloco.render.kinematic:snake_kv",
+    "leggrope.slope_cycle": "jaxloco.render.kinematic:leggrope_slope_cycle",
+    "octopus.step_climb": "jaxloco.render.replay:octopus_step_climb",
+    "leggrope.fragile_walk": "jaxloco.render.replay:leggrope_fragile_walk",
+}
+NO_REPLAY: dict[str, str] = {
+    "octopus.terrain_classification": "a row is a Monte-Carlo set of static postures, not a motion",
+}
+_REGISTERED: dict[str, Callable[[Row], Replay]] = {}
+
+
+def register(name: str, fn: Callable[[Row], Replay]) -> None:
+    """Add (or replace) the replay of analysis `name` (plugins, tests)."""
+    _REGISTERED[name] = fn
+
+
+def replay_fn(analysis: Any) -> Callable[[Row], Replay]:
+    """The replay function of an analysis; SpecError (one line) when it has none."""
+    name = analysis.name
+    if name in _REGISTERED:
+        return _REGISTERED[name]
+    if name in REPLAYS:
+        module, attr = REPLAYS[name].split(":")
+        return getattr(importlib.import_module(module), attr)
+    if name not in NO_REPLAY and analysis.executor == "host":
+        return generic_host
+    why = f" ({NO_REPLAY[name]})" if name in NO_REPLAY else ""
+    known = ", ".join(sorted(set(REPLAYS) | set(_REGISTERED)))
+    raise SpecError(f"analysis {name} has no replay yet{why}; replays exist for: {known} and simulated (host) "
+                    "analyses")
+
+
+def replay_row(row: Row) -> Replay:
+    """Replay one row (see the module docstring)."""
+    from jaxloco import runtime
+
+    fn = replay_fn(row.analysis)
+    runtime.configure(x64=row.analysis.x64, cache_dir=True)
+    return fn(row)
+
