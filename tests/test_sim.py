@@ -183,3 +183,37 @@ def test_model_toe_sites_match_kinematics():
             site = d.site_xpos[m.site(f"L{leg + 1}_toe").id]
             ref = np.asarray(kin.foot_position(params, leg, jnp.asarray(q[3 * leg:3 * leg + 3])))
             np.testing.assert_allclose(site, ref, atol=1e-6)  # the MJCF stores 6 significant digits
+
+
+def test_mjx_batch_is_sharded_over_every_device_and_matches_one_device(short_scenario, monkeypatch):
+    """The MJX backend pads the batch to a multiple of the device count and shards it over
+    every JAX device (the CPU cores here, the GPUs on an accelerator machine); the rows
+    equal an unsharded run's."""
+    import jax
+
+    from jaxloco.sim import mjx as mjx_backend
+
+    if len(jax.devices()) < 2:
+        pytest.skip("one JAX device: nothing to shard over")
+    seen = []
+    original = mjx_backend.batched_fn
+
+    def spy(scenario):
+        fn = original(scenario)
+
+        def wrapped(params, keys):
+            seen.append((keys.shape[0], keys.sharding.device_set))
+            return fn(params, keys)
+
+        return wrapped
+
+    monkeypatch.setattr(mjx_backend, "batched_fn", spy)
+    p = _params(3, ground=[0.0, 0.05, 0.1], offset=[0.0, 0.02, 0.05])
+    keys = jax.random.split(jax.random.PRNGKey(0), 3)
+    sharded = mjx_backend.run(short_scenario, p, keys, shard=True)
+    single = mjx_backend.run(short_scenario, p, keys, shard=False)
+    n_dev = len(jax.devices())
+    assert seen[0] == (-(-3 // n_dev) * n_dev, set(jax.devices()))
+    assert len(seen[1][1]) == 1 and seen[1][0] == 3
+    for k in sharded["records"]:
+        np.testing.assert_allclose(sharded["records"][k], single["records"][k], rtol=1e-12, atol=1e-12)
