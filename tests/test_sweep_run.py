@@ -341,3 +341,20 @@ def test_chunks_larger_than_one_call_are_split(tmp_path, monkeypatch):
     monkeypatch.setattr(runner, "MAX_ROWS_PER_DEVICE", 1)
     split = run(toy_spec(tmp_path / "split"), progress=False).table
     assert split.drop_columns(["jaxloco_version"]).equals(whole.drop_columns(["jaxloco_version"]))
+
+
+def test_a_wide_summary_is_not_cut_in_a_narrow_terminal():
+    import io
+
+    from rich.console import Console
+
+    from jaxloco.sweep.display import print_summary
+
+    columns = tuple(f"column number {i}" for i in range(8))
+    summary = Summary(title="wide", columns=columns, rows=(tuple(f"{i}.123456789" for i in range(8)),))
+    out = io.StringIO()
+    print_summary(summary, Console(file=out, width=40, color_system=None))
+    text = out.getvalue()
+    assert "…" not in text
+    for i in range(8):
+        assert f"{i}.123456789" in text and f"column number {i}" in text

@@ -88,8 +88,15 @@ def summary_table(summary: Summary) -> Table:
 
 
 def print_summary(summary: Summary, console: Console | None = None) -> None:
+    """The summary table at its natural width: in a narrower terminal the lines wrap
+    rather than every cell being cut to an ellipsis."""
     console = console or Console()
-    console.print(summary_table(summary))
+    table = summary_table(summary)
+    natural = console.measure(table, options=console.options.update_width(100_000)).maximum
+    if natural > console.width:  # the same output stream, wide enough for every cell
+        console = Console(file=console.file, width=natural, color_system=console.color_system,
+                          force_terminal=console.is_terminal, force_jupyter=False)
+    console.print(table)
     for note in summary.notes:
         console.print(Text(note))
 
