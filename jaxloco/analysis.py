@@ -159,6 +159,7 @@ _BUILTIN: dict[str, str] = {
     "octopus.step_climb": "jaxloco.robots.octopus.sim_analysis:STEP_CLIMB",
     "titan.stride": "jaxloco.robots.titan.analysis:STRIDE",
     "snake.kv": "jaxloco.robots.snake.analysis:KV",
+    "snake.reach": "jaxloco.robots.snake.sim_analysis:REACH",
 }
 _REGISTERED: dict[str, Analysis] = {}
 

@@ -10,7 +10,8 @@ Contract of `Objective.make_loss(settings)`:
   * It returns `loss_fn(values) -> (loss, aux)`: `values` maps *every* tunable name to a
     scalar array (float64 when `x64`, else float32); `loss` is a scalar array and `aux` a
     dict of scalar arrays (metrics recorded next to the loss, e.g. tracking error, energy).
-    `loss_fn` is pure and jit-compatible; the runner jits `value_and_grad(loss_fn)` once.
+    `loss_fn` is pure and jit-compatible; the runner jits `value_and_grad(loss_fn)` once
+    (forward mode, `jax.jacfwd`, when `Objective.grad_mode` is "forward").
   * Raising `SpecError` from `make_loss` reports a bad combination of settings.
 
 How a tunable is optimised: the optimizer works on an unconstrained coordinate `u`.
@@ -69,6 +70,10 @@ class Objective:
     references: named hand-set values (e.g. {"paper": {...}}) that `jaxloco tune` evaluates
     with the same loss for comparison; a reference may name only some tunables (the others
     take the run's initial values). x64: run in float64 (the runner configures JAX).
+    grad_mode: how the runner differentiates the loss: "reverse" (`jax.value_and_grad`,
+    the default) or "forward" (`jax.jacfwd`, one tangent per *tuned* tunable: for losses
+    that reverse mode cannot differentiate, e.g. an MJX rollout whose constraint solver
+    runs a `while_loop`, see `jaxloco.sim.mjx`).
     """
 
     name: str
@@ -78,6 +83,7 @@ class Objective:
     make_loss: Callable[[Mapping[str, Any]], LossFn]
     references: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     x64: bool = True
+    grad_mode: Literal["reverse", "forward"] = "reverse"
     _tunables: dict[str, Tunable] = field(default_factory=dict, init=False, repr=False, compare=False)
     _settings: dict[str, Param] = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -89,6 +95,8 @@ class Objective:
             raise ValueError(f"objective {self.name}: duplicate tunable/setting names")
         self._tunables.update({t.name: t for t in self.tunables})
         self._settings.update({p.name: p for p in self.settings})
+        if self.grad_mode not in ("reverse", "forward"):
+            raise ValueError(f"objective {self.name}: grad_mode must be 'reverse' or 'forward'")
         for t in self.tunables:
             if t.scale not in ("linear", "log"):
                 raise ValueError(f"objective {self.name}: tunable {t.name}: scale must be 'linear' or 'log'")
@@ -127,8 +135,9 @@ class Objective:
 # name -> "module:attribute" (imported lazily) or an Objective registered at run time.
 _BUILTIN: dict[str, str] = {
     "snake.kv": "jaxloco.robots.snake.tuning:KV_TUNE",
-    "octopus.sigma": "jaxloco.robots.octopus.tuning:SIGMA_TUNE",
+    "snake.reach_gain": "jaxloco.robots.snake.mjx_tuning:REACH_GAIN_TUNE",
     "titan.stride": "jaxloco.robots.titan.tuning:STRIDE_TUNE",
+    "octopus.sigma": "jaxloco.robots.octopus.tuning:SIGMA_TUNE",
 }
 _REGISTERED: dict[str, Objective] = {}
 

@@ -1,4 +1,5 @@
-"""Running a tuning: one jitted `value_and_grad` of the objective's loss, an optax loop in
+"""Running a tuning: one jitted `value_and_grad` of the objective's loss (reverse mode, or
+forward mode, `jax.jacfwd`, for an objective with grad_mode "forward"), an optax loop in
 unconstrained coordinates (`jaxloco.tune.transform`), and the output files.
 
 Step k evaluates the loss at the values after k optimizer updates, so a run of N steps
@@ -133,7 +134,7 @@ def run(
         u = optax.apply_updates(u, updates)
         return u, state, {**values, **transform(u)}, norm
 
-    evaluate = jax.jit(jax.value_and_grad(loss_fn, has_aux=True))
+    evaluate = jax.jit(value_and_grad(loss_fn, objective.grad_mode, [t.name for t in tuned]))
     apply = jax.jit(apply)
 
     def as_values(given: Mapping[str, float]) -> dict[str, Any]:
@@ -187,6 +188,34 @@ def run(
         written=tuple(written),
         warnings=tuple(record.warnings),
     )
+
+
+def value_and_grad(loss_fn: Callable, mode: str = "reverse", names: list[str] | None = None) -> Callable:
+    """`values -> ((loss, aux), grads)` for a `loss_fn(values) -> (loss, aux)`.
+
+    mode "reverse": `jax.value_and_grad` (grads of every entry of `values`). mode
+    "forward": `jax.jacfwd`, one tangent per entry of `names` (default: every entry);
+    the other entries are held fixed and get no gradient (forward mode costs one
+    tangent per differentiated input)."""
+    import jax
+
+    if mode == "reverse":
+        return jax.value_and_grad(loss_fn, has_aux=True)
+    if mode != "forward":
+        raise ValueError(f"grad mode: expected 'reverse' or 'forward', got {mode!r}")
+
+    def evaluate(values):
+        keys = list(values) if names is None else list(names)
+        fixed = {k: v for k, v in values.items() if k not in keys}
+
+        def loss_of(sub):
+            loss, aux = loss_fn({**fixed, **sub})
+            return loss, (loss, aux)
+
+        grads, (loss, aux) = jax.jacfwd(loss_of, has_aux=True)({k: values[k] for k in keys})
+        return (loss, aux), grads
+
+    return evaluate
 
 
 def _optimizer(spec: TuneSpec):
@@ -308,4 +337,4 @@ class _Record:
         return curve, comparison, written
 
 
-__all__ = ["ObjectiveError", "TuneDiverged", "TuneInterrupted", "TuneResult", "run"]
+__all__ = ["ObjectiveError", "TuneDiverged", "TuneInterrupted", "TuneResult", "run", "value_and_grad"]
