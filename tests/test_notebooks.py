@@ -1,0 +1,75 @@
+"""The notebooks run top to bottom on small settings (`jaxloco.notebook`), so they never rot;
+plus the helpers that shrink their sweeps."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from jaxloco import notebook
+from jaxloco.analysis import SpecError
+from jaxloco.sweep import load_spec
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
+
+
+@pytest.mark.parametrize(("n", "keep", "expected"), [(5, 2, [0, 4]), (5, 3, [0, 2, 4]), (2, 5, [0, 1]), (7, 1, [0])])
+def test_evenly_spreads_first_and_last(n, keep, expected):
+    assert notebook.evenly(n, keep) == expected
+
+
+def test_shrink_keeps_zipped_groups_together_and_checks_fixed():
+    spec = load_spec(ROOT / "sweeps" / "titan_stride.toml")
+    small = notebook.shrink(spec, keep=2, fixed={"n_cycles": 1}, keep_by_name={"frame_size": 3})
+    assert small.factors == spec.factors
+    assert small.swept["l_std"] == (0.3, 0.5)
+    # the zipped terrain cases keep matching (size, interval, slope) triples
+    triples = list(zip(small.swept["frame_size"], small.swept["frame_interval"], small.swept["slope"]))
+    original = list(zip(spec.swept["frame_size"], spec.swept["frame_interval"], spec.swept["slope"]))
+    assert len(triples) == 3 and all(t in original for t in triples)
+    assert small.fixed["n_cycles"] == 1 and small.n_rows == 2 * 2 * 2 * 3 * 2
+    with pytest.raises(SpecError, match="n_cycles: 0 is outside"):
+        notebook.shrink(spec, fixed={"n_cycles": 0})
+    with pytest.raises(ValueError, match="'l_std' is swept"):
+        notebook.shrink(spec, fixed={"l_std": 0.4})
+
+
+def test_results_dir_follows_the_environment(monkeypatch, tmp_path):
+    monkeypatch.delenv(notebook.OUT_ENV, raising=False)
+    monkeypatch.delenv(notebook.SMALL_ENV, raising=False)
+    assert not notebook.small() and notebook.results_dir("x") == Path("../results/x")
+    monkeypatch.setenv(notebook.SMALL_ENV, "1")
+    assert notebook.small() and notebook.results_dir("x").parent.name.startswith("jaxloco_notebook_")
+    monkeypatch.setenv(notebook.OUT_ENV, str(tmp_path))
+    assert notebook.results_dir("x") == tmp_path / "x"
+    monkeypatch.setenv(notebook.SMALL_ENV, "0")
+    assert not notebook.small()
+
+
+def test_there_is_a_notebook_per_robot_and_an_overview():
+    names = {p.stem for p in NOTEBOOKS}
+    for prefix in ("overview", "leggrope", "octopus", "titan", "snake"):
+        assert any(n.startswith(prefix) for n in names), f"no notebook for {prefix}: {sorted(names)}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
+def test_notebook_runs_top_to_bottom_on_small_settings(path, tmp_path, monkeypatch):
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    monkeypatch.setenv(notebook.SMALL_ENV, "1")
+    monkeypatch.setenv(notebook.OUT_ENV, str(tmp_path))
+    monkeypatch.setenv("MPLBACKEND", "agg")
+    nb = nbformat.read(path, as_version=4)
+    client = nbclient.NotebookClient(
+        nb, timeout=600, kernel_name="python3", resources={"metadata": {"path": str(path.parent)}}
+    )
+    client.execute()  # raises CellExecutionError naming the cell on any error
+    images = [
+        o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []) if "image/png" in o.get("data", {})
+    ]
+    assert images, f"{path.name}: no plot was drawn"
+    assert os.listdir(tmp_path), f"{path.name}: wrote nothing under JAXLOCO_NOTEBOOK_OUT"
