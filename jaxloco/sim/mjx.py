@@ -30,6 +30,8 @@ MuJoCo's soft friction does.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import time
 import warnings
 from typing import Any
@@ -37,7 +39,9 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-from mujoco import mjx
+
+with contextlib.redirect_stdout(io.StringIO()):  # mujoco.mjx prints "Failed to import warp" without NVIDIA Warp
+    from mujoco import mjx
 
 from jaxloco.sim import data as simdata
 from jaxloco.sim.scenario import Final, Scenario, init_fn, model_field_values, tick_fn
