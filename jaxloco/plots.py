@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["column", "grid_mean", "heatmap", "ok_fraction", "plot_tuning", "plot_validation"]
+__all__ = ["column", "grid_mean", "heatmap", "new_axes", "ok_fraction", "plot_tuning", "plot_validation"]
 
 SET_COLORS = {"initial": "0.55", "tuned": "C0", "paper": "C3"}
 
@@ -69,7 +69,8 @@ def _tick(v: float) -> str:
     return f"{v:.4g}"
 
 
-def _new_axes(ax, figsize):
+def new_axes(ax, figsize):
+    """(figure, axes): `ax`'s figure and `ax`, or a new constrained-layout figure of `figsize`."""
     import matplotlib.pyplot as plt
 
     if ax is None:
@@ -111,7 +112,7 @@ def heatmap(table: Any, x: str, y: str, value: str = "ok", *, where: np.ndarray 
     mark: an (x, y) to outline (e.g. the paper's setting), if it is on the grid.
     """
     xs, ys, mean, count = grid_mean(table, x, y, value, where)
-    fig, ax = _new_axes(ax, figsize)
+    fig, ax = new_axes(ax, figsize)
     is_ok = value == "ok"
     cmap = cmap or ("RdYlGn" if is_ok else "viridis")
     if is_ok:

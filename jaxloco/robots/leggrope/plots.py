@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from jaxloco.plots import new_axes
+
 from jaxloco.robots.leggrope.results import (  # critical_theta, status_category: public here too
     PAPER_CRITICAL_THETA,
     _categories,
@@ -69,15 +71,6 @@ def _psi_label(p: float) -> str:
     return f"{p:+.3f} ({math.degrees(p):+.0f}°)"
 
 
-def _new_axes(ax, figsize):
-    import matplotlib.pyplot as plt
-
-    if ax is None:
-        fig, ax = plt.subplots(figsize=figsize, layout="constrained")
-        return fig, ax
-    return ax.figure, ax
-
-
 def _theta_references(ax, mus: Sequence[float], *, vertical: bool, both_signs: bool, alpha: float = 1.0):
     """The paper's critical 0.40 (dashed) and atan(mu) of each mu (dotted)."""
     line = ax.axvline if vertical else ax.axhline
@@ -109,7 +102,7 @@ def plot_feasibility_map(table: Any, *, ax=None, figsize=(8.0, 3.6)):
     thetas, psis = np.unique(theta), np.unique(psi)
     grid = np.full((len(psis), len(thetas)), -1)
     np.maximum.at(grid, (np.searchsorted(psis, psi), np.searchsorted(thetas, theta)), cat)
-    fig, ax = _new_axes(ax, figsize)
+    fig, ax = new_axes(ax, figsize)
     cmap = ListedColormap(CATEGORY_COLORS)
     norm = BoundaryNorm([-0.5, 0.5, 1.5, 2.5], cmap.N)
     ax.pcolormesh(_edges(thetas), _edges(psis), np.ma.masked_less(grid, 0), cmap=cmap, norm=norm)
@@ -135,7 +128,7 @@ def plot_critical_theta(table: Any, *, ax=None, figsize=(6.4, 4.0)):
     theta = 0 has no marker.
     """
     crit = critical_theta(table)
-    fig, ax = _new_axes(ax, figsize)
+    fig, ax = new_axes(ax, figsize)
     dx = 0.01 * (float(np.ptp(crit.psi)) or 1.0)  # the two sides' bars side by side
     for values, fails, marker, color, label, offset in (
         (crit.plus, crit.first_fail_plus, "o", "C0", "+θ side", -dx),
@@ -175,7 +168,7 @@ def plot_metric_vs_theta(table: Any, metric: str, *, ax=None, mark_failed: bool 
     values = _floats(table, metric)
     values = np.where(np.isfinite(values), values, np.nan)
     failed = _categories(table) != 0
-    fig, ax = _new_axes(ax, figsize)
+    fig, ax = new_axes(ax, figsize)
     for i, p in enumerate(np.unique(psi)):
         sel = np.nonzero(psi == p)[0]
         sel = sel[np.argsort(theta[sel], kind="stable")]
@@ -317,7 +310,7 @@ def plot_cycle_margin(trace: Mapping[str, Any], *, ax=None, order: Sequence[int]
     """
     time, grope, phase, s = _trace(trace, "time", "grope", "phase", "s")
     segments = _segments(time, grope, phase)
-    fig, ax = _new_axes(ax, figsize)
+    fig, ax = new_axes(ax, figsize)
     _shade_phases(ax, segments)
     ax.plot(time, s, color="C0", lw=1.5, label="s")
     ax.axhline(0.0, color="k", lw=1)
