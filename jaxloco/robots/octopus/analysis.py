@@ -207,6 +207,7 @@ def run_sample(v: Mapping[str, jax.Array], key: jax.Array) -> dict[str, jax.Arra
     exact = kin.explore_terrain(params, tips, a_p, zero)  # T_P of the true contact plane
     return {
         "case": est.case,
+        "diffs": est.diffs,  # sensed (z1 - z4, z2 - z3) [m] in {C}: what the thresholds see
         "truth": truth,
         "correct": truth[est.case],
         "h_true": h_true,

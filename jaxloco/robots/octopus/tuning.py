@@ -54,7 +54,7 @@ import numpy as np
 from jaxloco.analysis import Param, SpecError
 from jaxloco.robots.octopus import analysis as A
 from jaxloco.robots.octopus import kinematics as kin
-from jaxloco.robots.octopus.params import SIGMA, default_params
+from jaxloco.robots.octopus.params import SIGMA
 from jaxloco.tune.objective import Objective, Tunable
 
 CLASSES = A.CLASSES  # 0 undetectable, 1 flat, 2 up, 3 down (kinematics.CASE_* order)
@@ -162,21 +162,13 @@ def _sample_keys(seed: int, samples: int) -> tuple[jax.Array, jax.Array, jax.Arr
 
 def _sense(v: Mapping[str, jax.Array], key: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
     """Sensed differences (2,) [m] in {C}, the correct classes (4,) and the smallest IK
-    reach margin [m] of one sample: the chain of `analysis.run_sample`, with its key split,
-    stopped before the thresholds are applied."""
-    dt = v["height"].dtype
-    k_terrain, k_tips, k_imu = jax.random.split(key, 3)
-    params = default_params().astype(dt)
-    tips, a_p = A.terrain_tips(v, k_terrain)
-    zero = jnp.zeros((), dt)
-    z = kin.to_level_frame(tips, a_p, zero)[:, 2]
-    is_slope = (v["terrain"] == A.SLOPE_UP) | (v["terrain"] == A.SLOPE_DOWN)
-    truth = A.ground_truth(jnp.stack([z[0] - z[3], z[1] - z[2]]), a_p, is_slope, v)
-    qs, margins = kin.inverse_kinematics_all(params, tips)
-    sensed = kin.arm_tips(params, qs) + v["noise"] * jax.random.normal(k_tips, (4, 3), dt)
-    imu = a_p * jnp.asarray([1.0, 0.0], dt) + v["imu_noise"] * jax.random.normal(k_imu, (2,), dt)
-    zs = kin.to_level_frame(sensed, imu[0], imu[1])[:, 2]
-    return jnp.stack([zs[0] - zs[3], zs[1] - zs[2]]), truth, jnp.min(margins)
+    reach margin [m] of one sample: `analysis.run_sample` itself (the thresholds it is
+    given do not change these three)."""
+    out = A.run_sample({**v, **{k: jnp.asarray(SIGMA[i], v["height"].dtype) for i, k in enumerate(_SIGMAS)}}, key)
+    return out["diffs"], out["truth"], out["margin"]
+
+
+_SIGMAS = ("sigma1", "sigma2", "sigma3")
 
 
 def sample_bank(settings: Mapping[str, Any]) -> dict[str, np.ndarray]:
