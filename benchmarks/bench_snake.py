@@ -7,7 +7,7 @@ Prints, per batch size: controller evaluations per second (jit(vmap(control_inpu
 random postures and modes), kinematic closed-loop control periods per second (the
 joint-limit experiment, 200 periods), and once: tuning steps per second
 (value_and_grad of the `snake.kv` loss, 20 s at dt 0.05 s = 401 periods, as
-sweeps/snake_kv_tune.toml) and the MuJoCo closed loop (physics steps per second at
+jaxloco/specs/snake_kv_tune.toml) and the MuJoCo closed loop (physics steps per second at
 batch 1 and 6, 10 physics steps per control period). Compile times are printed apart.
 """
 

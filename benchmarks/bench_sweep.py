@@ -1,7 +1,7 @@
-"""Wall time of the shipped slope sweep (`jaxloco sweep sweeps/leggrope_slope.toml`),
+"""Wall time of the shipped slope sweep (`jaxloco sweep leggrope_slope`),
 cold (empty JAX compilation cache) and warm (cache filled by the cold run).
 
-    python benchmarks/bench_sweep.py [--spec sweeps/leggrope_slope.toml]
+    python benchmarks/bench_sweep.py [--spec jaxloco/specs/leggrope_slope.toml]
 
 Each run writes to a temporary directory; the user's cache and results are untouched.
 """

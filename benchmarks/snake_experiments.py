@@ -11,7 +11,7 @@ Prints two tables:
      base joint below 70 % of its limit), V, the gripper tip's largest errors, the
      smallest static margin, the footprint area at the end and the order in which the
      base joints leave their limits, for the paper's K_V, Eq. 20 (a2 = 100) and, with
-     --tuned, the values of a `jaxloco tune sweeps/snake_kv_tune.toml` run.
+     --tuned, the values of a `jaxloco tune snake_kv_tune` run.
 """
 
 from __future__ import annotations
@@ -108,7 +108,7 @@ def read_tuned(path: str) -> dict[str, float]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--tuned", help="tuned.csv of a `jaxloco tune sweeps/snake_kv_tune.toml` run")
+    ap.add_argument("--tuned", help="tuned.csv of a `jaxloco tune snake_kv_tune` run")
     args = ap.parse_args()
     runtime.configure(x64=True)
     accuracy_table()

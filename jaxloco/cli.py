@@ -1,5 +1,5 @@
-"""The `jaxloco` command line: sweep, summary, analyses, describe, tune, objectives, render,
-view, info.
+"""The `jaxloco` command line: sweep, sweeps, summary, analyses, describe, tune, check,
+objectives, render, view, info.
 
 User errors print one line, `error: ...`, on stderr and exit with code 2; an interrupted
 sweep or tuning exits with 130, a tuning whose loss stops being finite with 1. JAX is
@@ -26,6 +26,8 @@ app = typer.Typer(
 
 EXIT_USER_ERROR = 2
 EXIT_INTERRUPTED = 130
+_SWEEP_SPEC_HELP = "a sweep spec: a TOML file, or a bundled spec's name (see `jaxloco sweeps`)"
+_TUNE_SPEC_HELP = "a tune spec: a TOML file, or a bundled spec's name (see `jaxloco sweeps`)"
 
 
 def _fail(message: str, code: int = EXIT_USER_ERROR) -> typer.Exit:
@@ -51,7 +53,7 @@ def _stdout():
 
 @app.command()
 def sweep(
-    spec: Annotated[Path, typer.Argument(help="the sweep spec (TOML)", show_default=False)],
+    spec: Annotated[Path, typer.Argument(help=_SWEEP_SPEC_HELP, show_default=False)],
     resume: Annotated[
         bool, typer.Option("--resume", help="continue an interrupted sweep in its output directory")
     ] = False,
@@ -151,12 +153,14 @@ def summary(table: Annotated[Path, typer.Argument(help="a sweep's table.parquet"
 def analyses() -> None:
     """List the analyses that a sweep can run."""
     from jaxloco import analysis as registry
+    from jaxloco import catalog
     from jaxloco.sweep.display import analyses_table, first_line
 
+    built_ins = catalog.load()  # built-ins without importing them (see jaxloco.catalog)
     rows = []
     for name in registry.names():
         try:
-            doc = first_line(registry.get(name).doc)
+            doc = first_line(catalog.analysis(name, built_ins).doc)
         except Exception as exc:  # a broken plugin must not hide the others
             doc = f"(cannot load: {type(exc).__name__}: {exc})"
         rows.append((name, doc))
@@ -170,11 +174,11 @@ def describe(
     """Show an analysis' parameters (defaults, units, ranges), metrics and statuses."""
     from rich.text import Text
 
-    from jaxloco import analysis as registry
+    from jaxloco import catalog
     from jaxloco.sweep.display import describe_tables
 
     with _user_errors():
-        analysis = registry.get(name)
+        analysis = catalog.analysis(name, catalog.load())
     console = _stdout()
     console.print(Text(f"{analysis.name}: {analysis.doc.strip()}"))
     for table in describe_tables(analysis):
@@ -183,7 +187,7 @@ def describe(
 
 @app.command()
 def tune(
-    spec: Annotated[Path, typer.Argument(help="the tune spec (TOML)", show_default=False)],
+    spec: Annotated[Path, typer.Argument(help=_TUNE_SPEC_HELP, show_default=False)],
     out: Annotated[Path | None, typer.Option("--out", help="output directory (overrides the spec)")] = None,
     steps: Annotated[int | None, typer.Option("--steps", help="optimizer steps (overrides the spec)")] = None,
     validate: Annotated[
@@ -254,6 +258,42 @@ def _validate(tuned: Path, sweep_spec, mapping, labels, out: Path | None, quiet:
 
 
 @app.command()
+def sweeps() -> None:
+    """List the ready sweep and tune specs bundled with jaxloco: run one by name
+    (`jaxloco sweep leggrope_slope`) from any directory."""
+    from jaxloco import specs
+    from jaxloco.sweep.display import bundled_specs_table
+
+    _stdout().print(bundled_specs_table([specs.header(name) for name in specs.names()]))
+
+
+@app.command()
+def check(
+    spec: Annotated[
+        Path, typer.Argument(help="a sweep or tune spec: a TOML file, or a bundled spec's name", show_default=False)
+    ],
+    probe: Annotated[
+        bool, typer.Option("--probe", help="time a short probe (compiles and calls the batch function or the "
+                           "tuning's gradient twice; writes nothing)")
+    ] = False,
+    out: Annotated[Path | None, typer.Option("--out", help="output directory (overrides the spec)")] = None,
+    chunk_size: Annotated[
+        int | None, typer.Option("--chunk-size", help="sweeps: rows per compiled batch (overrides the spec)")
+    ] = None,
+    steps: Annotated[int | None, typer.Option("--steps", help="tunings: optimizer steps (overrides the spec)")] = None,
+) -> None:
+    """Validate a sweep or tune spec and show what running it would do: rows, chunks,
+    compiled calls per chunk, the output directory's state and a time estimate (recorded
+    by an earlier run, the spec's `# time:` line, or --probe), without running it."""
+    from jaxloco.check import check as check_spec
+    from jaxloco.check import render
+
+    with _user_errors():
+        lines = check_spec(spec, probe=probe, output=out, chunk_size=chunk_size, steps=steps)
+    typer.echo(render(lines))
+
+
+@app.command()
 def objectives(
     name: Annotated[
         str | None, typer.Argument(help="an objective to describe (tunables, settings, references)", show_default=False)
@@ -262,21 +302,23 @@ def objectives(
     """List the objectives that `jaxloco tune` can tune, or describe one."""
     from rich.text import Text
 
+    from jaxloco import catalog
     from jaxloco.sweep.display import first_line
     from jaxloco.tune import objective as registry
     from jaxloco.tune.display import describe_table, objectives_table
 
     console = _stdout()
+    built_ins = catalog.load()  # built-ins without importing them (see jaxloco.catalog)
     if name is not None:
         with _user_errors():
-            found = registry.get(name)
+            found = catalog.objective(name, built_ins)
         console.print(Text(f"{found.name}: {found.doc.strip()}"))
         console.print(describe_table(found))
         return
     rows = []
     for known in registry.names():
         try:
-            doc = first_line(registry.get(known).doc)
+            doc = first_line(catalog.objective(known, built_ins).doc)
         except Exception as exc:  # a broken plugin must not hide the others
             cause = exc.__cause__ or exc
             doc = f"(cannot load: {type(cause).__name__}: {cause})"
@@ -355,17 +397,26 @@ def view(
 @app.command()
 def info() -> None:
     """Versions of jaxloco and its JAX/MuJoCo stack, JAX devices, precision and cache."""
+    from jaxloco import info as environment_info
+
+    console = _stdout()
+    console.print(_info_table(environment_info.static_environment()))  # at once: no JAX yet
+    console.print(_info_table(environment_info.jax_environment()))
+
+
+def _info_table(rows: list[tuple[str, str]]):
+    """`jaxloco info` lines as a two-column table; both parts share the label width."""
     from rich.table import Table
     from rich.text import Text
 
-    from jaxloco import info as environment_info
+    from jaxloco.info import LABEL_WIDTH
 
     table = Table(show_header=False, box=None)
-    table.add_column(style="bold", no_wrap=True)
+    table.add_column(style="bold", no_wrap=True, min_width=LABEL_WIDTH)
     table.add_column()
-    for label, value in environment_info.environment():
+    for label, value in rows:
         table.add_row(Text(label), Text(value))
-    _stdout().print(table)
+    return table
 
 
 def main() -> None:

@@ -1,7 +1,8 @@
 """Versions and the JAX environment, for result tables and `jaxloco info`.
 
-`versions()` is cheap (package metadata only, nothing imported). `environment()` imports
-JAX and, quietly, `mujoco.mjx` to check that it loads.
+`versions()` and `static_environment()` are cheap (package metadata only, nothing
+imported). `jax_environment()` (and `environment()`, both parts) imports JAX and, quietly,
+`mujoco.mjx` to check that it loads.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import jaxloco
 from jaxloco import runtime
 
 PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx")
+LABEL_WIDTH = len("compilation cache now")  # the longest label: `jaxloco info` prints in two parts
 
 
 def package_version(name: str) -> str:
@@ -79,23 +81,33 @@ def mjx_status() -> str:
 
 
 def environment() -> list[tuple[str, str]]:
-    """(label, value) lines for `jaxloco info`."""
+    """(label, value) lines for `jaxloco info`: `static_environment()` then `jax_environment()`."""
+    return static_environment() + jax_environment()
+
+
+def static_environment() -> list[tuple[str, str]]:
+    """The lines that need no JAX (versions, python, the compilation cache directory): cheap."""
+    rows = [(name, version) for name, version in versions().items()]
+    rows.append(("python", sys.version.split()[0]))
+    cache = runtime.default_cache_dir()
+    source = f" (from ${runtime.ENV_CACHE_DIR})" if os.environ.get(runtime.ENV_CACHE_DIR) else ""
+    state = "exists" if cache.is_dir() else "not created yet"
+    rows.append(("compilation cache", f"{cache}{source}, {state}"))
+    return rows
+
+
+def jax_environment() -> list[tuple[str, str]]:
+    """The lines that import JAX (and, quietly, `mujoco.mjx`): backend, devices, float64."""
     import jax
 
     runtime.use_cpu_cores()  # report the devices a sweep will shard over
-    rows = [(name, version) for name, version in versions().items()]
-    rows.append(("mujoco.mjx import", mjx_status()))
-    rows.append(("python", sys.version.split()[0]))
+    rows = [("mujoco.mjx import", mjx_status())]
     rows.append(("jax backend", jax.default_backend()))
     rows.append(("jax devices", ", ".join(str(d) for d in jax.devices())))
     # Read the flags directly: `jax.config.read` refuses the compilation-cache flag.
     x64 = bool(jax.config.jax_enable_x64)
     rows.append(("float64 now", "on" if x64 else "off (sweeps switch it on for analyses with x64=True)"))
-    cache = runtime.default_cache_dir()
-    source = f" (from ${runtime.ENV_CACHE_DIR})" if os.environ.get(runtime.ENV_CACHE_DIR) else ""
-    state = "exists" if cache.is_dir() else "not created yet"
-    rows.append(("compilation cache", f"{cache}{source}, {state}"))
     current = jax.config.jax_compilation_cache_dir
-    if current and Path(current) != cache:
+    if current and Path(current) != runtime.default_cache_dir():
         rows.append(("compilation cache now", str(current)))
     return rows

@@ -6,6 +6,7 @@ reader runs) and small ones (what the test suite runs, so the notebooks never ro
                                one seed, shorter horizons) and every tuning (a few steps)
     JAXLOCO_NOTEBOOK_OUT=DIR   write results under DIR instead of ../results (relative to
                                notebooks/); with SMALL set and no OUT, a temporary directory
+                               (removed when the process exits)
 
 In small mode nothing is read from ../results, so the suite always executes the real
 computation of every notebook, on small settings. Importing this module does not import JAX.
@@ -13,7 +14,9 @@ computation of every notebook, on small settings. Importing this module does not
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import tempfile
 from collections.abc import Mapping
 from dataclasses import replace
@@ -40,9 +43,16 @@ def results_dir(name: str, default_root: str | Path = "../results") -> Path:
         return Path(root) / name
     if small():
         if "root" not in _TMP:
-            _TMP["root"] = Path(tempfile.mkdtemp(prefix="jaxloco_notebook_"))
+            _TMP["root"] = _temporary_root()
         return _TMP["root"] / name
     return Path(default_root) / name
+
+
+def _temporary_root() -> Path:
+    """A new temporary directory for small-mode results, removed when the process exits."""
+    root = Path(tempfile.mkdtemp(prefix="jaxloco_notebook_"))
+    atexit.register(shutil.rmtree, root, ignore_errors=True)
+    return root
 
 
 def evenly(n: int, keep: int) -> list[int]:

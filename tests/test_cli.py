@@ -11,6 +11,7 @@ import pytest
 from test_sweep_run import TOY  # noqa: F401  (registers the analysis "test.toy")
 from typer.testing import CliRunner
 
+from jaxloco.analysis import SpecError
 from jaxloco.cli import app
 from jaxloco.sweep import store
 
@@ -136,6 +137,37 @@ def test_summary_errors(workdir):
     (workdir / "junk.parquet").write_text("not parquet")
     junk = invoke("summary", "junk.parquet")
     assert junk.exit_code == 2 and junk.stderr.startswith("error: junk.parquet: not a readable Parquet file")
+
+
+LONG = "a" * 300  # a file name longer than the system allows (255 bytes)
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("sweep", f"sweeps/{LONG}.toml"),
+        ("sweep", "sweeps/good.toml", "--out", LONG),
+        ("sweep", "sweeps/good.toml", "--from-tune", LONG),
+        ("summary", f"{LONG}.parquet"),
+        ("render", "sweeps/good.toml", "--out", f"{LONG}.gif"),
+    ],
+    ids=["sweep-spec", "sweep-out", "sweep-from-tune", "summary-table", "render-out"],
+)
+def test_an_over_long_path_is_one_line_and_exit_2(workdir, args):
+    result = invoke(*args)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    assert "file name too long" in lines[0].lower() and "Traceback" not in result.output
+
+
+def test_an_over_long_render_source_is_one_spec_error(workdir):
+    from jaxloco.render.rows import load_row
+
+    with pytest.raises(SpecError) as info:
+        load_row(f"{LONG}.parquet", 0)
+    assert str(info.value) == (f"{'a' * 40}...{'a' * 22}.parquet (308 characters): cannot use this path "
+                               "(file name too long)")
 
 
 def test_info_subprocess_is_clean():

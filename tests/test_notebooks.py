@@ -4,6 +4,9 @@ plus the helpers that shrink their sweeps."""
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -22,7 +25,7 @@ def test_evenly_spreads_first_and_last(n, keep, expected):
 
 
 def test_shrink_keeps_zipped_groups_together_and_checks_fixed():
-    spec = load_spec(ROOT / "sweeps" / "titan_stride.toml")
+    spec = load_spec("titan_stride")
     small = notebook.shrink(spec, keep=2, fixed={"n_cycles": 1}, keep_by_name={"frame_size": 3})
     assert small.factors == spec.factors
     assert small.swept["l_std"] == (0.3, 0.5)
@@ -40,13 +43,28 @@ def test_shrink_keeps_zipped_groups_together_and_checks_fixed():
 def test_results_dir_follows_the_environment(monkeypatch, tmp_path):
     monkeypatch.delenv(notebook.OUT_ENV, raising=False)
     monkeypatch.delenv(notebook.SMALL_ENV, raising=False)
+    monkeypatch.setattr(notebook, "_TMP", {})  # small mode's temporary root: made afresh, in tmp_path
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     assert not notebook.small() and notebook.results_dir("x") == Path("../results/x")
     monkeypatch.setenv(notebook.SMALL_ENV, "1")
-    assert notebook.small() and notebook.results_dir("x").parent.name.startswith("jaxloco_notebook_")
+    root = notebook.results_dir("x").parent
+    assert notebook.small() and root.name.startswith("jaxloco_notebook_") and root.parent == tmp_path
     monkeypatch.setenv(notebook.OUT_ENV, str(tmp_path))
     assert notebook.results_dir("x") == tmp_path / "x"
     monkeypatch.setenv(notebook.SMALL_ENV, "0")
     assert not notebook.small()
+
+
+def test_small_mode_temporary_results_are_removed_at_exit(tmp_path):
+    """A small-mode run without JAXLOCO_NOTEBOOK_OUT leaves no jaxloco_notebook_* behind."""
+    env = {k: v for k, v in os.environ.items() if k != notebook.OUT_ENV}
+    env.update({notebook.SMALL_ENV: "1", "TMPDIR": str(tmp_path)})
+    code = "from jaxloco import notebook; d = notebook.results_dir('x'); d.mkdir(); (d / 'f').write_text('1'); print(d)"
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60,
+                          check=False)
+    assert done.returncode == 0, done.stderr
+    made = Path(done.stdout.strip())
+    assert made.parent.parent == tmp_path and not made.parent.exists()
 
 
 def test_there_is_a_notebook_per_robot_and_an_overview():

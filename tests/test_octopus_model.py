@@ -39,7 +39,7 @@ def _up(quat):
 # ------------------------------------------------------------------ file and structure
 def test_xml_in_sync_with_model_py():
     assert octo_model.MODEL_PATH.read_text() == octo_model.xml_text(), (
-        "models/octopus.xml is stale: run python -m jaxloco.robots.octopus.model --write"
+        "jaxloco/models/octopus.xml is stale: run python -m jaxloco.robots.octopus.model --write jaxloco/models/octopus.xml"
     )
 
 

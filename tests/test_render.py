@@ -334,3 +334,52 @@ def test_unusable_backend_fails_in_one_line(tmp_path):
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2 and len(lines) == 1, done.stderr
     assert lines[0].startswith("error: cannot create an OpenGL context with MUJOCO_GL=glfw")
+
+
+def test_osmesa_hint_names_libosmesa_and_not_osmesa():
+    """The advice after MUJOCO_GL=osmesa failed names the missing library and how to get
+    it, and suggests egl instead of osmesa; other backends keep the general hint."""
+    for found, state in ((False, "was not found"), (True, "was found but does not work")):
+        text = gl.hint("osmesa", osmesa_found=found)
+        assert text == (f"libOSMesa (the OSMesa library that MUJOCO_GL=osmesa loads) {state}: install it with "
+                        "apt install libosmesa6 (Debian/Ubuntu), dnf install mesa-libOSMesa (Fedora) or "
+                        "conda install -c conda-forge mesalib; or use MUJOCO_GL=egl (GPU or headless server)")
+        assert "use MUJOCO_GL=osmesa" not in text and "or MUJOCO_GL=osmesa" not in text
+    assert gl.hint("egl") == gl.hint("glfw") == gl.HINT
+
+
+def test_a_failed_osmesa_backend_names_libosmesa(monkeypatch):
+    """_bind's one line when importing mujoco's OSMesa backend fails (as it does, with an
+    AttributeError from PyOpenGL, when libOSMesa is missing)."""
+    from types import SimpleNamespace
+
+    from mujoco.rendering.classic import gl_context
+
+    def no_osmesa(name):
+        raise AttributeError("'NoneType' object has no attribute 'glGetError'")
+
+    monkeypatch.setattr(gl_context, "GLContext", None, raising=False)
+    monkeypatch.setattr(gl, "importlib", SimpleNamespace(import_module=no_osmesa))
+    monkeypatch.setattr(gl, "has_osmesa", lambda: False)
+    with pytest.raises(SpecError) as info:
+        gl._bind("osmesa")
+    assert str(info.value) == (
+        "MUJOCO_GL=osmesa cannot be used: AttributeError: 'NoneType' object has no attribute 'glGetError'; "
+        + gl.hint("osmesa", osmesa_found=False))
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux") or gl.has_osmesa(), reason="needs Linux without libOSMesa")
+@pytest.mark.filterwarnings("ignore:os.fork:RuntimeWarning")
+def test_osmesa_without_libosmesa_fails_in_one_line(tmp_path):
+    """The real failure, in a subprocess (a failed OpenGL setup cannot be undone here)."""
+    spec = tmp_path / "s.toml"
+    spec.write_text('[sweep]\nanalysis = "snake.kv"\n[params]\nk_eta = [0.1]\n')
+    env = dict(os.environ, MUJOCO_GL="osmesa")
+    env.pop("PYOPENGL_PLATFORM", None)
+    done = subprocess.run([sys.executable, "-m", "jaxloco.cli", "render", str(spec), "--out",
+                           str(tmp_path / "a.gif")], env=env, capture_output=True, text=True, timeout=120, cwd=tmp_path,
+                          check=False)
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1, done.stderr
+    assert lines[0].startswith("error: MUJOCO_GL=osmesa") and "libOSMesa" in lines[0], lines[0]
+    assert "apt install libosmesa6" in lines[0] and "use MUJOCO_GL=osmesa" not in lines[0]

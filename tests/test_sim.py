@@ -5,6 +5,8 @@ these fast."""
 
 from __future__ import annotations
 
+import os
+
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -217,3 +219,17 @@ def test_mjx_batch_is_sharded_over_every_device_and_matches_one_device(short_sce
     assert len(seen[1][1]) == 1 and seen[1][0] == 3
     for k in sharded["records"]:
         np.testing.assert_allclose(sharded["records"][k], single["records"][k], rtol=1e-12, atol=1e-12)
+
+
+def test_mujoco_warnings_stay_out_of_the_working_directory(tmp_path, monkeypatch):
+    """An unstable simulation makes MuJoCo log a warning; in the suite (conftest) the log
+    goes to a temporary directory, not to MUJOCO_LOG.TXT in the working directory."""
+    monkeypatch.chdir(tmp_path)
+    m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><body><joint/><geom size=".1"/></body></worldbody></mujoco>')
+    d = mujoco.MjData(m)
+    d.qvel[:] = 1e300
+    mujoco.mj_step(m, d)
+    assert d.warning[mujoco.mjtWarning.mjWARN_BADQVEL].number >= 1
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+    logfile = mujoco.MjLogConfig.get().logfile
+    assert os.path.isabs(logfile) and "Nan, Inf or huge value in QVEL" in open(logfile).read()

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import shutil
 import sys
+import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -96,14 +98,29 @@ def host_spec(out, chunk_size=3):
 
 @pytest.fixture(scope="module")
 def ray_cluster():
-    """A local Ray instance with 2 CPUs; workers find the test modules via PYTHONPATH."""
+    """A local Ray instance with 2 CPUs; workers find the test modules via PYTHONPATH.
+    Its session directory is in a temporary directory of its own, removed after the
+    shutdown (a short path: Ray's Unix sockets live there, pytest's tmp_path is too long)."""
     path = os.pathsep.join([str(TESTS), *filter(None, [os.environ.get("PYTHONPATH")])])
-    with warnings.catch_warnings():  # JAX warns about the fork+exec of Ray's services
-        warnings.filterwarnings("ignore", r"os\.fork\(\) was called", RuntimeWarning)
-        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
-                 runtime_env={"env_vars": {"PYTHONPATH": path}})  # fmt: skip
-    yield
-    ray.shutdown()
+    temp_dir = tempfile.mkdtemp(prefix="jaxloco_ray_")
+    try:
+        with warnings.catch_warnings():  # JAX warns about the fork+exec of Ray's services
+            warnings.filterwarnings("ignore", r"os\.fork\(\) was called", RuntimeWarning)
+            ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, _temp_dir=temp_dir,
+                     runtime_env={"env_vars": {"PYTHONPATH": path}})  # fmt: skip
+        yield
+    finally:
+        ray.shutdown()
+        _remove_when_released(Path(temp_dir))
+
+
+def _remove_when_released(folder: Path, tries: int = 10) -> None:
+    """Delete `folder`, retrying briefly while Ray's exiting processes still write logs."""
+    for _ in range(tries):
+        shutil.rmtree(folder, ignore_errors=True)
+        if not folder.exists():
+            return
+        time.sleep(0.5)
 
 
 def ray_executor():

@@ -63,6 +63,13 @@ ERRORS = [
     (_sweep(combine="cross"), "sweep.combine: expected 'product' or 'zip', got 'cross'"),
     (_sweep(formats=["xlsx"]), "sweep.formats[0]: expected 'parquet' or 'csv', got 'xlsx'"),
     (_sweep(name=""), "sweep.name: must not be empty"),
+    (_sweep(name="../../../tmp/x"), "sweep.name: '../../../tmp/x' contains a path separator; a name is letters, "
+                                    "digits, _, - and . (choose the directory with output or --out)"),
+    (_sweep(name="a\\b"), "sweep.name: 'a\\\\b' contains a path separator"),
+    (_sweep(name=".."), "sweep.name: '..' is not a name; a name is letters, digits, _, - and ."),
+    (_sweep(name="."), "sweep.name: '.' is not a name"),
+    (_sweep(name="my sweep"), "sweep.name: 'my sweep' contains ' '; a name is letters, digits, _, - and ."),
+    (_sweep(name="x" * 101), "sweep.name: is 101 characters long, more than 100"),
     (_params(a={"start": 0, "stop": 1, "num": "ten"}), "params.a.num: expected an integer, got 'ten'"),
     (_params(a={"start": 0, "stop": 1, "num": 0}), "params.a.num: must be >= 1, got 0"),
     (_params(a={"start": 0, "stop": 1, "step": 0}), "params.a.step: must be > 0"),
@@ -157,6 +164,27 @@ def test_load_spec_defaults(tmp_path, monkeypatch):
     # every non-swept parameter, in the analysis' order, with its default
     assert dict(spec.fixed) == {"a": 1.0, "b": 0.0, "m": 0, "n": 3, "flag": False, "label": "toy"}
     assert spec.source == "my_sweep.toml"
+
+
+def test_plain_names_are_accepted():
+    for name in ("a", "snake_kv-v2.1", "...", "x" * 100):
+        assert spec_from_dict(_with(_sweep(name=name))).output.parts == ("results", name)
+
+
+def test_default_name_from_an_odd_file_stem(tmp_path, monkeypatch):
+    """The file stem is the default name with other characters replaced by "_"; a stem
+    that still is no name ("..") asks for `name`."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "my sweep (v2).toml").write_text('[sweep]\nanalysis = "test.toy"\n')
+    spec = load_spec("my sweep (v2).toml")
+    assert spec.name == "my_sweep_v2_" and str(spec.output) == "results/my_sweep_v2_"
+    (tmp_path / "...toml").write_text('[sweep]\nanalysis = "test.toy"\n')  # stem ".."
+    with pytest.raises(SpecError) as info:
+        load_spec("...toml")
+    assert str(info.value) == ("...toml: sweep.name: not given, and the file's stem '..' cannot be the name ('..' is "
+                               "not a name; a name is letters, digits, _, - and .); set name in [sweep]")
+    (tmp_path / "named.toml").write_text('[sweep]\nanalysis = "test.toy"\nname = "fine"\n')
+    assert load_spec("named.toml").name == "fine"
 
 
 def test_full_toml_example(tmp_path):

@@ -113,9 +113,15 @@ ERRORS = [
     (_tune(params=["gain", "frac", "gain"]), "tune.params[2]: 'gain' is listed twice"),
     (lambda d: d["tune"].pop("params"), "tune.params: required key is missing"),
     (_tune(optimizer="rmsprop"), "tune.optimizer: expected 'adam', 'sgd' or 'adamw', got 'rmsprop'"),
-    (_tune(steps=0), "tune.steps: must be >= 1, got 0"),
-    (_tune(learning_rate=0), "tune.learning_rate: must be > 0"),
-    (_tune(clip_norm=-1.0), "tune.clip_norm: must be > 0"),
+    (_tune(steps=0), "tune.steps: must be >= 1 and <= 1,000,000, got 0"),
+    (_tune(steps=1_000_001), "tune.steps: must be >= 1 and <= 1,000,000, got 1000001"),
+    (_tune(learning_rate=0), "tune.learning_rate: must be > 0 and <= 10, got 0"),
+    (_tune(learning_rate=1e308), "tune.learning_rate: must be > 0 and <= 10, got 1e+308"),
+    (_tune(learning_rate=10.5), "tune.learning_rate: must be > 0 and <= 10, got 10.5"),
+    (_tune(clip_norm=-1.0), "tune.clip_norm: must be > 0 and <= 1,000,000, got -1.0"),
+    (_tune(clip_norm=1e300), "tune.clip_norm: must be > 0 and <= 1,000,000, got 1e+300"),
+    (lambda d: d["tune"].update(name="../../../tmp/x"), "tune.name: '../../../tmp/x' contains a path separator"),
+    (lambda d: d["tune"].update(name=".."), "tune.name: '..' is not a name; a name is letters, digits, _, - and ."),
     (_tune(stpes=3), "tune.stpes: unknown key (did you mean 'steps'?)"),
     (lambda d: d.update(inits={}), "inits: unknown key"),
     (_tune(formats=["xlsx"]), "tune.formats[0]: expected 'parquet' or 'csv'"),
@@ -148,6 +154,8 @@ def test_spec_resolves_defaults_and_overrides():
     assert spec.with_options(steps=7, output="x").steps == 7
     with pytest.raises(SpecError, match=r"^--steps: must be an integer"):
         spec.with_options(steps=0)
+    with pytest.raises(SpecError, match=r"^--steps: must be an integer >= 1 and <= 1,000,000, got 1000001$"):
+        spec.with_options(steps=1_000_001)
 
 
 def test_load_spec_names_the_file(tmp_path):
@@ -378,6 +386,20 @@ def test_cli_spec_errors_exit_2(tunes, text, message):
     result = invoke("tune", "tunes/bad.toml", "--quiet")
     assert result.exit_code == 2
     assert result.stderr.startswith(message) and result.stderr.count("\n") == 1, result.stderr
+
+
+def test_cli_over_long_paths_are_one_line(tunes):
+    """A [validate] sweep or an --out the system refuses to look at: exit 2, one line."""
+    long = "a" * 300
+    (tunes / "tunes" / "v.toml").write_text(GOOD + f'\n[validate]\nsweep = "{long}.toml"\n')
+    result = invoke("tune", "tunes/v.toml")
+    assert result.exit_code == 2, result.output
+    assert result.stderr == (f"error: tunes/v.toml: validate.sweep: tunes/{'a' * 34}...{'a' * 25}.toml "
+                             "(311 characters): cannot use this path (file name too long)\n")
+    result = invoke("tune", "tunes/good.toml", "--out", long)
+    assert result.exit_code == 2, result.output
+    assert result.stderr == (f"error: output: {'a' * 40}...{'a' * 30} (300 characters): cannot use this path "
+                             "(file name too long)\n")
 
 
 def test_cli_steps_option_is_checked(tunes):

@@ -13,6 +13,7 @@ variable was set, and turns a failed context into one `SpecError` line.
 
 from __future__ import annotations
 
+import ctypes.util
 import importlib
 import os
 import subprocess
@@ -24,9 +25,29 @@ from jaxloco.analysis import SpecError
 HEADLESS = ("egl", "osmesa")
 KNOWN = ("egl", "osmesa", "glfw", "glx", "cgl", "wgl", "enable", "enabled", "on", "true", "1")
 HINT = "use MUJOCO_GL=egl (GPU or headless server) or MUJOCO_GL=osmesa (CPU only); glfw needs a display"
+OSMESA_INSTALL = ("apt install libosmesa6 (Debian/Ubuntu), dnf install mesa-libOSMesa (Fedora) "
+                  "or conda install -c conda-forge mesalib")
 _PROBE = "import mujoco; c = mujoco.GLContext(16, 16); c.make_current(); c.free()"
 _probed: dict[str, tuple[bool, str]] = {}
 notes: list[str] = []  # what choose_backend decided, for the command to print
+
+
+def has_osmesa() -> bool:
+    """Whether the OSMesa library (libOSMesa), which MUJOCO_GL=osmesa loads, can be found."""
+    return ctypes.util.find_library("OSMesa") is not None
+
+
+def hint(backend: str, osmesa_found: bool | None = None) -> str:
+    """What to do after MUJOCO_GL=backend failed (one line). For osmesa: name libOSMesa,
+    whether it was found (`osmesa_found`, looked up when None) and how to install it, and
+    suggest egl instead; for the other backends the general HINT."""
+    if backend != "osmesa":
+        return HINT
+    if osmesa_found is None:
+        osmesa_found = has_osmesa()
+    state = "was found but does not work" if osmesa_found else "was not found"
+    return (f"libOSMesa (the OSMesa library that MUJOCO_GL=osmesa loads) {state}: install it with "
+            f"{OSMESA_INSTALL}; or use MUJOCO_GL=egl (GPU or headless server)")
 
 
 def is_linux() -> bool:
@@ -76,7 +97,7 @@ def choose_backend() -> str:
         notes.append(f"EGL failed ({why_egl}); rendering on the CPU with MUJOCO_GL=osmesa (slower)")
         return "osmesa"
     raise SpecError(f"no display and no headless OpenGL: MUJOCO_GL=egl failed ({why_egl}) and MUJOCO_GL=osmesa "
-                    f"failed ({why_osmesa}); install an EGL driver or OSMesa (libosmesa6)")
+                    f"failed ({why_osmesa}); install an EGL driver or libOSMesa ({OSMESA_INSTALL})")
 
 
 def _bind(backend: str) -> None:
@@ -92,7 +113,8 @@ def _bind(backend: str) -> None:
     try:
         module = importlib.import_module(f"mujoco.{backend}")
     except Exception as exc:  # noqa: BLE001 - any failure of the backend is the user's setup
-        raise SpecError(f"MUJOCO_GL={backend} cannot be used: {type(exc).__name__}: {_first(exc)}; {HINT}") from None
+        raise SpecError(f"MUJOCO_GL={backend} cannot be used: {type(exc).__name__}: {_first(exc)}; "
+                        f"{hint(backend)}") from None
     gl_context.GLContext = module.GLContext
 
 
@@ -109,7 +131,7 @@ def check_context() -> str:
         import mujoco
     except Exception as exc:  # noqa: BLE001 - e.g. AttributeError from PyOpenGL without libOSMesa
         raise SpecError(f"MUJOCO_GL={backend}: importing mujoco failed ({type(exc).__name__}: {_first(exc)}); "
-                        f"{HINT}") from None
+                        f"{hint(backend)}") from None
     make_renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 16, 16).close()
     return backend
 
@@ -129,4 +151,4 @@ def make_renderer(model, height: int, width: int):
     except Exception as exc:  # noqa: BLE001 - GL failures come as many exception types
         name = backend or "glfw (default)"
         raise SpecError(f"cannot create an OpenGL context with MUJOCO_GL={name}: {type(exc).__name__}: "
-                        f"{_first(exc)}; {HINT}") from None
+                        f"{_first(exc)}; {hint(backend)}") from None

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from jaxloco import paths
 from jaxloco.analysis import Analysis, SpecError
 
 
@@ -102,7 +103,7 @@ def load_row(path: str | Path, index: int) -> Row:
     from jaxloco.sweep.summary import read_table
 
     p = Path(path)
-    if not p.exists():
+    if not paths.exists(p):
         raise SpecError(f"{path}: no such file")
     if p.suffix.lower() != ".toml":
         table, analysis = read_table(p)
@@ -113,7 +114,7 @@ def load_row(path: str | Path, index: int) -> Row:
     spec = load_spec(p)
     table_path = spec.output / "table.parquet"
     notes: list[str] = []
-    if table_path.is_file():
+    if paths.is_file(table_path, where=f"{path}: sweep.output"):
         table, analysis = read_table(table_path)
         if analysis.name == spec.analysis.name and _table_hash(table) == spec.hash:
             return row_from_table(table, analysis, index, str(table_path))

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from jaxloco import paths
 from jaxloco.analysis import SpecError
 from jaxloco.render.replay import Replay, frame_indices
 
@@ -58,6 +59,8 @@ def check_options(*, fps: int = 15, width: int = 480, height: int = 360, every: 
         raise SpecError(f"--seconds: expected a positive number of seconds, got {seconds}")
     if out is not None and out.suffix.lower() not in SUFFIXES:
         raise SpecError(f"--out: expected a .gif, .mp4 or .png file name, got '{out}'")
+    if out is not None:
+        paths.exists(out, where="--out")  # a name the system refuses fails now, not after the replay
 
 
 # ---------------------------------------------------------------------------- camera

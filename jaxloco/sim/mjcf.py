@@ -1,8 +1,11 @@
-"""Loading and writing the robots' MJCF files (`models/*.xml`), with one-line errors.
+"""Loading and writing the robots' MJCF files (`jaxloco/models/*.xml`, package data),
+with one-line errors.
 
-Each robot's `model.py` builds its MJCF from its parameters as an MjSpec, writes it with
-`write_main` (`python -m jaxloco.robots.<robot>.model --write`) and reads it back with
-`load_spec` / `load_model`, to which scenarios add their terrain.
+Each robot's `model.py` builds its MJCF from its parameters as an MjSpec and reads the
+packaged file back with `load_spec` / `load_model`, to which scenarios add their
+terrain. `python -m jaxloco.robots.<robot>.model` prints the generated MJCF and
+`--write PATH` writes it where you say (in a checkout, `--write jaxloco/models/<file>`
+regenerates the packaged file; a test checks that it is in sync).
 """
 
 from __future__ import annotations
@@ -14,7 +17,10 @@ from pathlib import Path
 
 import mujoco
 
+from jaxloco import paths
 from jaxloco.analysis import SpecError
+
+MODELS_DIR = Path(__file__).resolve().parents[1] / "models"  # the packaged MJCF files
 
 
 def set_actuator_limits(act: mujoco.MjsActuator, ctrlrange: tuple[float, float], force: float) -> None:
@@ -34,7 +40,7 @@ def _first_line(exc: Exception) -> str:
 def load_spec(path: str | Path) -> mujoco.MjSpec:
     """The MJCF file `path` as an MjSpec; SpecError (one line) if it is missing or broken."""
     path = Path(path)
-    if not path.is_file():
+    if not paths.is_file(path, where="model file"):
         raise SpecError(f"model file not found: {path}")
     try:
         return mujoco.MjSpec.from_file(str(path))
@@ -58,17 +64,22 @@ def xml_text(spec: mujoco.MjSpec) -> str:
 
 
 def write_main(description: str, path: Path, text: Callable[[], str], argv: list[str] | None = None) -> None:
-    """Command line of a robot's model module: print its MJCF, or write it to `path`
-    with --write."""
+    """Command line of a robot's model module: print its generated MJCF, or write it to
+    the path given with --write (one-line error and exit 2 if it cannot be written).
+    `path` is the packaged file the text is meant to match."""
     parser = argparse.ArgumentParser(description=description)
-    parser.add_argument("--write", action="store_true", help=f"write {path}")
+    parser.add_argument("--write", metavar="PATH", type=Path,
+                        help=f"write the MJCF to PATH (the packaged copy is {path})")
     args = parser.parse_args(argv)
     out = text()
-    if args.write:
-        path.write_text(out)
-        print(f"wrote {path}")
-    else:
+    if args.write is None:
         print(out)
+        return
+    try:
+        args.write.write_text(out)
+    except OSError as exc:
+        parser.exit(2, f"error: cannot write {args.write}: {exc.strerror or exc}\n")
+    print(f"wrote {args.write}")
 
 
 @dataclass(frozen=True)
@@ -94,6 +105,6 @@ class ModelFile:
         return xml_text(self.build())
 
     def main(self, description: str, argv: list[str] | None = None) -> None:
-        """The model module's command line: print the MJCF, or write it with --write."""
+        """The model module's command line: print the MJCF, or write it with --write PATH."""
         write_main(description, self.path, self.xml_text, argv)
 

@@ -9,11 +9,32 @@ Modules: `spec` (format and validation), `grid` (row order), `runner` (chunks an
 `summary` and `display` (what is printed). Importing this package does not import JAX.
 """
 
+from typing import TYPE_CHECKING
+
 from jaxloco.analysis import SpecError
-from jaxloco.sweep.errors import AnalysisError, SweepInterrupted
-from jaxloco.sweep.grid import Grid, expand
-from jaxloco.sweep.runner import SweepResult, run
-from jaxloco.sweep.spec import SweepSpec, load_spec, spec_from_dict
+
+if TYPE_CHECKING:
+    from jaxloco.sweep.errors import AnalysisError, SweepInterrupted
+    from jaxloco.sweep.grid import Grid, expand
+    from jaxloco.sweep.runner import SweepResult, run
+    from jaxloco.sweep.spec import SweepSpec, load_spec, spec_from_dict
+
+# The names below are imported on first use (PEP 562), so that `jaxloco analyses` and
+# `describe` import `jaxloco.sweep.display` without numpy, pyarrow and pydantic.
+_LAZY = {
+    "AnalysisError": "errors", "SweepInterrupted": "errors", "Grid": "grid", "expand": "grid",
+    "SweepResult": "runner", "run": "runner", "SweepSpec": "spec", "load_spec": "spec", "spec_from_dict": "spec",
+}  # fmt: skip
+
+
+def __getattr__(name: str):
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from importlib import import_module
+
+    value = getattr(import_module(f"{__name__}.{_LAZY[name]}"), name)
+    globals()[name] = value
+    return value
 
 __all__ = [
     "AnalysisError",

@@ -8,21 +8,23 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from rich.console import Console
+from rich.console import Console, Group, RenderableType
+from rich.padding import Padding
 from rich.progress import (
-    BarColumn,
     MofNCompleteColumn,
     Progress,
     ProgressColumn,
     Task,
-    TextColumn,
     TimeElapsedColumn,
     TimeRemainingColumn,
 )
-from rich.table import Table
+from rich.table import Column, Table
 from rich.text import Text
 
-from jaxloco.analysis import Analysis, Summary
+from jaxloco.analysis import Analysis, Param, Summary
+from jaxloco.terminal import DocTable, FoldedTable, Labelled, fixed_text, progress_columns
+
+FIRST_CHUNK_NOTE = " +compile"  # the first chunk's time includes JIT compilation
 
 
 class _RowsPerSecond(ProgressColumn):
@@ -41,7 +43,7 @@ class RowProgress:
 
     def chunk_started(self, index: int, n_chunks: int, first: bool) -> None:
         if self._progress is not None and self._task is not None:
-            note = " (includes JIT compilation)" if first else ""
+            note = FIRST_CHUNK_NOTE if first else ""
             self._progress.update(self._task, description=f"chunk {index + 1}/{n_chunks}{note}")
 
     def finish(self, text: str = "done") -> None:
@@ -53,22 +55,24 @@ class RowProgress:
             self._progress.advance(self._task, rows)
 
 
+def rows_progress_bar(total: int, console: Console) -> Progress:
+    """The sweep's progress line, with the fields that fit the console's width."""
+    fields = [
+        (0, fixed_text("{task.description}"), len(f"chunk 10/10{FIRST_CHUNK_NOTE}")),
+        (1, Labelled(MofNCompleteColumn(), after=" rows"), len(f"{total}/{total} rows")),
+        (3, _RowsPerSecond(table_column=Column(no_wrap=True)), len("12,345 rows/s")),
+        (4, TimeElapsedColumn(table_column=Column(no_wrap=True)), len("0:00:00")),
+        (2, Labelled(TimeRemainingColumn(), before="ETA "), len("ETA 10:00:00")),
+    ]
+    return Progress(*progress_columns(console.width, fields), console=console)
+
+
 @contextmanager
 def row_progress(total: int, done: int, *, enabled: bool, console: Console | None = None) -> Iterator[RowProgress]:
     if not enabled:
         yield RowProgress(None, None)
         return
-    progress = Progress(
-        TextColumn("{task.description}", markup=False),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("rows"),
-        _RowsPerSecond(),
-        TimeElapsedColumn(),
-        TextColumn("ETA"),
-        TimeRemainingColumn(),
-        console=console or Console(stderr=True),
-    )
+    progress = rows_progress_bar(total, console or Console(stderr=True))
     with progress:
         task = progress.add_task("starting", total=total, completed=done)
         yield RowProgress(progress, task)
@@ -78,25 +82,16 @@ def _text(value: object) -> Text:
     return Text(str(value))
 
 
-def summary_table(summary: Summary) -> Table:
-    table = Table(title=Text(summary.title), title_justify="left", min_width=len(summary.title))
-    for column in summary.columns:
-        table.add_column(Text(column))
-    for row in summary.rows:
-        table.add_row(*(_text(cell) for cell in row))
-    return table
+def summary_table(summary: Summary) -> FoldedTable:
+    """The summary's title and table, drawn within the console's width."""
+    return FoldedTable(summary.columns, summary.rows, title=summary.title)
 
 
 def print_summary(summary: Summary, console: Console | None = None) -> None:
-    """The summary table at its natural width: in a narrower terminal the lines wrap
-    rather than every cell being cut to an ellipsis."""
+    """The summary table within the console's width (long headers wrap, or the columns are
+    split into stacked tables that repeat the first column; no cell is cut), then its notes."""
     console = console or Console()
-    table = summary_table(summary)
-    natural = console.measure(table, options=console.options.update_width(100_000)).maximum
-    if natural > console.width:  # the same output stream, wide enough for every cell
-        console = Console(file=console.file, width=natural, color_system=console.color_system,
-                          force_terminal=console.is_terminal, force_jupyter=False)
-    console.print(table)
+    console.print(summary_table(summary))
     for note in summary.notes:
         console.print(Text(note))
 
@@ -110,38 +105,55 @@ def analyses_table(rows: list[tuple[str, str]]) -> Table:
     return table
 
 
-def describe_tables(analysis: Analysis) -> list[Table]:
-    params = Table(title=Text(f"{analysis.name}: parameters"), title_justify="left")
-    for column in ("name", "kind", "default", "unit", "range", "sweepable", "doc"):
-        params.add_column(column, no_wrap=column in ("name", "default", "range"))
-    for p in analysis.params:
-        params.add_row(
-            *map(
-                _text,
-                (
-                    p.name,
-                    p.kind,
-                    repr(p.default),
-                    p.unit,
-                    p.range_text(),
-                    "yes" if p.sweepable and p.kind != "str" else "no",
-                    p.doc,
-                ),
-            )
-        )
-    metrics = Table(title=Text(f"{analysis.name}: metrics"), title_justify="left")
-    for column in ("name", "kind", "unit", "doc"):
-        metrics.add_column(column, no_wrap=column == "name")
-    for m in analysis.metrics:
-        metrics.add_row(*map(_text, (m.name, m.kind, m.unit, m.doc)))
+def _sweepable(p: Param) -> bool:
+    return p.sweepable and p.kind != "str"
+
+
+def _param_head(p: Param) -> Text:
+    """A parameter's block headline: name, kind, default (unit), range, sweepable."""
+    unit = f" {p.unit}" if p.unit else ""
+    sweepable = "sweepable" if _sweepable(p) else "not sweepable"
+    head = Text(p.name, style="bold")
+    head.append(f": {p.kind}, default {p.default!r}{unit}, range {p.range_text()}, {sweepable}")
+    return head
+
+
+def params_table(analysis: Analysis) -> DocTable:
+    rows = [(p.name, p.kind, repr(p.default), p.unit, p.range_text(), "yes" if _sweepable(p) else "no", p.doc)
+            for p in analysis.params]
+    return DocTable(f"{analysis.name}: parameters", ("name", "kind", "default", "unit", "range", "sweepable", "doc"),
+                    rows, heads=[_param_head(p) for p in analysis.params])
+
+
+def metrics_table(analysis: Analysis) -> DocTable:
+    rows = [(m.name, m.kind, m.unit, m.doc) for m in analysis.metrics]
+    return DocTable(f"{analysis.name}: metrics", ("name", "kind", "unit", "doc"), rows)
+
+
+def describe_tables(analysis: Analysis) -> list[RenderableType]:
+    """Parameters and metrics (tables, or one block per row in a narrow terminal) and statuses."""
     statuses = Table(title=Text(f"{analysis.name}: statuses"), title_justify="left")
     statuses.add_column("code")
     statuses.add_column("status")
     for code, status in enumerate(analysis.statuses):
         statuses.add_row(str(code), _text(status))
-    return [params, metrics, statuses]
+    return [params_table(analysis), metrics_table(analysis), statuses]
 
 
 def first_line(doc: str) -> str:
     lines = [line.strip() for line in doc.strip().splitlines()]
     return lines[0] if lines else ""
+
+
+def bundled_specs_table(headers: list) -> Group:
+    """`jaxloco sweeps`: one block per bundled spec (`jaxloco.specs.Header`): its name and
+    what it runs on one line, its size and recorded time on the next, then its question,
+    indented and wrapped to the terminal."""
+    blocks: list = [Text("bundled specs (run one by name: jaxloco sweep NAME / jaxloco tune NAME)", style="bold")]
+    for h in headers:
+        blocks.append(Text(""))
+        blocks.append(Text.assemble((h.name, "bold cyan"), f"  {h.kind} of {h.target}"))
+        facts = h.size + (f"; {h.time}" if h.time else "")
+        blocks.append(Padding(Text(facts), (0, 0, 0, 2)))
+        blocks.append(Padding(Text(h.question), (0, 0, 0, 2)))
+    return Group(*blocks)

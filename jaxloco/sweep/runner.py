@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import time
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -148,8 +149,12 @@ def run(
                 pending = list(todo)
                 if pending:
                     bar.chunk_started(pending[0], len(bounds), first=True)
+                clock, first = time.perf_counter(), True
                 for index, table in results:
                     store.write_chunk(out, index, table)
+                    now = time.perf_counter()  # wall time since the previous chunk was saved
+                    store.record_chunk_time(out, index, now - clock, first=first)
+                    clock, first = now, False
                     pending.remove(index)
                     start, stop = bounds[index]
                     bar.advance(stop - start)
@@ -222,15 +227,8 @@ def prepare(spec: SweepSpec, batch_fn: Callable[..., Any] | None = None) -> Prep
         "jax_version": versions["jax"],
         "mujoco_version": versions["mujoco"],
     }
-    # the batch axis is sharded over every JAX device (all CPU cores, or the GPUs); on CPU
-    # one compiled call takes at most MAX_ROWS_PER_DEVICE rows per device, larger chunks
-    # are run in several calls of that shape (accelerators take the whole chunk)
     devices = jax.devices()
-    cap = MAX_ROWS_PER_DEVICE * len(devices) if devices[0].platform == "cpu" else spec.chunk_size
-    per_call = min(spec.chunk_size, grid.n_rows, cap)
-    batch = -(-per_call // len(devices)) * len(devices)
-    if host:  # the analysis batches itself: one call per chunk, no padding
-        batch = spec.chunk_size
+    batch = rows_per_call(spec.chunk_size, grid.n_rows, len(devices), devices[0].platform, host)
     sharding = jax.sharding.NamedSharding(
         jax.sharding.Mesh(np.array(devices), ("batch",)), jax.sharding.PartitionSpec("batch")
     )
@@ -250,25 +248,54 @@ def prepare(spec: SweepSpec, batch_fn: Callable[..., Any] | None = None) -> Prep
     )
 
 
-def compute_chunk(prepared: PreparedSweep, index: int) -> pa.Table:
-    """Chunk `index` of the sweep as its Arrow table (rows bounds[index], every column)."""
+def rows_per_call(chunk_size: int, n_rows: int, n_devices: int, platform: str, host: bool) -> int:
+    """Rows of one call of the batch function (every call of a sweep has this shape).
+
+    The batch axis is sharded over every JAX device (all CPU cores, or the GPUs): on CPU
+    one compiled call takes at most MAX_ROWS_PER_DEVICE rows per device and larger chunks
+    run in several calls of that shape (accelerators take the whole chunk); the rows are
+    padded to a multiple of n_devices. A host analysis batches itself: one call per chunk
+    of chunk_size rows, not padded. platform: JAX's, e.g. "cpu" or "gpu".
+    """
+    if host:
+        return chunk_size
+    cap = MAX_ROWS_PER_DEVICE * n_devices if platform == "cpu" else chunk_size
+    per_call = min(chunk_size, n_rows, cap)
+    return -(-per_call // n_devices) * n_devices
+
+
+def call_slices(rows: int, batch: int) -> list[tuple[int, int]]:
+    """The (lo, hi) row ranges, within a chunk of `rows` rows, of its calls of `batch` rows."""
+    return [(lo, min(lo + batch, rows)) for lo in range(0, rows, batch)]
+
+
+def call_args(
+    prepared: PreparedSweep, swept: Mapping[str, np.ndarray], seed_pos: np.ndarray, lo: int, hi: int
+) -> tuple:
+    """The arguments of `prepared.fn` for rows lo:hi of a chunk's `grid.rows(...)`: as they
+    are for a host analysis, else padded to `prepared.batch` rows and placed on the devices."""
     import jax
 
+    p = prepared
+    if p.host:
+        return {name: v[lo:hi] for name, v in swept.items()}, p.keys_by_seed[seed_pos[lo:hi]]
+    inputs = {name: _padded(_device_array(v[lo:hi], p.x64), p.batch) for name, v in swept.items()}
+    keys = _padded(p.keys_by_seed[seed_pos[lo:hi]], p.batch)
+    return jax.device_put((inputs, keys), p.sharding)
+
+
+def compute_chunk(prepared: PreparedSweep, index: int) -> pa.Table:
+    """Chunk `index` of the sweep as its Arrow table (rows bounds[index], every column)."""
     p = prepared
     analysis = p.spec.analysis
     start, stop = p.bounds[index]
     swept, seed_pos = p.grid.rows(start, stop)
     parts = []
-    for lo in range(0, stop - start, p.batch):
-        hi = min(lo + p.batch, stop - start)
+    for lo, hi in call_slices(stop - start, p.batch):
+        raw = p.fn(*call_args(p, swept, seed_pos, lo, hi))
         if p.host:
-            inputs = {name: v[lo:hi] for name, v in swept.items()}
-            raw = p.fn(inputs, p.keys_by_seed[seed_pos[lo:hi]])
             parts.append(checked_outputs(analysis, raw, hi - lo))
             continue
-        inputs = {name: _padded(_device_array(v[lo:hi], p.x64), p.batch) for name, v in swept.items()}
-        keys = _padded(p.keys_by_seed[seed_pos[lo:hi]], p.batch)
-        raw = p.fn(*jax.device_put((inputs, keys), p.sharding))
         parts.append({k: v[: hi - lo] for k, v in checked_outputs(analysis, raw, p.batch).items()})
     outputs = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
     return chunk_table(
@@ -417,4 +444,16 @@ def _manifest(spec: SweepSpec, spec_hash: str, n_chunks: int, versions: dict[str
     }
 
 
-__all__ = ["ChunkJob", "Grid", "PreparedSweep", "SweepResult", "compute_chunk", "compute_job_chunk", "prepare", "run"]
+__all__ = [
+    "ChunkJob",
+    "Grid",
+    "PreparedSweep",
+    "SweepResult",
+    "call_args",
+    "call_slices",
+    "compute_chunk",
+    "compute_job_chunk",
+    "prepare",
+    "rows_per_call",
+    "run",
+]

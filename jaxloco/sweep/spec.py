@@ -8,7 +8,8 @@ Spec format::
 
     [sweep]
     analysis = "robot.analysis"   # required
-    name = "..."                  # default: file stem ("sweep" for a dict)
+    name = "..."                  # letters, digits, _ - . (default: the file stem, other characters
+                                  # replaced by _; "sweep" for a dict)
     output = "results/..."        # default: results/<name>, relative to the working directory
     chunk_size = 256              # rows per compiled batch, >= 1
     seeds = [0]                   # list of distinct ints in [0, 2**31), or N meaning 0..N-1
@@ -33,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from jaxloco import analysis as registry
+from jaxloco import specs
 from jaxloco.analysis import Analysis, Param, SpecError
 from jaxloco.sweep import ranges
 from jaxloco.sweep.spec_model import (
@@ -41,6 +43,7 @@ from jaxloco.sweep.spec_model import (
     SpecDoc,
     SweepSection,
     error,
+    name_from_stem,
     read_toml,
     validate,
 )
@@ -117,8 +120,10 @@ class SweepSpec:
 
 
 def load_spec(path: str | Path) -> SweepSpec:
-    """Read and validate a TOML sweep spec; SpecError (one line, naming the file) if wrong."""
-    return _resolve(read_toml(path), os.fspath(path), default_name=Path(path).stem)
+    """Read and validate a TOML sweep spec, given by path or by a bundled spec's name
+    (`jaxloco.specs`); SpecError (one line, naming the file) if wrong."""
+    path = specs.resolve(path)
+    return _resolve(read_toml(path), os.fspath(path), default_name=path.stem)
 
 
 def spec_from_dict(d: Mapping[str, Any], source: str = "<dict>") -> SweepSpec:
@@ -190,7 +195,7 @@ def _resolve(doc: Mapping[str, Any], source: str, default_name: str) -> SweepSpe
         else:
             fixed[param.name] = param.check(param.default, where=f"default of {analysis.name}.{param.name}")
 
-    name = sec.name or default_name
+    name = sec.name or name_from_stem(default_name, source, "sweep.name")
     spec = SweepSpec(
         analysis=analysis,
         name=name,

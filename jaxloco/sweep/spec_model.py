@@ -4,19 +4,81 @@ from __future__ import annotations
 
 import difflib
 import os
+import re
 import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from jaxloco.analysis import SpecError
+from jaxloco.paths import short_label
 
 MAX_ROWS = 100_000_000
 MAX_SEED = 2**31  # exclusive; keeps jax.random.PRNGKey(seed) identical with and without x64
 DEFAULT_CHUNK_SIZE = 256
 
+MAX_NAME_LENGTH = 100
+NAME_CHARS = "letters, digits, _, - and ."
+
 NonEmptyStr = Annotated[str, Field(min_length=1)]
+
+
+def name_problem(name: str) -> str | None:
+    """Why `name` cannot name a spec (its default output is results/<name>), or None: a
+    name is 1..100 of letters, digits, _, - and ., and not "." or ".."."""
+    if not name:
+        return "must not be empty"
+    if len(name) > MAX_NAME_LENGTH:
+        return f"is {len(name)} characters long, more than {MAX_NAME_LENGTH}"
+    if "/" in name or "\\" in name:
+        return f"{name!r} contains a path separator; a name is {NAME_CHARS} (choose the directory with output or --out)"
+    if name in (".", ".."):
+        return f"{name!r} is not a name; a name is {NAME_CHARS}"
+    bad = re.search(r"[^A-Za-z0-9_.-]", name)
+    if bad:
+        return f"{name!r} contains {bad.group()!r}; a name is {NAME_CHARS}"
+    return None
+
+
+def _check_name(name: str) -> str:
+    problem = name_problem(name)
+    if problem:
+        raise ValueError(problem)
+    return name
+
+
+PlainName = Annotated[str, AfterValidator(_check_name)]
+
+
+def name_from_stem(stem: str, source: str, key: str) -> str:
+    """The name of a spec without one: its file's stem, each run of characters other than
+    letters, digits, _, - and . replaced by "_" ("my sweep.toml" -> "my_sweep"); SpecError
+    naming `key` when that is still no name (".", "..", over 100 characters)."""
+    name = re.sub(r"[^A-Za-z0-9_.-]+", "_", stem)
+    problem = name_problem(name)
+    if problem:
+        section, field = key.split(".")
+        given = f"the file's stem '{short_label(stem)}'"
+        raise error(source, key, f"not given, and {given} cannot be the name ({problem}); set {field} in [{section}]")
+    return name
+
+
+def _number(x: float) -> str:
+    """A bound as text: whole numbers with thousands separators (1,000,000), others as %g."""
+    return f"{int(x):,}" if float(x).is_integer() and abs(x) < 1e15 else f"{x:g}"
+
+
+def bounded(lo: float, hi: float, *, lo_open: bool = False) -> AfterValidator:
+    """A pydantic check that a number is in [lo, hi] ((lo, hi] with lo_open); its message
+    names the whole range: "must be > 0 and <= 10, got 1e+308"."""
+
+    def check(v: float) -> float:
+        if (v <= lo if lo_open else v < lo) or v > hi:
+            raise ValueError(f"must be {'>' if lo_open else '>='} {_number(lo)} and <= {_number(hi)}, got {v!r}")
+        return v
+
+    return AfterValidator(check)
 
 
 class _Strict(BaseModel):
@@ -25,7 +87,7 @@ class _Strict(BaseModel):
 
 class SweepSection(_Strict):
     analysis: NonEmptyStr
-    name: NonEmptyStr | None = None
+    name: PlainName | None = None
     output: NonEmptyStr | None = None
     chunk_size: int = Field(DEFAULT_CHUNK_SIZE, ge=1)
     seeds: list[int] = [0]
@@ -159,6 +221,8 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise SpecError(f"{label}: is a directory, expected a TOML file") from None
     except OSError as exc:
         raise SpecError(f"{label}: cannot read ({exc.strerror or exc})") from None
+    except ValueError:  # a NUL character in the path
+        raise SpecError(f"{label}: cannot read (the path contains a NUL character)") from None
     try:
         return tomllib.loads(data.decode("utf-8"))
     except UnicodeDecodeError as exc:

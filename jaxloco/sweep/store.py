@@ -2,7 +2,8 @@
 
 Layout::
 
-    <output>/manifest.json             what the sweep is (spec hash, rows, chunks)
+    <output>/manifest.json             what the sweep is (spec hash, rows, chunks) and
+                                       each saved chunk's wall time ("timing")
     <output>/chunks/chunk-00012.parquet one file per finished chunk
     <output>/table.parquet              all chunks in row order, once every chunk exists
     <output>/table.csv                  the same, when csv was requested
@@ -29,6 +30,7 @@ import pyarrow as pa
 import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
+from jaxloco import paths
 from jaxloco.analysis import SpecError
 from jaxloco.sweep.schema import METADATA_KEY
 
@@ -37,6 +39,7 @@ CHUNKS = "chunks"
 TABLE = "table.parquet"
 CSV = "table.csv"
 TMP_PREFIX = ".tmp-"
+TIMING = "timing"  # manifest key: per-chunk wall times (see record_chunk_time)
 _CHUNK_NAME = re.compile(r"^chunk-(\d+)\.parquet$")
 
 Mode = Literal["new", "resume", "overwrite"]
@@ -78,9 +81,9 @@ def check_output(out: Path, spec_hash: str, *, resume: bool, overwrite: bool) ->
     """Decide what to do with the output directory (nothing is written; SpecError if refused)."""
     if resume and overwrite:
         raise SpecError("pass either --resume or --overwrite, not both")
-    if out.exists() and not out.is_dir():
+    if paths.exists(out, where="output") and not paths.is_dir(out):
         raise SpecError(f"output {out} exists and is not a directory")
-    if not out.exists() or not any(out.iterdir()):
+    if not paths.exists(out) or not any(out.iterdir()):
         return "new"
     has_manifest = (out / MANIFEST).is_file()
     if overwrite:
@@ -109,6 +112,33 @@ def read_manifest(out: Path) -> dict[str, Any]:
     if not isinstance(manifest, dict):
         raise SpecError(f"{path}: not a sweep manifest; pass --overwrite to start again")
     return manifest
+
+
+def record_chunk_time(out: Path, index: int, seconds: float, *, first: bool) -> None:
+    """Add chunk `index`'s wall time [s] to the manifest's "timing" (`chunk_times` reads it).
+
+    seconds: since the previous chunk of the run was saved (or, for the run's first chunk,
+    since computing started: that one includes compiling; first=True marks it). Timing
+    is not part of the spec hash nor of any table: resuming and the tables are unchanged.
+    """
+    manifest = read_manifest(out)
+    timing = manifest.setdefault(TIMING, {"seconds": {}, "first": []})
+    timing["seconds"][str(index)] = round(float(seconds), 4)
+    if first and index not in timing["first"]:
+        timing["first"].append(index)
+    write_json(out / MANIFEST, manifest)
+
+
+def chunk_times(manifest: dict[str, Any]) -> tuple[dict[int, float], set[int]]:
+    """The recorded wall time [s] per chunk index and the indices that include compiling
+    (empty for a manifest written before timing was recorded, or a malformed one)."""
+    timing = manifest.get(TIMING)
+    try:
+        seconds = {int(k): float(v) for k, v in timing["seconds"].items()}
+        first = {int(i) for i in timing["first"]}
+    except (AttributeError, KeyError, TypeError, ValueError):
+        return {}, set()
+    return seconds, first
 
 
 def open_output(out: Path, manifest: dict[str, Any], mode: Mode) -> None:

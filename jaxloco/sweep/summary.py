@@ -9,6 +9,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from jaxloco import analysis as registry
+from jaxloco import paths
 from jaxloco.analysis import Analysis, SpecError, Summary
 
 
@@ -35,9 +36,9 @@ def read_table(path: str | Path) -> tuple[pa.Table, Analysis]:
     """A sweep table from disk and its analysis (named by its `analysis` column)."""
     label = str(path)
     p = Path(path)
-    if not p.exists():
+    if not paths.exists(p):
         raise SpecError(f"{label}: no such file")
-    if p.is_dir():
+    if paths.is_dir(p):
         raise SpecError(f"{label}: is a directory; give the table.parquet inside it")
     try:
         table = pq.read_table(p)

@@ -1,7 +1,7 @@
 """Gradient tuning: a TOML spec -> an objective's loss -> optax steps -> the loss curve and
 the tuned values, compared with the initial values and the objective's references.
 
-    spec = load_spec("sweeps/snake_kv_tune.toml")       # or spec_from_dict({...})
+    spec = load_spec("snake_kv_tune")       # or spec_from_dict({...})
     result = run(spec)                     # result.curve, result.comparison, result.values()
 
 Modules: `objective` (the registry: `Objective`, `Tunable`, `register`, `get`), `spec`
@@ -9,16 +9,31 @@ Modules: `objective` (the registry: `Objective`, `Tunable`, `register`, `get`), 
 `output` (files) and `display` (what is printed). Importing this package does not import JAX.
 """
 
+from typing import TYPE_CHECKING
+
 from jaxloco.analysis import SpecError
 from jaxloco.tune.objective import Objective, Tunable, get, names, register
-from jaxloco.tune.runner import (
-    ObjectiveError,
-    TuneDiverged,
-    TuneInterrupted,
-    TuneResult,
-    run,
-)
-from jaxloco.tune.spec import TuneSpec, load_spec, spec_from_dict
+
+if TYPE_CHECKING:
+    from jaxloco.tune.runner import ObjectiveError, TuneDiverged, TuneInterrupted, TuneResult, run
+    from jaxloco.tune.spec import TuneSpec, load_spec, spec_from_dict
+
+# The names below are imported on first use (PEP 562), so that `jaxloco objectives`
+# imports the registry and `jaxloco.tune.display` without numpy, pyarrow and pydantic.
+_LAZY = {
+    "ObjectiveError": "runner", "TuneDiverged": "runner", "TuneInterrupted": "runner", "TuneResult": "runner",
+    "run": "runner", "TuneSpec": "spec", "load_spec": "spec", "spec_from_dict": "spec",
+}  # fmt: skip
+
+
+def __getattr__(name: str):
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from importlib import import_module
+
+    value = getattr(import_module(f"{__name__}.{_LAZY[name]}"), name)
+    globals()[name] = value
+    return value
 
 __all__ = [
     "Objective",

@@ -10,18 +10,18 @@ from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.progress import (
-    BarColumn,
     MofNCompleteColumn,
     Progress,
-    TextColumn,
     TimeElapsedColumn,
     TimeRemainingColumn,
 )
-from rich.table import Table
+from rich.table import Column, Table
 from rich.text import Text
 
+from jaxloco.analysis import Param
 from jaxloco.sweep.display import analyses_table
-from jaxloco.tune.objective import Objective
+from jaxloco.terminal import DocTable, FoldedTable, Labelled, fixed_text, progress_columns
+from jaxloco.tune.objective import Objective, Tunable
 
 if TYPE_CHECKING:
     from jaxloco.tune.runner import TuneResult
@@ -42,32 +42,36 @@ class StepProgress:
             self._progress.update(self._task, completed=step, loss=f"{loss:.4g}", best=f"{best:.4g}")
 
 
+def steps_progress_bar(total: int, console: Console) -> Progress:
+    """The tuning's progress line, with the fields that fit the console's width."""
+    fields = [
+        (0, fixed_text("{task.description}"), len("references")),
+        (1, Labelled(MofNCompleteColumn(), after=" steps"), len(f"{total}/{total} steps")),
+        (2, fixed_text("loss {task.fields[loss]}"), len("loss -1.234e-05")),
+        (3, fixed_text("best {task.fields[best]}"), len("best -1.234e-05")),
+        (5, TimeElapsedColumn(table_column=Column(no_wrap=True)), len("0:00:00")),
+        (4, Labelled(TimeRemainingColumn(), before="ETA "), len("ETA 10:00:00")),
+    ]
+    return Progress(*progress_columns(console.width, fields), console=console)
+
+
 @contextmanager
 def step_progress(total: int, *, enabled: bool, console: Console | None = None) -> Iterator[StepProgress]:
     if not enabled:
         yield StepProgress(None, None)
         return
-    progress = Progress(
-        TextColumn("{task.description}", markup=False),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("steps  loss {task.fields[loss]}  best {task.fields[best]}", markup=False),
-        TimeElapsedColumn(),
-        TextColumn("ETA"),
-        TimeRemainingColumn(),
-        console=console or Console(stderr=True),
-    )
+    progress = steps_progress_bar(total, console or Console(stderr=True))
     with progress:
         task = progress.add_task("compiling", total=total, loss="-", best="-")
         yield StepProgress(progress, task)
 
 
-def _number(value: object) -> Text:
+def _format(value: object) -> str:
     if value is None:
-        return Text("-")
+        return "-"
     if isinstance(value, float):
-        return Text(f"{value:.6g}" if math.isfinite(value) else str(value))
-    return Text(str(value))
+        return f"{value:.6g}" if math.isfinite(value) else str(value)
+    return str(value)
 
 
 def objectives_table(rows: list[tuple[str, str]]) -> Table:
@@ -76,38 +80,57 @@ def objectives_table(rows: list[tuple[str, str]]) -> Table:
     return table
 
 
-def describe_table(objective: Objective) -> Table:
-    """One row per tunable (its default and each reference's value) and per setting."""
+def _role(t: Tunable) -> str:
+    return "tunable" + (", log scale" if t.scale == "log" else "")
+
+
+def _tunable_head(t: Tunable, references: dict[str, str]) -> Text:
+    """A tunable's block headline: role, default (unit), range, then each reference's value."""
+    unit = f" {t.unit}" if t.unit else ""
+    refs = "".join(f", {label} {value}" for label, value in references.items() if value != "-")
+    head = Text(t.name, style="bold")
+    head.append(f": {_role(t)}, default {_format(t.default)}{unit}, range {t.range_text()}{refs}")
+    return head
+
+
+def _setting_head(p: Param) -> Text:
+    unit = f" {p.unit}" if p.unit else ""
+    head = Text(p.name, style="bold")
+    head.append(f": setting ({p.kind}), default {p.default!r}{unit}, range {p.range_text()}")
+    return head
+
+
+def describe_table(objective: Objective) -> DocTable:
+    """One row per tunable (its default and each reference's value) and per setting: a table,
+    or one block per row in a narrow terminal."""
     labels = list(objective.references)
-    table = Table(title=Text(f"{objective.name}: parameters"), title_justify="left")
-    for column in ("name", "role", "default", *labels, "unit", "range", "doc"):
-        table.add_column(Text(column), no_wrap=column != "doc", justify="right" if column in labels else "left")
+    rows, heads = [], []
     for t in objective.tunables:
-        role = "tunable" + (", log scale" if t.scale == "log" else "")
-        refs = (_number(objective.references[label].get(t.name)) for label in labels)
-        table.add_row(Text(t.name), Text(role), _number(t.default), *refs, *map(Text, (t.unit, t.range_text(), t.doc)))
+        refs = {label: _format(objective.references[label].get(t.name)) for label in labels}
+        rows.append((t.name, _role(t), _format(t.default), *refs.values(), t.unit, t.range_text(), t.doc))
+        heads.append(_tunable_head(t, refs))
     for p in objective.settings:
-        cells = (f"setting ({p.kind})", repr(p.default), *([""] * len(labels)), p.unit, p.range_text(), p.doc)
-        table.add_row(Text(p.name), *map(Text, cells))
-    return table
+        rows.append((p.name, f"setting ({p.kind})", repr(p.default), *([""] * len(labels)), p.unit, p.range_text(),
+                     p.doc))
+        heads.append(_setting_head(p))
+    columns = ("name", "role", "default", *labels, "unit", "range", "doc")
+    justify = ["right" if column in labels else "left" for column in columns]
+    return DocTable(f"{objective.name}: parameters", columns, rows, heads=heads, justify=justify)
 
 
-def result_table(result: TuneResult) -> Table:
-    """Quantities down, parameter sets (initial, tuned, references) across; tuned tunables marked *."""
+def result_table(result: TuneResult) -> FoldedTable:
+    """Quantities down, parameter sets (initial, tuned, references) across; tuned tunables
+    marked *. Within the console's width: the sets are split over stacked tables if needed."""
     rows = result.comparison.to_pylist()
     spec = result.spec
     title = f"{spec.name}: {spec.objective.name}, {spec.steps} {spec.optimizer} steps, best at step {result.best_step}"
-    table = Table(title=Text(title), title_justify="left")
-    table.add_column("", no_wrap=True)
-    table.add_column("unit")
-    for row in rows:
-        table.add_column(Text(row["label"]), justify="right")
     units = {t.name: t.unit for t in spec.objective.tunables}
     names = ["loss", *units, *result.comparison.column_names[3 + len(units) :]]
-    for name in names:
-        label = f"{name} *" if name in spec.params else name
-        table.add_row(Text(label), Text(units.get(name, "")), *(_number(row[name]) for row in rows))
-    return table
+    cells = [(f"{name} *" if name in spec.params else name, units.get(name, ""), *(_format(row[name]) for row in rows))
+             for name in names]
+    labels = [str(row["label"]) for row in rows]
+    return FoldedTable(("", "unit", *labels), cells, title=title, justify=["left", "left", *["right"] * len(labels)],
+                       keys=2)
 
 
 def print_result(result: TuneResult, console: Console | None = None) -> None:
@@ -116,15 +139,11 @@ def print_result(result: TuneResult, console: Console | None = None) -> None:
     console.print(Text("* tuned; the others stay at their initial values"))
 
 
-def validation_table(comparison, title: str) -> Table:
-    """A validation (`jaxloco.tune.handoff.compare`): quantities down, parameter sets across."""
+def validation_table(comparison, title: str) -> FoldedTable:
+    """A validation (`jaxloco.tune.handoff.compare`): quantities down, parameter sets across,
+    within the console's width."""
     rows = comparison.to_pylist()
-    table = Table(title=Text(title), title_justify="left")
-    table.add_column("", no_wrap=True)
-    for row in rows:
-        table.add_column(Text(row["label"]), justify="right")
-    for name in comparison.column_names[1:]:
-        if name.endswith(("_min", "_max")):
-            continue
-        table.add_row(Text(name), *(_number(row[name]) for row in rows))
-    return table
+    names = [n for n in comparison.column_names[1:] if not n.endswith(("_min", "_max"))]
+    cells = [(name, *(_format(row[name]) for row in rows)) for name in names]
+    labels = [str(row["label"]) for row in rows]
+    return FoldedTable(("", *labels), cells, title=title, justify=["left", *["right"] * len(labels)])

@@ -28,6 +28,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from jaxloco import paths
 from jaxloco.analysis import SpecError
 from jaxloco.sweep.spec import SweepSpec
 
@@ -46,12 +47,12 @@ def read_tuned(path: str | Path) -> tuple[pa.Table, Path]:
     """The comparison table of a tuning run: `path` is its output directory or its
     tuned.parquet / tuned.csv. Returns the table and the run's directory."""
     path = Path(path)
-    if path.is_dir():
+    if paths.is_dir(path):
         candidates = [path / "tuned.parquet", path / "tuned.csv"]
     else:
         candidates = [path]
     for candidate in candidates:
-        if candidate.is_file():
+        if paths.is_file(candidate):
             try:
                 if candidate.suffix == ".csv":
                     import pyarrow.csv as pa_csv
@@ -221,8 +222,9 @@ def validate(
     sets, used = param_sets(table, sweep, mapping, labels)
     spec = validation_spec(sweep, sets, output=output)
     out = spec.output
-    same = (out / store.MANIFEST).is_file() and store.read_manifest(out).get("spec_hash") == spec.hash
-    result = runner.run(spec, resume=same, overwrite=not same and out.exists() and any(out.iterdir()),
+    manifest = out / store.MANIFEST
+    same = paths.is_file(manifest, where="output") and store.read_manifest(out).get("spec_hash") == spec.hash
+    result = runner.run(spec, resume=same, overwrite=not same and paths.exists(out) and any(out.iterdir()),
                         progress=progress, **run_options)
     comparison = compare(result.table, sets, spec)
     written = write_comparison(out, comparison)

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
-from jaxloco import info
+from jaxloco import info, paths
 from jaxloco.analysis import SpecError
 from jaxloco.tune import output
 from jaxloco.tune.spec import TuneSpec, load_spec, spec_from_dict
@@ -102,7 +102,7 @@ def run(
         spec = load_spec(spec)
     spec = spec.with_options(output=out, steps=steps)
     objective = spec.objective
-    if spec.output.exists() and not spec.output.is_dir():
+    if paths.exists(spec.output, where="output") and not paths.is_dir(spec.output):
         raise SpecError(f"output {spec.output} exists and is not a directory")
 
     import jax
@@ -113,13 +113,9 @@ def run(
 
     if configure_jax:
         runtime.configure(x64=objective.x64, cache_dir=True)
-    try:
-        loss_fn = objective.make_loss(dict(spec.settings))
-    except SpecError as exc:
-        message = str(exc)
-        raise (exc if message.startswith(f"{spec.source}: ") else SpecError(f"{spec.source}: {message}")) from None
+    evaluate = make_evaluate(spec)
 
-    dtype = jnp.float64 if objective.x64 and jax.config.jax_enable_x64 else jnp.float32
+    dtype = value_dtype(spec)
     tuned = [objective.tunable(name) for name in spec.params]
     optimizer = _optimizer(spec)
 
@@ -134,13 +130,9 @@ def run(
         u = optax.apply_updates(u, updates)
         return u, state, {**values, **transform(u)}, norm
 
-    evaluate = jax.jit(value_and_grad(loss_fn, objective.grad_mode, [t.name for t in tuned]))
     apply = jax.jit(apply)
 
-    def as_values(given: Mapping[str, float]) -> dict[str, Any]:
-        return {t.name: jnp.asarray(given[t.name], dtype=dtype) for t in objective.tunables}
-
-    values = as_values(spec.init)
+    values = tunable_values(spec, spec.init)
     u = {t.name: jnp.asarray(to_free(t, spec.init[t.name]), dtype=dtype) for t in tuned}
     state = optimizer.init(u)
     record = _Record(spec, info.versions())
@@ -155,7 +147,7 @@ def run(
                     record.set_aux(_checked_aux(objective.name, loss, aux, record.columns))
                     bar.describe("references")
                     for label, given in objective.references.items():
-                        (ref_loss, ref_aux), _ = evaluate(as_values({**spec.init, **given}))
+                        (ref_loss, ref_aux), _ = evaluate(tunable_values(spec, {**spec.init, **given}))
                         record.add_reference(label, {**spec.init, **given}, ref_loss, ref_aux)
                     bar.describe("tuning")
                 u_next, state_next, values_next, grad_norm = apply(u, state, grads, values)
@@ -188,6 +180,39 @@ def run(
         written=tuple(written),
         warnings=tuple(record.warnings),
     )
+
+
+def make_evaluate(spec: TuneSpec) -> Callable:
+    """The jitted `values -> ((loss, aux), grads)` that `run` evaluates at every step (and
+    for every reference), gradients of the tuned tunables; JAX must be configured already.
+    SpecError (naming the spec) for a combination of settings the objective refuses."""
+    import jax
+
+    objective = spec.objective
+    try:
+        loss_fn = objective.make_loss(dict(spec.settings))
+    except SpecError as exc:
+        message = str(exc)
+        raise (exc if message.startswith(f"{spec.source}: ") else SpecError(f"{spec.source}: {message}")) from None
+    return jax.jit(value_and_grad(loss_fn, objective.grad_mode, list(spec.params)))
+
+
+def value_dtype(spec: TuneSpec) -> Any:
+    """The dtype the tunables' values are evaluated in: float64 when the objective asks for
+    it and JAX has float64 enabled, else float32."""
+    import jax
+    import jax.numpy as jnp
+
+    return jnp.float64 if spec.objective.x64 and jax.config.jax_enable_x64 else jnp.float32
+
+
+def tunable_values(spec: TuneSpec, given: Mapping[str, float]) -> dict[str, Any]:
+    """Every tunable's value from `given` (e.g. `spec.init`) as a scalar array, the input of
+    `make_evaluate(spec)`."""
+    import jax.numpy as jnp
+
+    dtype = value_dtype(spec)
+    return {t.name: jnp.asarray(given[t.name], dtype=dtype) for t in spec.objective.tunables}
 
 
 def value_and_grad(loss_fn: Callable, mode: str = "reverse", names: list[str] | None = None) -> Callable:
@@ -337,4 +362,13 @@ class _Record:
         return curve, comparison, written
 
 
-__all__ = ["ObjectiveError", "TuneDiverged", "TuneInterrupted", "TuneResult", "run", "value_and_grad"]
+__all__ = [
+    "ObjectiveError",
+    "TuneDiverged",
+    "TuneInterrupted",
+    "TuneResult",
+    "make_evaluate",
+    "run",
+    "tunable_values",
+    "value_and_grad",
+]

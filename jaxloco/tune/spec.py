@@ -8,13 +8,14 @@ Spec format::
 
     [tune]
     objective = "snake.kv"         # required (see `jaxloco objectives`)
-    name = "..."                   # default: file stem ("tune" for a dict)
+    name = "..."                   # letters, digits, _ - . (default: the file stem, other
+                                   # characters replaced by _; "tune" for a dict)
     output = "results/..."         # default: results/<name>, relative to the working directory
     optimizer = "adam"             # adam, sgd or adamw (optax)
-    learning_rate = 0.05           # > 0, in the optimised (unconstrained) coordinates
-    steps = 100                    # optimizer updates, >= 1
+    learning_rate = 0.05           # > 0 and <= 10, in the optimised (unconstrained) coordinates
+    steps = 100                    # optimizer updates, 1..1,000,000
     params = ["a", "b"]            # the tunables to optimise (the others stay at [init])
-    clip_norm = 1.0                # optional: clip the gradient's global norm
+    clip_norm = 1.0                # optional: clip the gradient's global norm (> 0 and <= 1e6)
     formats = ["parquet", "csv"]   # parquet is always written; drop "csv" to skip the CSVs
 
     [init]                         # starting values of tunables (default: their defaults);
@@ -37,14 +38,26 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BeforeValidator, Field
 
+from jaxloco import paths, specs
 from jaxloco.analysis import SpecError
 from jaxloco.sweep.spec import _plain
-from jaxloco.sweep.spec_model import NonEmptyStr, _Strict, error, read_toml, validate
+from jaxloco.sweep.spec_model import (
+    NonEmptyStr,
+    PlainName,
+    _Strict,
+    bounded,
+    error,
+    name_from_stem,
+    read_toml,
+    validate,
+)
 from jaxloco.tune import objective as registry
 from jaxloco.tune.objective import Objective
 
 OPTIMIZERS = ("adam", "sgd", "adamw")
-MAX_STEPS = 10_000_000
+MAX_STEPS = 1_000_000
+MAX_LEARNING_RATE = 10.0  # in the unconstrained coordinates; the shipped specs use 0.05..0.15
+MAX_CLIP_NORM = 1e6
 
 
 def _fspath(v: Any) -> Any:
@@ -53,13 +66,13 @@ def _fspath(v: Any) -> Any:
 
 class TuneSection(_Strict):
     objective: NonEmptyStr
-    name: NonEmptyStr | None = None
+    name: PlainName | None = None
     output: Annotated[NonEmptyStr, BeforeValidator(_fspath)] | None = None
     optimizer: Literal["adam", "sgd", "adamw"] = "adam"
-    learning_rate: float = Field(0.05, gt=0)
-    steps: int = Field(100, ge=1, le=MAX_STEPS)
+    learning_rate: Annotated[float, bounded(0, MAX_LEARNING_RATE, lo_open=True)] = 0.05
+    steps: Annotated[int, bounded(1, MAX_STEPS)] = 100
     params: list[NonEmptyStr]
-    clip_norm: float | None = Field(None, gt=0)
+    clip_norm: Annotated[float, bounded(0, MAX_CLIP_NORM, lo_open=True)] | None = None
     formats: list[Literal["parquet", "csv"]] = ["parquet", "csv"]
 
 
@@ -125,14 +138,16 @@ class TuneSpec:
             changes["output"] = Path(output)
         if steps is not None:
             if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
-                raise SpecError(f"--steps: must be an integer in [1, {MAX_STEPS:,}], got {steps!r}")
+                raise SpecError(f"--steps: must be an integer >= 1 and <= {MAX_STEPS:,}, got {steps!r}")
             changes["steps"] = steps
         return replace(self, **changes)
 
 
 def load_spec(path: str | Path) -> TuneSpec:
-    """Read and validate a TOML tune spec; SpecError (one line, naming the file) if wrong."""
-    return _resolve(read_toml(path), os.fspath(path), default_name=Path(path).stem)
+    """Read and validate a TOML tune spec, given by path or by a bundled spec's name
+    (`jaxloco.specs`); SpecError (one line, naming the file) if wrong."""
+    path = specs.resolve(path)
+    return _resolve(read_toml(path), os.fspath(path), default_name=path.stem)
 
 
 def spec_from_dict(d: Mapping[str, Any], source: str = "<dict>") -> TuneSpec:
@@ -179,7 +194,7 @@ def _resolve(doc: Mapping[str, Any], source: str, default_name: str) -> TuneSpec
     validation = None
     if raw.validation is not None:
         validation = _validation(raw.validation, objective, source)
-    name = sec.name or default_name
+    name = sec.name or name_from_stem(default_name, source, "tune.name")
     return TuneSpec(
         objective=objective,
         name=name,
@@ -199,14 +214,17 @@ def _resolve(doc: Mapping[str, Any], source: str, default_name: str) -> TuneSpec
 
 def _validation(sec: ValidateSection, objective: Objective, source: str) -> Validation:
     """Resolve [validate]: the sweep path relative to the tune spec's directory (the working
-    directory for a dict), checked to load, and the mapping's names checked both ways."""
+    directory for a dict), else a bundled spec of that name, checked to load, and the
+    mapping's names checked both ways."""
     from jaxloco.sweep.spec import load_spec as load_sweep
 
     path = Path(sec.sweep)
     if not path.is_absolute() and source != "<dict>":
         path = Path(source).parent / path
-    if not path.is_file():
-        raise error(source, "validate.sweep", f"no sweep spec at {path}")
+    if not paths.is_file(path, where=f"{source}: validate.sweep"):
+        if not (specs.is_plain_name(sec.sweep) and Path(sec.sweep).stem in specs.names()):
+            raise error(source, "validate.sweep", f"no sweep spec at {path} and no bundled spec of that name")
+        path = specs.path(sec.sweep)
     sweep = load_sweep(path)
     mapping = dict(sec.map) if sec.map is not None else None
     if mapping is not None:

@@ -1,7 +1,7 @@
-"""The MJCF model of the leg-grope quadruped (Table 1): `models/leggrope.xml`.
+"""The MJCF model of the leg-grope quadruped (Table 1): `jaxloco/models/leggrope.xml`.
 
 The file is generated from `LegGropeParams` by `python -m jaxloco.robots.leggrope.model
---write` (and a test checks that it is in sync); `load_spec` reads it back as an MjSpec
+--write jaxloco/models/leggrope.xml` (and a test checks that it is in sync); `load_spec` reads it back as an MjSpec
 to which a scenario adds its terrain.
 
 Structure (robot frame Sigma_R = the torso body frame: x forward, y left, z up, origin at
@@ -36,7 +36,7 @@ import numpy as np
 from jaxloco.robots.leggrope.params import LEG_NAMES, LegGropeParams, default_params
 from jaxloco.sim import mjcf
 
-MODEL_PATH = Path(__file__).resolve().parents[3] / "models" / "leggrope.xml"
+MODEL_PATH = mjcf.MODELS_DIR / "leggrope.xml"
 TOE_RADIUS = 0.008  # [m]
 KP = 150.0  # position servo stiffness [N m / rad]
 KV = 3.0  # position servo damping [N m s / rad]
@@ -126,7 +126,7 @@ def _yaw_quat(angle: float) -> list[float]:
 
 
 def load_spec(path: str | Path | None = None) -> mujoco.MjSpec:
-    """The robot MJCF (default `models/leggrope.xml`) as an MjSpec; SpecError (one line)
+    """The robot MJCF (default `jaxloco/models/leggrope.xml`) as an MjSpec; SpecError (one line)
     for a missing or broken file."""
     return mjcf.load_spec(path if path is not None else MODEL_PATH)
 

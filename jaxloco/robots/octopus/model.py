@@ -1,6 +1,6 @@
-"""The MJCF model of the e-OCTOPUS (Table 3, Fig. 3): `models/octopus.xml`.
+"""The MJCF model of the e-OCTOPUS (Table 3, Fig. 3): `jaxloco/models/octopus.xml`.
 
-Generated from `params.py` by `python -m jaxloco.robots.octopus.model --write`; a test
+Generated from `params.py` by `python -m jaxloco.robots.octopus.model --write jaxloco/models/octopus.xml`; a test
 checks that the committed file is in sync. `load_spec` / `load_model` read it back (a
 scenario adds its terrain to the spec).
 
@@ -51,7 +51,6 @@ lower than the terrain's default so that MuJoCo's max rule lets the terrain deci
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -59,7 +58,7 @@ import numpy as np
 from jaxloco.robots.octopus import params as P
 from jaxloco.sim import mjcf
 
-MODEL_PATH = Path(__file__).resolve().parents[3] / "models" / "octopus.xml"
+MODEL_PATH = mjcf.MODELS_DIR / "octopus.xml"
 TIMESTEP = 0.002  # [s]
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 2  # = jaxloco.sim.terrain.ROBOT_* (tested)
 

@@ -38,7 +38,7 @@ the HARD classifier's scores on the same bank (`accuracy`, `danger_rate`,
 
 Reference "paper": the paper leaves the sigmas "set according to actual condition"; its
 row is `params.SIGMA` = (0.05, 0.45, 0.45) m, the analysis' defaults. The tuned values
-have the analysis' parameter names, so they can be put into sweeps/octopus_sigma.toml for
+have the analysis' parameter names, so they can be put into jaxloco/specs/octopus_sigma.toml for
 validation with `octopus.terrain_classification`.
 """
 

@@ -307,7 +307,7 @@ def summarize(table) -> Summary:
             ("errors: |p_tip - p_target| of the gripper tip [mm]; settle: from t_start until it stays within "
              "settle_tol ('-': not within the horizon); loss: the snake.reach_gain loss over this horizon"),
             ("K = 1 /s: control.py's default (the paper gives none); `jaxloco tune "
-             "sweeps/snake_reach_gain_tune.toml` tunes it through MJX"),
+             "jaxloco/specs/snake_reach_gain_tune.toml` tunes it through MJX"),
         ),
     )
 
