@@ -326,7 +326,8 @@ def objectives(
     console.print(objectives_table(rows))
 
 
-_SOURCE_HELP = "a sweep spec (TOML; its output table is used if it exists) or a sweep table (table.parquet)"
+_SOURCE_HELP = ("a sweep spec (TOML file or bundled name; its output table is used if it exists) or a sweep "
+                "table (table.parquet)")
 
 
 @app.command()

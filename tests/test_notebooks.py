@@ -74,7 +74,9 @@ def test_there_is_a_notebook_per_robot_and_an_overview():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
+@pytest.mark.parametrize(  # each notebook runs in its own kernel: its own unit of work for pytest-xdist
+    "path", [pytest.param(p, id=p.stem, marks=pytest.mark.xdist_group(f"notebook_{p.stem}")) for p in NOTEBOOKS]
+)
 def test_notebook_runs_top_to_bottom_on_small_settings(path, tmp_path, monkeypatch):
     nbformat = pytest.importorskip("nbformat")
     nbclient = pytest.importorskip("nbclient")

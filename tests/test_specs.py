@@ -76,6 +76,16 @@ def test_a_missing_path_still_says_no_such_file(tmp_path, monkeypatch):
         load_sweep("x/leggrope_slope.toml")
 
 
+def test_render_finds_a_row_of_a_bundled_spec_by_name(tmp_path, monkeypatch):
+    from jaxloco.render.rows import load_row
+
+    monkeypatch.chdir(tmp_path)  # no results here: the row comes from the spec's grid
+    row = load_row("titan_stride", 5)
+    assert row.analysis.name == "titan.stride" and row.index == 5 and row.n_rows == load_sweep("titan_stride").n_rows
+    with pytest.raises(SpecError, match="did you mean 'titan_stride'"):
+        load_row("titan_strid", 0)
+
+
 def test_sweeps_lists_every_bundled_spec_with_rows_and_time():
     result = invoke("sweeps")
     assert result.exit_code == 0, result.output

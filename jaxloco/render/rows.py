@@ -11,6 +11,7 @@ range).
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxloco import paths
+from jaxloco import paths, specs
 from jaxloco.analysis import Analysis, SpecError
 
 
@@ -98,11 +99,13 @@ def _table_hash(table: Any) -> str | None:
 
 
 def load_row(path: str | Path, index: int) -> Row:
-    """Row `index` of the sweep at `path`: a table (.parquet) or a spec (.toml); see the
-    module docstring."""
+    """Row `index` of the sweep at `path`: a table (.parquet), a spec (.toml) or a bundled
+    spec's name; see the module docstring."""
     from jaxloco.sweep.summary import read_table
 
     p = Path(path)
+    if not paths.exists(p) and specs.is_plain_name(os.fspath(path)):
+        p = specs.path(os.fspath(path))  # a bundled spec's name (SpecError listing them if not)
     if not paths.exists(p):
         raise SpecError(f"{path}: no such file")
     if p.suffix.lower() != ".toml":
