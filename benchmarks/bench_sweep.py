@@ -30,8 +30,7 @@ def timed_run(spec: Path, out: Path, cache: Path) -> tuple[float, str]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    root = Path(__file__).resolve().parents[1]
-    ap.add_argument("--spec", type=Path, default=root / "sweeps" / "leggrope_slope.toml")
+    ap.add_argument("--spec", default="leggrope_slope", help="a spec file or a bundled spec's name")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         cache, out = Path(tmp) / "cache", Path(tmp) / "out"

@@ -1,11 +1,11 @@
 """Test session setup: float64 available (float32 is tested with explicit dtypes) and
 JAX's persistent compilation cache outside the repository, so later runs compile less.
 
-The suite runs on pytest-xdist workers (`-n auto --dist loadgroup`, pyproject.toml): a
+The suite runs on pytest-xdist workers (`-n auto --dist loadscope`, pyproject.toml): a
 module is one unit of work (its tests share module fixtures and compile their programs
-once, on one worker) unless a test names its own `xdist_group` (the notebooks, each run in
-its own kernel); units with `slow` tests are handed out first so that the workers finish
-together. `-n auto` means one worker per core, at most MAX_WORKERS (each holds its own JAX
+once, on one worker), a test class one of its own (the notebooks: one class each, each
+run in its own kernel); units with `slow` tests are handed out first so that the workers
+finish together. `-n auto` means one worker per core, at most MAX_WORKERS (each holds its own JAX
 and its compiled programs). Each module's compiled programs are dropped from JAX's
 in-memory caches when the module ends (they stay in the persistent cache): holding every
 executable of ~700 tests in one process made a later cache write abort.
@@ -31,20 +31,16 @@ def pytest_xdist_auto_num_workers(config):
     return max(1, min(os.cpu_count() or 1, MAX_WORKERS))
 
 
-@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """Every test without an `xdist_group` mark joins its module's group (one unit of work
-    for --dist loadgroup); units holding `slow` tests come first, in collection order."""
-    for item in items:
-        if item.get_closest_marker("xdist_group") is None:
-            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::", 1)[0]))
+    """Units of work (--dist loadscope: a module, or a class) holding `slow` tests first,
+    in collection order otherwise (pyproject.toml passes --no-loadscope-reorder)."""
     slow_units = {_unit(item) for item in items if item.get_closest_marker("slow") is not None}
-    items.sort(key=lambda item: _unit(item) not in slow_units)  # stable: collection order otherwise
+    items.sort(key=lambda item: _unit(item) not in slow_units)  # a stable sort
 
 
 def _unit(item) -> str:
-    marker = item.get_closest_marker("xdist_group")
-    return marker.kwargs.get("name") or (marker.args[0] if marker.args else "")
+    """The test's loadscope unit: `path::Class` for a method, `path` for a function."""
+    return item.nodeid.rsplit("::", 1)[0] if item.cls is not None else item.nodeid.split("::", 1)[0]
 
 
 @pytest.fixture(autouse=True, scope="module")

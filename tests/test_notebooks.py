@@ -73,15 +73,13 @@ def test_there_is_a_notebook_per_robot_and_an_overview():
         assert any(n.startswith(prefix) for n in names), f"no notebook for {prefix}: {sorted(names)}"
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize(  # each notebook runs in its own kernel: its own unit of work for pytest-xdist
-    "path", [pytest.param(p, id=p.stem, marks=pytest.mark.xdist_group(f"notebook_{p.stem}")) for p in NOTEBOOKS]
-)
-def test_notebook_runs_top_to_bottom_on_small_settings(path, tmp_path, monkeypatch):
+def _run_on_small_settings(path: Path, out: Path, monkeypatch) -> None:
+    """Execute the notebook at `path` top to bottom in a fresh kernel on small settings,
+    results under `out`; it must draw a plot and write something."""
     nbformat = pytest.importorskip("nbformat")
     nbclient = pytest.importorskip("nbclient")
     monkeypatch.setenv(notebook.SMALL_ENV, "1")
-    monkeypatch.setenv(notebook.OUT_ENV, str(tmp_path))
+    monkeypatch.setenv(notebook.OUT_ENV, str(out))
     monkeypatch.setenv("MPLBACKEND", "agg")
     nb = nbformat.read(path, as_version=4)
     client = nbclient.NotebookClient(
@@ -92,4 +90,39 @@ def test_notebook_runs_top_to_bottom_on_small_settings(path, tmp_path, monkeypat
         o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []) if "image/png" in o.get("data", {})
     ]
     assert images, f"{path.name}: no plot was drawn"
-    assert os.listdir(tmp_path), f"{path.name}: wrote nothing under JAXLOCO_NOTEBOOK_OUT"
+    assert os.listdir(out), f"{path.name}: wrote nothing under JAXLOCO_NOTEBOOK_OUT"
+
+
+# One class per notebook: pytest-xdist (--dist loadscope) hands each class to a worker of
+# its own, so the five kernels run side by side rather than one after the other.
+@pytest.mark.slow
+class _RunsTopToBottom:
+    stem = ""
+
+    def test_runs_top_to_bottom_on_small_settings(self, tmp_path, monkeypatch):
+        _run_on_small_settings(ROOT / "notebooks" / f"{self.stem}.ipynb", tmp_path, monkeypatch)
+
+
+class TestOverviewNotebook(_RunsTopToBottom):
+    stem = "overview"
+
+
+class TestLeggropeSlopeNotebook(_RunsTopToBottom):
+    stem = "leggrope_slope"
+
+
+class TestOctopusNotebook(_RunsTopToBottom):
+    stem = "octopus"
+
+
+class TestTitanNotebook(_RunsTopToBottom):
+    stem = "titan"
+
+
+class TestSnakeNotebook(_RunsTopToBottom):
+    stem = "snake"
+
+
+def test_every_notebook_has_its_test_class():
+    covered = {cls.stem for cls in _RunsTopToBottom.__subclasses__()}
+    assert covered == {p.stem for p in NOTEBOOKS}, "add a _RunsTopToBottom class for each notebook"

@@ -216,9 +216,8 @@ def test_registered_and_spec_errors():
 
 
 def test_sweep_file_is_valid():
-    from pathlib import Path
 
     from jaxloco.sweep import load_spec
 
-    spec = load_spec(Path(__file__).parent.parent / "sweeps" / "octopus_sigma.toml")
+    spec = load_spec("octopus_sigma")
     assert spec.analysis is oa.TERRAIN_CLASSIFICATION and spec.n_rows == 972

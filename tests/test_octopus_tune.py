@@ -15,7 +15,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -24,13 +23,14 @@ import pytest
 
 import jaxloco.sweep
 import jaxloco.tune
+from jaxloco import specs
 from jaxloco.analysis import SpecError
 from jaxloco.robots.octopus import analysis as A
 from jaxloco.robots.octopus import kinematics as kin
 from jaxloco.robots.octopus import tuning as T
 from jaxloco.robots.octopus.params import SIGMA
 
-SWEEPS = Path(__file__).resolve().parents[1] / "sweeps"
+SWEEPS = specs.DIRECTORY  # the bundled specs
 SIGMA_NAMES = ("sigma1", "sigma2", "sigma3")
 DEFAULTS = {p.name: p.default for p in T.SETTINGS}
 SMALL = DEFAULTS | {"samples": 256, "seed": 3}

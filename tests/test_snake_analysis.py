@@ -13,7 +13,6 @@ Short horizons (1-2 s, dt 0.05) keep the compiled programs small."""
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -22,13 +21,14 @@ import pytest
 
 import jaxloco.sweep
 import jaxloco.tune
+from jaxloco import specs
 from jaxloco.robots.snake import analysis as A
 from jaxloco.robots.snake import control as C
 from jaxloco.robots.snake import experiments as E
 from jaxloco.robots.snake import params as P
 from jaxloco.robots.snake import tuning as TU
 
-SWEEPS = Path(__file__).resolve().parents[1] / "sweeps"
+SWEEPS = specs.DIRECTORY  # the bundled specs
 HORIZON, DT = 2.0, 0.05
 DEFAULTS = {p.name: p.default for p in A.PARAMS}
 SWEPT = {  # three rows: paper gains; k_eta 0.5 in the reverse mode order; a low zigzag

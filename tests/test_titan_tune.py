@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 from functools import cache
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -19,12 +18,13 @@ import numpy as np
 import pytest
 
 import jaxloco.tune
+from jaxloco import specs
 from jaxloco.analysis import SpecError
 from jaxloco.robots.titan import analysis as ta
 from jaxloco.robots.titan import params as P
 from jaxloco.robots.titan import tuning as TT
 
-SWEEPS = Path(__file__).resolve().parents[1] / "sweeps"
+SWEEPS = specs.DIRECTORY  # the bundled specs
 SETTINGS = {p.name: p.default for p in TT.SETTINGS} | {"n_cycles": 2, "map_nx": 110}
 # generic strides (no foothold exactly on a cell boundary) in the smooth part of the
 # default case: no held cycle, no modification, the margin term active

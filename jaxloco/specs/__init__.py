@@ -34,7 +34,7 @@ def names() -> list[str]:
 def path(name: str) -> Path:
     """The bundled spec `name` (with or without `.toml`); SpecError (one line) naming the
     bundled specs, closest first, if there is none."""
-    stem = name[: -len(SUFFIX)] if name.endswith(SUFFIX) else name
+    stem = name.removesuffix(SUFFIX)
     known = names()
     if stem in known:
         return DIRECTORY / f"{stem}{SUFFIX}"
