@@ -264,7 +264,7 @@ def sweeps() -> None:
     from jaxloco import specs
     from jaxloco.sweep.display import bundled_specs_table
 
-    _stdout().print(bundled_specs_table([specs.header(name) for name in specs.names()]))
+    _stdout().print(bundled_specs_table([specs.header(name) for name in specs.names()], specs.DIRECTORY))
 
 
 @app.command()

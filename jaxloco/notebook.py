@@ -109,9 +109,17 @@ def sweep_table(spec_path: str | Path, name: str | None = None, *, small_options
     return result.table, spec.with_options(output=out)
 
 
-def tune_result(spec_path: str | Path, name: str | None = None, *, small_steps: int = 3, progress: bool = False):
+def tune_result(
+    spec_path: str | Path,
+    name: str | None = None,
+    *,
+    small_steps: int = 3,
+    small_settings: Mapping[str, Any] | None = None,
+    progress: bool = False,
+):
     """The loss curve and comparison of a tune spec: read from results_dir(name) when there
-    (full mode), else tuned (small mode: `small_steps` steps). Returns (curve, comparison)."""
+    (full mode), else tuned (small mode: `small_steps` steps, the spec's settings updated
+    with `small_settings`, each checked like a spec's). Returns (curve, comparison)."""
     import pyarrow.parquet as pq
 
     from jaxloco.tune import load_spec, run
@@ -121,6 +129,12 @@ def tune_result(spec_path: str | Path, name: str | None = None, *, small_steps: 
     out = results_dir(name)
     if not small() and (out / "tuned.parquet").is_file() and (out / "loss_curve.parquet").is_file():
         return pq.read_table(out / "loss_curve.parquet"), pq.read_table(out / "tuned.parquet")
+    if small() and small_settings:
+        checked = {}
+        for key, value in small_settings.items():
+            where = f"small_settings.{key}"
+            checked[key] = spec.objective.setting(key, where=where).check(value, where=where)
+        spec = replace(spec, settings={**spec.settings, **checked})
     result = run(spec, out=out, steps=small_steps if small() else None, progress=progress)
     return result.curve, result.comparison
 

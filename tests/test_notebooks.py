@@ -67,6 +67,16 @@ def test_small_mode_temporary_results_are_removed_at_exit(tmp_path):
     assert made.parent.parent == tmp_path and not made.parent.exists()
 
 
+def test_small_settings_of_a_tuning_are_checked_like_a_spec(monkeypatch, tmp_path):
+    monkeypatch.setenv(notebook.SMALL_ENV, "1")
+    monkeypatch.setenv(notebook.OUT_ENV, str(tmp_path))
+    with pytest.raises(SpecError, match=r"small_settings\.horizn: unknown"):
+        notebook.tune_result("snake_kv_tune", small_settings={"horizn": 2.0})
+    with pytest.raises(SpecError, match=r"small_settings\.horizon: -1 s is outside"):
+        notebook.tune_result("snake_kv_tune", small_settings={"horizon": -1.0})
+    assert not os.listdir(tmp_path)  # nothing ran
+
+
 def test_there_is_a_notebook_per_robot_and_an_overview():
     names = {p.stem for p in NOTEBOOKS}
     for prefix in ("overview", "leggrope", "octopus", "titan", "snake"):

@@ -145,10 +145,10 @@ def first_line(doc: str) -> str:
     return lines[0] if lines else ""
 
 
-def bundled_specs_table(headers: list) -> Group:
+def bundled_specs_table(headers: list, directory: object = None) -> Group:
     """`jaxloco sweeps`: one block per bundled spec (`jaxloco.specs.Header`): its name and
     what it runs on one line, its size and recorded time on the next, then its question,
-    indented and wrapped to the terminal."""
+    indented and wrapped to the terminal; last, the directory the files are in."""
     blocks: list = [Text("bundled specs (run one by name: jaxloco sweep NAME / jaxloco tune NAME)", style="bold")]
     for h in headers:
         blocks.append(Text(""))
@@ -156,4 +156,6 @@ def bundled_specs_table(headers: list) -> Group:
         facts = h.size + (f"; {h.time}" if h.time else "")
         blocks.append(Padding(Text(facts), (0, 0, 0, 2)))
         blocks.append(Padding(Text(h.question), (0, 0, 0, 2)))
+    if directory is not None:
+        blocks += [Text(""), Text(f"files: {directory} (copy one to change it; pass the copy's path)")]
     return Group(*blocks)
