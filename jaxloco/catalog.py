@@ -138,27 +138,26 @@ def objective_to_data(objective: Objective | ObjectiveInfo) -> dict[str, Any]:
     }
 
 
-def _builtin_analyses() -> dict[str, Analysis]:
-    """The built-in analyses as code defines them (a fresh import, not a run-time override)."""
+def _load_builtins(table: Mapping[str, str]) -> dict[str, Any]:
+    """Each entry of a registry's `_BUILTIN` table ("module:attribute") as code defines it
+    (a fresh import, not a run-time override), by name."""
     import importlib
 
     loaded = {}
-    for name, target in sorted(analysis_registry._BUILTIN.items()):
+    for name, target in sorted(table.items()):
         module, attr = target.split(":")
         loaded[name] = getattr(importlib.import_module(module), attr)
     return loaded
+
+
+def _builtin_analyses() -> dict[str, Analysis]:
+    return _load_builtins(analysis_registry._BUILTIN)
 
 
 def _builtin_objectives() -> dict[str, Objective]:
-    import importlib
-
     from jaxloco.tune import objective as objective_registry
 
-    loaded = {}
-    for name, target in sorted(objective_registry._BUILTIN.items()):
-        module, attr = target.split(":")
-        loaded[name] = getattr(importlib.import_module(module), attr)
-    return loaded
+    return _load_builtins(objective_registry._BUILTIN)
 
 
 def build() -> dict[str, Any]:

@@ -11,6 +11,7 @@ Modules: `spec` (format and validation), `grid` (row order), `runner` (chunks an
 
 from typing import TYPE_CHECKING
 
+from jaxloco._lazy import lazy_attributes
 from jaxloco.analysis import SpecError
 
 if TYPE_CHECKING:
@@ -26,15 +27,7 @@ _LAZY = {
     "SweepResult": "runner", "run": "runner", "SweepSpec": "spec", "load_spec": "spec", "spec_from_dict": "spec",
 }  # fmt: skip
 
-
-def __getattr__(name: str):
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    from importlib import import_module
-
-    value = getattr(import_module(f"{__name__}.{_LAZY[name]}"), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_attributes(__name__, _LAZY, globals())
 
 __all__ = [
     "AnalysisError",
