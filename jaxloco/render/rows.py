@@ -11,7 +11,6 @@ range).
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -103,9 +102,7 @@ def load_row(path: str | Path, index: int) -> Row:
     spec's name; see the module docstring."""
     from jaxloco.sweep.summary import read_table
 
-    p = Path(path)
-    if not paths.exists(p) and specs.is_plain_name(os.fspath(path)):
-        p = specs.path(os.fspath(path))  # a bundled spec's name (SpecError listing them if not)
+    p = specs.resolve(path)  # a path, or a bundled spec's name (SpecError listing them on a typo)
     if not paths.exists(p):
         raise SpecError(f"{path}: no such file")
     if p.suffix.lower() != ".toml":

@@ -222,9 +222,12 @@ def _validation(sec: ValidateSection, objective: Objective, source: str) -> Vali
     if not path.is_absolute() and source != "<dict>":
         path = Path(source).parent / path
     if not paths.is_file(path, where=f"{source}: validate.sweep"):
-        if not (specs.is_plain_name(sec.sweep) and Path(sec.sweep).stem in specs.names()):
-            raise error(source, "validate.sweep", f"no sweep spec at {path} and no bundled spec of that name")
-        path = specs.path(sec.sweep)
+        if not specs.is_plain_name(sec.sweep):
+            raise error(source, "validate.sweep", f"no sweep spec at {path}")
+        try:
+            path = specs.path(sec.sweep)
+        except SpecError as exc:
+            raise error(source, "validate.sweep", f"no sweep spec at {path}; {exc}") from None
     sweep = load_sweep(path)
     mapping = dict(sec.map) if sec.map is not None else None
     if mapping is not None:
