@@ -10,6 +10,9 @@ Contract of `Analysis.make_batch_fn(fixed)`:
   * It returns `fn(swept, keys)` where `swept` maps each swept parameter name to an
     array of shape (B,) and `keys` is a (B, 2) uint32 array of PRNG keys (one per row,
     from the row's seed). `fn` is pure and jit-compatible; the caller jits it.
+  * A string parameter (kind "str") can be swept only when it has `choices` and only by a
+    host analysis (JAX arrays cannot hold strings): `swept[name]` is then a numpy unicode
+    array (dtype "<U..") of the row's choices. See `sweep_problem`.
   * `fn` returns a dict with one (B,) array per metric in `Analysis.metrics` plus
     `"status"`: an int array indexing `Analysis.statuses` (0 means "ok").
   * executor "jax" (default): the runner jits `fn` and shards the batch over the JAX
@@ -38,7 +41,8 @@ class Param:
 
     lo/hi bound the value (inclusive unless lo_open/hi_open). `sweepable=False` marks a
     parameter that changes array shapes or compiled structure: it may be set in a spec's
-    fixed section but not swept.
+    fixed section but not swept. A string parameter is swept only with `choices` (a
+    categorical one, e.g. a task name) and by a host analysis (`sweep_problem`).
     """
 
     name: str
@@ -94,6 +98,27 @@ class Param:
                 unit = f" {self.unit}" if self.unit else ""
                 raise SpecError(f"{label}: {out:g}{unit} is outside {self.range_text()}")
         return out
+
+
+def sweep_problem(param: Param, executor: str) -> str | None:
+    """Why `param` cannot be swept by an analysis with `executor` ("jax", "host"), or None.
+
+    Never swept: sweepable=False; a string without choices (free-form text is no axis);
+    a string of a JAX analysis (its batch function is traced, and JAX takes no strings).
+    """
+    name = param.name
+    if not param.sweepable:
+        return f"'{name}' cannot be swept (it changes the compiled program); set it in [fixed]"
+    if param.kind != "str":
+        return None
+    if param.choices is None:
+        return f"'{name}' is a string parameter without choices; a swept string needs choices; set it in [fixed]"
+    if executor != "host":
+        return (
+            f"'{name}' is a string parameter and this analysis runs under JAX (executor '{executor}'),"
+            " which cannot take strings; set it in [fixed]"
+        )
+    return None
 
 
 @dataclass(frozen=True)
@@ -157,6 +182,7 @@ _BUILTIN: dict[str, str] = {
     "leggrope.fragile_walk": "jaxloco.robots.leggrope.sim_analysis:FRAGILE_WALK",
     "octopus.terrain_classification": "jaxloco.robots.octopus.analysis:TERRAIN_CLASSIFICATION",
     "octopus.step_climb": "jaxloco.robots.octopus.sim_analysis:STEP_CLIMB",
+    "octopus.paper": "jaxloco.robots.octopus.paper_analysis:PAPER_EXPERIMENTS",
     "titan.stride": "jaxloco.robots.titan.analysis:STRIDE",
     "snake.kv": "jaxloco.robots.snake.analysis:KV",
     "snake.reach": "jaxloco.robots.snake.sim_analysis:REACH",

@@ -201,11 +201,17 @@ def jax_devices() -> tuple[int, str]:
 
 
 def rows_text(spec: SweepSpec) -> str:
-    """Rows and how they come about, e.g. "505 = 101 theta x 5 psi x 1 seed"."""
+    """Rows and how they come about, e.g. "505 = 101 theta x 5 psi x 1 seed"; a swept
+    string parameter lists its values: "6 = 3 task (step1, step2_front, block) x 2 speed x 1 seed"."""
     parts = []
     for factor in spec.factors:
         count = len(spec.swept[factor[0]])
-        parts.append(f"{count} {factor[0]}" if len(factor) == 1 else f"{count} ({', '.join(factor)} zipped)")
+        if len(factor) > 1:
+            parts.append(f"{count} ({', '.join(factor)} zipped)")
+        elif spec.analysis.param(factor[0]).kind == "str":
+            parts.append(f"{count} {factor[0]} ({', '.join(spec.swept[factor[0]])})")
+        else:
+            parts.append(f"{count} {factor[0]}")
     parts.append(_plural(len(spec.seeds), "seed"))
     return f"{spec.n_rows:,} = {' x '.join(parts)}"
 

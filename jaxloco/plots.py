@@ -65,8 +65,20 @@ def _values(table: Any, value: str) -> np.ndarray:
     return np.asarray(column(table, value), dtype=float)
 
 
-def _tick(v: float) -> str:
-    return f"{v:.4g}"
+def _tick(v: float | str) -> str:
+    return v if isinstance(v, str) else f"{v:.4g}"
+
+
+def _axis_values(table: Any, name: str) -> np.ndarray:
+    """A column as a grid axis: floats, or strings for a string column (e.g. a swept task)."""
+    values = column(table, name)
+    strings = values.dtype.kind in "US" or (values.dtype.kind == "O" and any(isinstance(v, str) for v in values.flat))
+    return values.astype(str) if strings else values.astype(float)
+
+
+def _axis_index(values: np.ndarray, v: Any) -> np.ndarray:
+    """Positions of `v` on an axis (equal strings, or close numbers)."""
+    return np.nonzero(values == v)[0] if values.dtype.kind == "U" else np.nonzero(np.isclose(values, v))[0]
 
 
 def new_axes(ax, figsize):
@@ -82,8 +94,9 @@ def new_axes(ax, figsize):
 # ------------------------------------------------------------------------- workbench plots
 def grid_mean(table: Any, x: str, y: str, value: str = "ok", where: np.ndarray | None = None):
     """(xs, ys, mean (len(ys), len(xs)), count) of `value` per (x, y) cell over the rows
-    selected by `where` (default all); non-finite values are left out of the mean."""
-    xv, yv = np.asarray(column(table, x), float), np.asarray(column(table, y), float)
+    selected by `where` (default all); non-finite values are left out of the mean. A string
+    column (a swept categorical parameter) gives an axis of its values in sorted order."""
+    xv, yv = _axis_values(table, x), _axis_values(table, y)
     vals = _values(table, value)
     sel = np.ones(len(vals), bool) if where is None else np.asarray(where, bool)
     xs, ys = np.unique(xv[sel]), np.unique(yv[sel])
@@ -129,8 +142,7 @@ def heatmap(table: Any, x: str, y: str, value: str = "ok", *, where: np.ndarray 
     ax.set_xlabel(_label(table, x, labels))
     ax.set_ylabel(_label(table, y, labels))
     if mark is not None:
-        jx = np.nonzero(np.isclose(xs, mark[0]))[0]
-        iy = np.nonzero(np.isclose(ys, mark[1]))[0]
+        jx, iy = _axis_index(xs, mark[0]), _axis_index(ys, mark[1])
         if len(jx) and len(iy):
             from matplotlib.patches import Rectangle
 

@@ -14,7 +14,7 @@ import jax
 import numpy as np
 import pytest
 from test_cli import invoke, workdir  # noqa: F401  (workdir: a fixture, a temporary working directory)
-from test_sweep_run import TOY  # noqa: F401  (registers the analysis "test.toy")
+from test_sweep_run import TASKS, TOY  # noqa: F401  (registers the analyses "test.toy", "test.tasks")
 from test_tune import TOY as TOY_TUNE  # noqa: F401  (registers the objective "test.toy_tune")
 
 from jaxloco import check, specs
@@ -168,6 +168,17 @@ def test_host_analysis_one_call_per_chunk_and_a_linear_probe(workdir, batch_call
     assert not (workdir / "results").exists()
     run(load_spec(path), progress=False)
     assert batch_calls == [4, 2]
+
+
+def test_string_sweep_lists_its_values_and_probes(workdir):
+    path = workdir / "sweeps" / "tasks.toml"
+    path.write_text('[sweep]\nanalysis = "test.tasks"\nchunk_size = 4\n'
+                    '[params]\ntask = ["swim", "climb", "walk"]\nspeed = [1.0, 2.0]\n')
+    result = invoke("check", str(path), "--probe")
+    assert result.exit_code == 0, result.output
+    assert field(result.stdout, "rows") == "6 = 3 task (swim, climb, walk) x 2 speed x 1 seed"
+    assert field(result.stdout, "estimate").endswith("extrapolated linearly (from the probe)")
+    assert not (workdir / "results").exists()
 
 
 def test_chunk_size_option_and_a_last_smaller_chunk(workdir):

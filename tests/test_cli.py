@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from test_sweep_run import TOY  # noqa: F401  (registers the analysis "test.toy")
+from test_sweep_run import TASKS, TOY  # noqa: F401  (registers the analyses "test.toy", "test.tasks", ...)
 from typer.testing import CliRunner
 
 from jaxloco.analysis import SpecError
@@ -129,6 +129,52 @@ def test_describe_and_analyses():
     assert unknown.exit_code == 2 and unknown.stderr.startswith("error: unknown analysis 'no.such'")
     listed = invoke("analyses")
     assert listed.exit_code == 0 and "test.toy" in listed.stdout and "A toy analysis" in listed.stdout
+
+
+TASKS_SPEC = """
+[sweep]
+analysis = "test.tasks"
+chunk_size = 4
+
+[params]
+task = ["swim", "walk"]
+speed = [1.0, 2.0, 3.0]
+"""
+
+
+def test_string_sweep_from_the_command_line(workdir):
+    (workdir / "sweeps" / "tasks.toml").write_text(TASKS_SPEC)
+    result = invoke("sweep", "sweeps/tasks.toml", "--quiet", "--csv")
+    assert result.exit_code == 0, result.output
+    assert "test.tasks: 6 rows by task and status" in result.stdout
+    summary = invoke("summary", "results/tasks/table.parquet")
+    assert summary.exit_code == 0, summary.output
+    lines = [" ".join(line.replace("│", " ").split()) for line in summary.stdout.splitlines()]
+    assert "swim wet 3 100.0%" in lines and "walk ok 3 100.0%" in lines
+    (workdir / "sweeps" / "bad.toml").write_text(TASKS_SPEC.replace('"walk"', '"run"'))
+    bad = invoke("sweep", "sweeps/bad.toml", "--quiet")
+    assert bad.exit_code == 2
+    assert bad.stderr.strip() == "error: sweeps/bad.toml: params.task[1]: 'run' is not one of 'walk', 'climb', 'swim'"
+
+
+def _sweepable_column(stdout: str) -> dict[str, str]:
+    """name -> "yes" / "no" from `jaxloco describe`'s parameter blocks (the test terminal is
+    narrow: "task: str, default 'walk', range one of ..., sweepable")."""
+    cells = {}
+    for line in stdout.splitlines():
+        name, _, rest = line.partition(": ")
+        if name in ("task", "speed", "note", "mode") and rest.endswith("sweepable"):
+            cells[name] = "no" if rest.endswith("not sweepable") else "yes"
+    return cells
+
+
+def test_describe_says_which_string_params_are_sweepable():
+    host = invoke("describe", "test.tasks")
+    assert host.exit_code == 0, host.output
+    assert "one of 'walk', 'climb', 'swim'" in host.stdout
+    assert _sweepable_column(host.stdout) == {"task": "yes", "speed": "yes", "note": "no", "mode": "no"}
+    under_jax = invoke("describe", "test.tasks_jax")
+    assert _sweepable_column(under_jax.stdout)["task"] == "no"
 
 
 def test_summary_errors(workdir):

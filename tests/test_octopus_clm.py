@@ -29,8 +29,8 @@ def _scenario(kind: str, horizon_s: float, record_every: int = 5):
 
     def record(p, data, obs, c, e):
         r = base(p, data, obs, c, e)
-        r.update(arm_phase=c["arm_phase"], active=c["active"], confirmed=c["confirmed"], h_est=c["h_est"],
-                 on_step=c["on_step"], rollers=data.site_xpos[tips])
+        r.update(arm_phase=c.arms.arm_phase, active=c.arms.active, confirmed=c.confirmed, h_est=c.h_est,
+                 on_step=c.arms.on_step, rollers=data.site_xpos[tips])
         return r
 
     return sc.with_(record=record)
@@ -162,20 +162,23 @@ def test_clm_crawls_up_a_two_terrace_staircase():
 
 def test_clm_walks_past_a_block_beside_its_right_side():
     """Rough ground (paper, Figs. 19-20): a 500 mm block 10 mm beside the right crawler.
-    A right arm lands on the block top (stopped on an obstacle, Case 2 of the arm stop
-    rules), the left front arm finds the floor, so no step is confirmed: the robot walks
-    on past the block in WALK without tipping."""
+    A right arm's transfer collides with the block (the torque reaches collision_torque),
+    the arm stops there, rides the block top in support (PLACED, roller above 0.5 m), and
+    later returns to the floor (`arm_over_obstacle`); the left arms stay on the floor, no
+    step is confirmed, and the robot walks on past the block in WALK without tipping."""
     sc = _scenario("block", horizon_s=60.0, record_every=10)
     r = rollout(sc, scenarios.params_batch(1, height=0.5), nthread=2)
     row = r.row(0)
-    assert row["status"] == "ok" and row["success"], row
+    assert row["status"] == "ok" and row["success"] and row["arm_over_obstacle"], row
     R = {k: v[0] for k, v in r.records.items()}
     assert set(R["phase"].tolist()) == {clm.WALK} and not R["confirmed"].any()
     right = np.array([not left for left in clm.LEFT])
-    on_block = R["on_step"][:, right].any(axis=1)
-    assert on_block.any() and not R["on_step"][:, ~right].any()
-    tips = R["rollers"][:, right]
-    assert np.max(tips[..., 2]) > 0.5  # a right roller up on the block top
+    z = R["rollers"][..., 2]
+    riding = (R["arm_phase"] == cr.PLACED) & (z > 0.5)
+    assert riding[:, right].any() and not riding[:, ~right].any()
+    first = np.argmax(riding[:, right].any(axis=1))
+    assert (z[first:, right] < P.ROLLER_RADIUS + 0.02).any()  # back on the floor afterwards
+    assert z[:, ~right][(R["arm_phase"] == cr.PLACED)[:, ~right]].max() < 0.2
     assert row["max_abs_roll"] < 0.3
 
 
@@ -195,8 +198,9 @@ def test_prepare_approach_squares_up_on_a_high_step():
            "arm_tau": jnp.zeros(12), "track_speed": jnp.full(2, float(p["clm_speed"])),
            "contact_points": jnp.zeros((len(scenarios.CONTACT_SITES), 3))}
     s0 = ctrl.init(p, obs)
-    s0 = {**s0, "phase": jnp.asarray(clm.PREPARE, jnp.int32), "confirmed": jnp.asarray(True),
-          "flip": jnp.array([a0, a0, 0.0, 0.0]), "h_est": jnp.asarray(0.4), "pause": jnp.asarray(1.0)}
+    s0 = s0._replace(phase=jnp.asarray(clm.PREPARE, jnp.int32), confirmed=jnp.asarray(True),
+                     flip=jnp.array([a0, a0, 0.0, 0.0]), h_est=jnp.asarray(0.4),
+                     arms=s0.arms._replace(pause=jnp.asarray(1.0)))
     s, a = step(p, s0, obs)
     np.testing.assert_allclose(a[:2], [p["clm_speed"]] * 2)  # both crawlers drive
     pressed = {**obs, "flipper_tau": jnp.array([0.0, -2.0 * float(p["approach_tau"]), 0.0, 0.0])}
@@ -204,14 +208,111 @@ def test_prepare_approach_squares_up_on_a_high_step():
     for _ in range(n):
         s, a = step(p, s, pressed)
     np.testing.assert_allclose(a[:2], [p["clm_speed"], 0.0])  # the right side is at the riser
-    assert bool(s["blocked"][1]) and not bool(s["blocked"][0]) and not bool(s["squared"])
-    assert int(s["active"]) == -1  # no transfer yet
+    assert bool(s.approach.blocked[1]) and not bool(s.approach.blocked[0]) and not bool(s.approach.squared)
+    assert int(s.arms.active) == -1  # no transfer yet
     both = {**obs, "flipper_tau": jnp.array([-2.0, -2.0, 0.0, 0.0]) * float(p["approach_tau"])}
     for _ in range(n):
         s, a = step(p, s, both)
-    assert bool(s["squared"]) and int(s["phase"]) == clm.PREPARE
+    assert bool(s.approach.squared) and int(s.phase) == clm.PREPARE
     np.testing.assert_allclose(a[:2], [0.0, 0.0])
     # a low step: no approach
-    s, a = step(p, {**s0, "h_est": jnp.asarray(0.2)}, obs)
-    assert bool(s["squared"])
+    s, a = step(p, s0._replace(h_est=jnp.asarray(0.2)), obs)
+    assert bool(s.approach.squared)
     np.testing.assert_allclose(a[:2], [0.0, 0.0])
+
+
+def _obs_at(yaw: float, pitch: float = 0.2, roll: float = -0.03):
+    """An observation with the body at (roll, pitch, yaw) (z-up Z-Y-X, radians), arms in
+    the start pose, a torque on the front flippers and the tracks rolling."""
+    from scipy.spatial.transform import Rotation
+
+    x, y, z, w = Rotation.from_euler("ZYX", [yaw, pitch, roll]).as_quat()
+    q = jnp.asarray(clm.start_pose()[0].reshape(-1))
+    return {"time": jnp.asarray(3.0), "quat": jnp.array([w, x, y, z]), "flipper_q": jnp.array([0.5, 0.6, 0.0, 0.0]),
+            "flipper_tau": jnp.array([20.0, -3.0, 1.0, 0.0]), "arm_q": q + 0.01, "arm_tau": jnp.arange(12.0),
+            "track_speed": jnp.array([0.03, 0.028]), "contact_points": jnp.zeros((len(scenarios.CONTACT_SITES), 3))}
+
+
+@pytest.mark.parametrize("phase", [clm.WALK, clm.PREPARE, clm.CLIMB, clm.RELEASE, clm.DONE])
+@pytest.mark.parametrize("paper", [0.0, 1.0])
+def test_clm_never_reads_the_yaw(phase, paper):
+    """The real OCTOPUS cannot measure its yaw (paper, "Recognition of COG position"): the
+    CLM's state and actions are the same whatever the IMU heading, in every phase, with
+    either climb."""
+    ctrl = clm.make_controller()
+    p = {k: jnp.asarray(v) for k, v in scenarios.PARAM_DEFAULTS.items()}
+    p["climb_paper"] = jnp.asarray(paper)
+    step = jax.jit(ctrl.step)
+    outs = []
+    for yaw in (0.0, 0.4, -2.5):
+        obs = _obs_at(yaw)
+        s = ctrl.init(p, obs)
+        s = s._replace(phase=jnp.asarray(phase, jnp.int32), confirmed=jnp.asarray(phase != clm.WALK))
+        for _ in range(3):
+            s, action = step(p, s, obs)
+        outs.append((s, action))
+    for s, action in outs[1:]:
+        np.testing.assert_allclose(action, outs[0][1], atol=1e-9)
+        for a, b in zip(jax.tree_util.tree_leaves(s), jax.tree_util.tree_leaves(outs[0][0])):
+            np.testing.assert_allclose(a, b, atol=1e-9)
+
+
+def test_operator_is_separate_and_off_by_default():
+    """The operator layer (`operator.with_operator`) leaves the CLM's actions alone at
+    operator_gain = 0; with a gain it speeds up the left track when the robot has turned
+    left (yaw > 0) while driving straight, and never touches turning or stopped tracks."""
+    from jaxloco.robots.octopus import operator
+
+    tracks = jnp.array([0.03, 0.03])
+    np.testing.assert_allclose(operator.steer(tracks, jnp.asarray(0.2), 0.0), tracks)
+    left, right = np.asarray(operator.steer(tracks, jnp.asarray(0.2), 0.05))
+    assert left == pytest.approx(0.04) and right == pytest.approx(0.02)
+    assert np.asarray(operator.steer(tracks, jnp.asarray(5.0), 1.0)).tolist() == pytest.approx([0.06, 0.0])
+    for fixed in (jnp.array([0.03, 0.0]), jnp.zeros(2)):
+        np.testing.assert_allclose(operator.steer(fixed, jnp.asarray(0.2), 0.05), fixed)
+    ctrl = clm.make_controller()
+    op = operator.with_operator(ctrl)
+    p = {k: jnp.asarray(v) for k, v in scenarios.PARAM_DEFAULTS.items()}
+    obs = _obs_at(0.3)
+    s = ctrl.init(p, obs)
+    np.testing.assert_allclose(op.step(p, s, obs)[1], ctrl.step(p, s, obs)[1])
+    for yaw in (0.3, -0.3):
+        obs = _obs_at(yaw, pitch=0.0, roll=0.0)
+        s = ctrl.init(p, obs)
+        a = np.asarray(op.step({**p, "operator_gain": jnp.asarray(0.1)}, s, obs)[1])
+        b = np.asarray(ctrl.step(p, s, obs)[1])
+        if b[0] == b[1] > 0:  # driving straight: steered against the yaw
+            assert np.sign(a[0] - a[1]) == np.sign(yaw)
+        np.testing.assert_allclose(a[2:], b[2:])
+
+
+def test_paper_climb_and_release_rules_are_eqs_28_29():
+    """`paper_climb_step` (Eqs. 28-29, first branches): every boom command + Delta_E, the
+    front flippers measured angle - Delta_F (A' = the encoder), the rear ones held, yielding
+    by Delta_A against a torque beyond T0; nothing moves once on top. `paper_release_step`
+    (second branches): booms back up by Delta_E to the start pose's angle, flippers up by
+    Delta_F to 0, and done only when every one is back."""
+    p = {k: jnp.asarray(v) for k, v in scenarios.PARAM_DEFAULTS.items()}
+    de, df, da = float(p["delta_e"]), float(p["delta_f"]), float(p["flip_delta_a"])
+    q = jnp.asarray(clm.start_pose()[0])
+    flip_cmd = jnp.array([1.4, 1.4, 0.0, 0.0])
+    flip_q = jnp.array([1.3, 1.35, 0.01, -0.01])
+    tau = jnp.array([0.0, -2.0 * float(p["T0"]), 0.0, 0.0])
+    q2, f2 = clm.paper_climb_step(p, q, flip_cmd, flip_q, tau, jnp.asarray(False))
+    np.testing.assert_allclose(q2[:, 1], q[:, 1] + de)
+    np.testing.assert_allclose(q2[:, [0, 2]], q[:, [0, 2]])
+    np.testing.assert_allclose(f2, [1.3 - df, 1.35 - df + da, 0.0, 0.0], atol=1e-12)
+    f3 = clm.paper_climb_step({**p, "climb_rear_flippers": jnp.asarray(1.0), "flip_encoder": jnp.asarray(0.0),
+                               "climb_yield": jnp.asarray(0.0)}, q, flip_cmd, flip_q, tau, jnp.asarray(False))[1]
+    np.testing.assert_allclose(f3, flip_cmd - df)
+    q4, f4 = clm.paper_climb_step(p, q, flip_cmd, flip_q, tau, jnp.asarray(True))
+    np.testing.assert_allclose(q4, q)
+    np.testing.assert_allclose(f4, flip_cmd)
+    # release from a lifted pose
+    lifted = q.at[:, 1].add(jnp.array([0.5, 0.5 * de, 0.0, 0.2]))
+    flips = jnp.array([-0.3, -0.5 * df, 0.2, 0.0])
+    q5, f5, back = clm.paper_release_step(p, lifted, flips)
+    np.testing.assert_allclose(q5[:, 1], q[:, 1] + jnp.array([0.5 - de, 0.0, 0.0, 0.2 - de]), atol=1e-12)
+    np.testing.assert_allclose(f5, [-0.3 + df, 0.0, 0.2, 0.0], atol=1e-12)
+    assert not bool(back)
+    assert bool(clm.paper_release_step(p, q, jnp.array([0.0, 0.1, 0.0, 0.0]))[2])

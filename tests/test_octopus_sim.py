@@ -24,9 +24,13 @@ def test_step_height_differs_per_simulation():
     np.testing.assert_allclose(mocap[:, 1, 2] + half_z, heights, atol=1e-9)
     np.testing.assert_allclose(mocap[:, 2, 2] + half_z, heights, atol=1e-9)
     # records and metrics have their shapes; the robot stands on the floor with its
-    # crawlers (4 end sites) and rear flippers in contact, stable
+    # main crawler wheels and rear flippers in contact, stable; touch and the support set:
+    # one per wheel and roller
     assert r.records["rpy"].shape == (2, sc.n_records, 3)
     assert r.records["flipper_q"].shape == (2, sc.n_records, 4)
+    n = len(scenarios.SUPPORT_BODIES)
+    assert r.records["touch"].shape == r.records["contact"].shape == (2, sc.n_records, n)
+    assert r.records["contact_points"].shape == (2, sc.n_records, n, 3)
     assert r.records["contact"][:, -1].sum(-1).min() >= 6
     assert (r.metrics["min_margin"] > 0.03).all()
     assert not r.metrics["success"].any()

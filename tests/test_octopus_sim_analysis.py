@@ -26,7 +26,7 @@ def test_registered_with_the_clm_gains():
         assert defaults[gain] == clm.PARAM_DEFAULTS[gain]
         a.param(gain).check(defaults[gain])  # the default is inside the range
     # every sweepable parameter is a scenario parameter (params_batch accepts it)
-    extra = {"distance_jitter", "yaw_jitter"}
+    extra = {"distance_jitter", "yaw_jitter", "mu_jitter"}
     assert {p.name for p in a.params if p.sweepable} - extra <= set(scenarios.PARAM_DEFAULTS)
     assert a.statuses == ("ok", "failed", "diverged", "tipped")
 
@@ -45,7 +45,7 @@ def _doc(**changes):
     ({"fixed": {"kind": "step3"}}, "fixed.kind: 'step3' is not one of 'step1', 'step2_front', 'step2_side'"),
     ({"fixed": {"controller": "pid"}}, "fixed.controller: 'pid' is not one of 'clm', 'ccm'"),
     ({"fixed": {"backend": "gpu"}}, "fixed.backend: 'gpu' is not one of 'native', 'mjx'"),
-    ({"params": {"kind": ["step1"]}}, "params.kind: 'kind' is a string parameter and cannot be swept"),
+    ({"params": {"kind": ["step1"]}}, "params.kind: 'kind' cannot be swept (it changes the compiled program)"),
     ({"params": {"nthread": [1, 2]}}, "params.nthread: 'nthread' cannot be swept"),
 ])
 def test_spec_errors_are_one_line(changes, message):
@@ -64,7 +64,7 @@ def test_valid_spec_expands():
 def test_jitter_is_per_seed_and_bounded():
     keys = np.array([[0, 0], [0, 1], [0, 0]], np.uint32)
     u = sim_analysis._jitter(keys)
-    assert u.shape == (3, 2) and (np.abs(u) <= 1.0).all()
+    assert u.shape == (3, 3) and (np.abs(u) <= 1.0).all()
     np.testing.assert_array_equal(u[0], u[2])
     assert not np.allclose(u[0], u[1])
 

@@ -1,6 +1,6 @@
 """`octopus.sigma` tuning objective (jaxloco/robots/octopus/tuning.py):
   * it loads from the registry, its tunables are the analysis' sigma parameters and its
-    "paper" reference is params.SIGMA;
+    "default (ours)" reference is params.SIGMA (the paper gives no values);
   * the sample bank is the `octopus.terrain_classification` sampling: the analysis'
     `run_sample` with the same key gives the same class (through the hard classifier) and
     the same ground truth;
@@ -53,7 +53,7 @@ def test_objective_loads_from_the_registry_with_the_analysis_names():
     for t in objective.tunables:  # same name as the sweep parameter, and a valid value of it
         A.TERRAIN_CLASSIFICATION.param(t.name).check(t.lo)
         A.TERRAIN_CLASSIFICATION.param(t.name).check(t.hi)
-    assert dict(objective.references["paper"]) == pytest.approx(dict(zip(SIGMA_NAMES, SIGMA.tolist())))
+    assert dict(objective.references["default (ours)"]) == pytest.approx(dict(zip(SIGMA_NAMES, SIGMA.tolist())))
     analysis_defaults = {p.name: p.default for p in A.PARAMS}
     assert {k: analysis_defaults[k] for k in SIGMA_NAMES} == pytest.approx(T.PAPER)
 
@@ -145,7 +145,7 @@ def _tune(tmp_path, **settings):
 def test_three_steps_lower_the_error_without_losing_hard_accuracy(tmp_path):
     """danger_weight 1: the loss is the expected error rate of the relaxed classifier."""
     result = _tune(tmp_path, danger_weight=1.0)
-    initial, best, paper = result.row("initial"), result.row("tuned"), result.row("paper")
+    initial, best, paper = result.row("initial"), result.row("tuned"), result.row("default (ours)")
     assert result.curve.to_pydict()["step"] == [0, 1, 2, 3]
     assert best["loss"] < initial["loss"]
     assert best["accuracy"] >= initial["accuracy"]

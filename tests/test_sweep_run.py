@@ -358,3 +358,167 @@ def test_a_wide_summary_is_not_cut_in_a_narrow_terminal():
     assert "…" not in text
     for i in range(8):
         assert f"{i}.123456789" in text and f"column number {i}" in text
+
+
+# ----------------------------------------------- a categorical (string) swept parameter
+
+TASK_OFFSET = {"walk": 0.0, "climb": 10.0, "swim": 100.0}
+HOST_CALLS: list[dict[str, np.ndarray]] = []  # the `swept` argument of every call of the task toy
+
+
+def _task_batch_fn(fixed):
+    """numpy only, as a host analysis is; `swept["task"]` is a numpy array of str."""
+
+    def fn(swept, keys):
+        HOST_CALLS.append(dict(swept))
+        rows = keys.shape[0]
+        task = swept["task"] if "task" in swept else np.full(rows, fixed["task"])
+        speed = swept["speed"] if "speed" in swept else np.full(rows, fixed["speed"])
+        y = np.array([TASK_OFFSET[str(t)] for t in task]) + speed
+        return {"y": y, "status": (task == "swim").astype(np.int64)}
+
+    return fn
+
+
+TASK_PARAMS = (
+    Param("task", "walk", "which experiment", kind="str", choices=tuple(TASK_OFFSET)),
+    Param("speed", 1.0, "commanded speed", unit="m/s", lo=0.0, hi=10.0),
+    Param("note", "", "a free-form label", kind="str"),
+    Param("mode", "a", "a structural choice", kind="str", choices=("a", "b"), sweepable=False),
+)
+TASKS = register(
+    Analysis(
+        name="test.tasks",
+        doc="A toy host analysis with a categorical task.",
+        params=TASK_PARAMS,
+        metrics=(Metric("y", "the task's offset + speed", unit="m/s"),),
+        make_batch_fn=_task_batch_fn,
+        statuses=("ok", "wet"),
+        executor="host",
+    )
+)
+TASKS_JAX = register(dataclasses.replace(TASKS, name="test.tasks_jax", executor="jax"))
+
+
+def task_spec(out, *, chunk_size=4, formats=("parquet",), **params):
+    params = params or {"task": ["climb", "walk", "swim"], "speed": [0.5, 2.0]}
+    return spec_from_dict(
+        {
+            "sweep": {"analysis": "test.tasks", "output": str(out), "chunk_size": chunk_size, "seeds": [0],
+                      "formats": list(formats)},
+            "params": params,
+        }
+    )
+
+
+TASK_ROWS = [("climb", 0.5), ("climb", 2.0), ("walk", 0.5), ("walk", 2.0), ("swim", 0.5), ("swim", 2.0)]
+
+
+def test_string_param_is_a_string_column_in_grid_order(tmp_path):
+    HOST_CALLS.clear()
+    spec = task_spec(tmp_path / "out")  # 3 tasks x 2 speeds x 1 seed = 6 rows; chunks of 4 and 2
+    assert spec.swept["task"] == ("climb", "walk", "swim")
+    grid = expand(spec)
+    assert grid.axes["task"].dtype.kind == "U" and grid.columns["task"].tolist() == [t for t, _ in TASK_ROWS]
+    result = run(spec, progress=False)
+    t = result.table
+    assert t.schema.field("task").type == pa.string() and t.schema.field("task").metadata[b"role"] == b"swept"
+    assert t.schema.field("note").type == pa.string() and t.schema.field("note").metadata[b"role"] == b"fixed"
+    assert list(zip(t.column("task").to_pylist(), t.column("speed").to_pylist(), strict=True)) == TASK_ROWS
+    assert t.column("y").to_pylist() == [TASK_OFFSET[task] + speed for task, speed in TASK_ROWS]
+    assert t.column("status").to_pylist() == ["ok"] * 4 + ["wet"] * 2
+    assert t.column("note").to_pylist() == [""] * 6 and t.column("mode").to_pylist() == ["a"] * 6
+    # the host batch function got numpy arrays of str, one call per chunk
+    assert [len(call["task"]) for call in HOST_CALLS] == [4, 2]
+    assert all(isinstance(c["task"], np.ndarray) and c["task"].dtype.kind == "U" for c in HOST_CALLS)
+    assert HOST_CALLS[1]["task"].tolist() == ["swim", "swim"]
+    assert json.loads(t.schema.metadata[b"jaxloco"])["swept"] == ["task", "speed"]
+    # the default summary counts statuses per task, in the table's order
+    assert result.summary.columns == ("task", "status", "rows", "share")
+    assert result.summary.rows == (
+        ("climb", "ok", "2", "100.0%"), ("walk", "ok", "2", "100.0%"), ("swim", "wet", "2", "100.0%"),
+    )  # fmt: skip
+
+
+def test_string_param_zipped_and_fixed(tmp_path):
+    zipped = spec_from_dict(
+        {
+            "sweep": {"analysis": "test.tasks", "output": str(tmp_path / "z"), "combine": "zip"},
+            "params": {"task": ["swim", "walk"], "speed": [1.0, 3.0]},
+        }
+    )
+    t = run(zipped, progress=False).table
+    assert t.column("task").to_pylist() == ["swim", "walk"] and t.column("y").to_pylist() == [101.0, 3.0]
+    fixed = spec_from_dict(
+        {
+            "sweep": {"analysis": "test.tasks", "output": str(tmp_path / "f")},
+            "fixed": {"task": "climb"},
+            "params": {"speed": [1.0, 2.0]},
+        }
+    )
+    t = run(fixed, progress=False).table
+    assert t.column("task").to_pylist() == ["climb", "climb"]
+    assert t.schema.field("task").metadata[b"role"] == b"fixed"
+
+
+def test_string_sweep_resumed_after_interruption_gives_the_same_table(tmp_path, chunk_writes):
+    spec = task_spec(tmp_path / "interrupted", chunk_size=2)  # 3 chunks
+
+    def stop(index, n_chunks):
+        raise KeyboardInterrupt
+
+    with pytest.raises(SweepInterrupted) as info:
+        run(spec, progress=False, on_chunk=stop)
+    assert (info.value.saved, info.value.total) == (1, 3)
+    resumed = run(spec, progress=False, resume=True)
+    assert (resumed.chunks_computed, resumed.chunks_reused) == (2, 1)
+    assert chunk_writes == [0, 1, 2]
+    fresh = run(task_spec(tmp_path / "fresh", chunk_size=2), progress=False)
+    assert resumed.table.equals(fresh.table)
+    assert resumed.table.schema.field("task").type == pa.string()
+    assert pq.read_table(spec.output / "table.parquet").equals(fresh.table)
+
+
+def test_string_column_csv_round_trip(tmp_path):
+    import pyarrow.csv as pa_csv
+
+    result = run(task_spec(tmp_path / "out", formats=("parquet", "csv")), progress=False)
+    path = result.path / "table.csv"
+    assert pa_csv.read_csv(path).schema.field("task").type == pa.string()  # inferred, too
+    types = pa_csv.ConvertOptions(column_types={f.name: f.type for f in result.table.schema})
+    back = pa_csv.read_csv(path, convert_options=types)
+    assert back.column_names == result.table.column_names
+    assert back.to_pylist() == result.table.to_pylist()
+    assert back.column("task").to_pylist() == [t for t, _ in TASK_ROWS]
+
+
+def test_string_spec_survives_the_worker_round_trip():
+    from jaxloco.sweep.runner import ChunkJob
+
+    spec = task_spec("unused")
+    rebuilt = ChunkJob.of(spec, x64=True).rebuild()
+    assert rebuilt.hash == spec.hash and rebuilt.swept["task"] == ("climb", "walk", "swim")
+
+
+def test_a_hand_made_string_sweep_under_jax_is_refused_before_computing(tmp_path):
+    from jaxloco.sweep.runner import prepare
+
+    spec = dataclasses.replace(task_spec(tmp_path / "out"), analysis=TASKS_JAX)
+    with pytest.raises(SpecError, match=r"params\.task: 'task' is a string parameter and this analysis runs under JAX"):
+        prepare(spec)
+
+
+def test_heatmap_over_a_string_axis(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from jaxloco.plots import grid_mean, heatmap
+
+    table = run(task_spec(tmp_path / "out"), progress=False).table
+    xs, ys, mean, _ = grid_mean(table, "speed", "task", "y")
+    assert ys.tolist() == ["climb", "swim", "walk"] and xs.tolist() == [0.5, 2.0]
+    assert mean.tolist() == [[10.5, 12.0], [100.5, 102.0], [0.5, 2.0]]
+    fig = heatmap(table, "speed", "task", "y", mark=(2.0, "walk"))
+    ax = fig.axes[0]
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["climb", "swim", "walk"]
+    assert len(ax.patches) == 1  # the marked cell

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_sweep_run import TOY  # noqa: F401  (registers the analysis "test.toy")
+from test_sweep_run import TASKS, TOY  # noqa: F401  (registers the analyses "test.toy", "test.tasks")
 
 from jaxloco.analysis import SpecError
 from jaxloco.sweep import expand, load_spec, spec_from_dict
@@ -93,7 +93,7 @@ ERRORS = [
     (_params(a=0.5), "params.a: expected a list of values or a range"),
     (_params(zz=[1.0]), "params.zz: unknown parameter 'zz' for analysis 'test.toy'"),
     (_params(n=[1, 2]), "params.n: 'n' cannot be swept"),
-    (_params(label=["x", "y"]), "params.label: 'label' is a string parameter and cannot be swept"),
+    (_params(label=["x", "y"]), "params.label: 'label' is a string parameter without choices; a swept string needs"),
     (_params(flag={"start": 0, "stop": 1, "num": 2}), "params.flag: a range needs a numeric parameter"),
     (_params(m={"start": 0, "stop": 3, "num": 3}), "params.m[1]: expected an integer, got 1.5"),
     (_params(m=[1, 2.5]), "params.m[1]: expected an integer, got 2.5"),
@@ -131,6 +131,71 @@ def test_spec_errors_name_the_key(change, message):
     text = str(info.value)
     assert text.startswith("<dict>: " + message), text
     assert "\n" not in text
+
+
+TASK_ERRORS = [
+    # (analysis, params, the whole message after "<dict>: ")
+    ("test.tasks", {"task": ["walk", "run"]}, "params.task[1]: 'run' is not one of 'walk', 'climb', 'swim'"),
+    ("test.tasks", {"task": ["walk", 3]}, "params.task[1]: expected a string, got 3"),
+    ("test.tasks", {"task": []}, "params.task: empty list; give at least one value"),
+    (
+        "test.tasks",
+        {"task": "walk"},
+        (
+            "params.task: expected a list of values or a range {start, stop, num} / {start, stop, step}, got 'walk';"
+            " a single value belongs in [fixed]"
+        ),
+    ),
+    (
+        "test.tasks",
+        {"task": {"start": 0, "stop": 1, "num": 2}},
+        (
+            "params.task: a range needs a numeric parameter; 'task' is a string: list its values"
+            " (one of 'walk', 'climb', 'swim')"
+        ),
+    ),
+    (
+        "test.tasks",
+        {"note": ["x", "y"]},
+        "params.note: 'note' is a string parameter without choices; a swept string needs choices; set it in [fixed]",
+    ),
+    (
+        "test.tasks",
+        {"mode": ["a", "b"]},
+        "params.mode: 'mode' cannot be swept (it changes the compiled program); set it in [fixed]",
+    ),
+    (
+        "test.tasks_jax",
+        {"task": ["walk"]},
+        (
+            "params.task: 'task' is a string parameter and this analysis runs under JAX (executor 'jax'),"
+            " which cannot take strings; set it in [fixed]"
+        ),
+    ),
+]
+
+
+@pytest.mark.parametrize("analysis, params, message", TASK_ERRORS, ids=[m.split(":")[0] for *_, m in TASK_ERRORS])
+def test_string_param_errors_are_one_line(analysis, params, message):
+    with pytest.raises(SpecError) as info:
+        spec_from_dict({"sweep": {"analysis": analysis}, "params": params})
+    assert str(info.value) == "<dict>: " + message
+
+
+def test_string_params_from_toml(tmp_path):
+    path = tmp_path / "tasks.toml"
+    path.write_text('[sweep]\nanalysis = "test.tasks"\n[fixed]\nnote = "hi"\n'
+                    '[params]\ntask = ["swim", "climb"]\nspeed = [1.0, 2.0, 3.0]\n')
+    spec = load_spec(path)
+    assert spec.swept == {"task": ("swim", "climb"), "speed": (1.0, 2.0, 3.0)} and spec.fixed["note"] == "hi"
+    assert spec.n_rows == 6 and expand(spec).columns["task"].tolist() == ["swim"] * 3 + ["climb"] * 3
+
+    def from_dict(tasks):
+        d = {"sweep": {"analysis": "test.tasks"}, "fixed": {"note": "hi"}, "params": {"task": tasks, "speed": [1, 2, 3.0]}}
+        return spec_from_dict(d)
+
+    assert from_dict(np.array(["swim", "climb"])).hash == spec.hash  # a numpy array of str is a list
+    assert from_dict(["climb", "swim"]).hash != spec.hash  # the order of the values is the row order
 
 
 def test_file_errors(tmp_path, monkeypatch):

@@ -286,10 +286,15 @@ def simulated_replay(row: Row, headline: Sequence[str] = (),
 
 
 def octopus_step_climb(row: Row) -> Replay:
-    """`octopus.step_climb`: the CLM/CCM climb, captioned with the controller phase."""
+    """`octopus.step_climb`, `octopus.paper`: the CLM/CCM climb, captioned with the controller phase."""
     from jaxloco.robots.octopus import ccm, clm
 
-    names = clm.PHASE_NAMES if row.values.get("controller", "clm") == "clm" else ccm.PHASE_NAMES
+    controller = row.values.get("controller", "clm")
+    if "task" in row.values:  # octopus.paper: the task fixes the controller
+        from jaxloco.robots.octopus.paper_analysis import TASKS
+
+        controller = TASKS[str(row.values["task"])].controller
+    names = clm.PHASE_NAMES if controller == "clm" else ccm.PHASE_NAMES
 
     def caption(row: Row, records: Mapping[str, np.ndarray]) -> list[str]:
         phase = np.asarray(records["phase"]).astype(int)
@@ -330,6 +335,7 @@ REPLAYS: dict[str, str] = {
     "snake.kv": "jaxloco.render.kinematic:snake_kv",
     "leggrope.slope_cycle": "jaxloco.render.kinematic:leggrope_slope_cycle",
     "octopus.step_climb": "jaxloco.render.replay:octopus_step_climb",
+    "octopus.paper": "jaxloco.render.replay:octopus_step_climb",
     "leggrope.fragile_walk": "jaxloco.render.replay:leggrope_fragile_walk",
 }
 NO_REPLAY: dict[str, str] = {

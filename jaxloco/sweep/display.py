@@ -21,8 +21,14 @@ from rich.progress import (
 from rich.table import Column, Table
 from rich.text import Text
 
-from jaxloco.analysis import Analysis, Param, Summary
-from jaxloco.terminal import DocTable, FoldedTable, Labelled, fixed_text, progress_columns
+from jaxloco.analysis import Analysis, Param, Summary, sweep_problem
+from jaxloco.terminal import (
+    DocTable,
+    FoldedTable,
+    Labelled,
+    fixed_text,
+    progress_columns,
+)
 
 FIRST_CHUNK_NOTE = " +compile"  # the first chunk's time includes JIT compilation
 
@@ -105,24 +111,26 @@ def analyses_table(rows: list[tuple[str, str]]) -> Table:
     return table
 
 
-def _sweepable(p: Param) -> bool:
-    return p.sweepable and p.kind != "str"
+def _sweepable(p: Param, executor: str) -> bool:
+    """Whether a spec may sweep `p` (a string only with choices, in a host analysis)."""
+    return sweep_problem(p, executor) is None
 
 
-def _param_head(p: Param) -> Text:
+def _param_head(p: Param, executor: str) -> Text:
     """A parameter's block headline: name, kind, default (unit), range, sweepable."""
     unit = f" {p.unit}" if p.unit else ""
-    sweepable = "sweepable" if _sweepable(p) else "not sweepable"
+    sweepable = "sweepable" if _sweepable(p, executor) else "not sweepable"
     head = Text(p.name, style="bold")
     head.append(f": {p.kind}, default {p.default!r}{unit}, range {p.range_text()}, {sweepable}")
     return head
 
 
 def params_table(analysis: Analysis) -> DocTable:
-    rows = [(p.name, p.kind, repr(p.default), p.unit, p.range_text(), "yes" if _sweepable(p) else "no", p.doc)
+    ex = analysis.executor
+    rows = [(p.name, p.kind, repr(p.default), p.unit, p.range_text(), "yes" if _sweepable(p, ex) else "no", p.doc)
             for p in analysis.params]
     return DocTable(f"{analysis.name}: parameters", ("name", "kind", "default", "unit", "range", "sweepable", "doc"),
-                    rows, heads=[_param_head(p) for p in analysis.params])
+                    rows, heads=[_param_head(p, ex) for p in analysis.params])
 
 
 def metrics_table(analysis: Analysis) -> DocTable:

@@ -4,6 +4,8 @@ Row r (0 <= r < n_rows) is parameter combination r // n_seeds with seed
 seeds[r % n_seeds] (seeds innermost). Combinations are the product of the spec's factors
 (groups of zipped parameters, in [params] order) in C order: the last factor varies
 fastest. Rows are produced on demand, so a large sweep never holds all of them at once.
+Axes are numpy arrays of the parameter's kind: float64, int64, bool, or unicode ("<U..")
+for a string parameter with choices (a categorical axis, e.g. a task name).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy as np
 
 from jaxloco.sweep.spec import SweepSpec
 
-_NUMPY_KIND = {"float": np.float64, "int": np.int64, "bool": np.bool_}
+_NUMPY_KIND = {"float": np.float64, "int": np.int64, "bool": np.bool_, "str": np.str_}
 
 
 @dataclass(frozen=True, eq=False)

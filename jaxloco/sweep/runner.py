@@ -30,7 +30,7 @@ import pyarrow as pa
 
 from jaxloco import analysis as registry
 from jaxloco import info
-from jaxloco.analysis import Analysis, Summary
+from jaxloco.analysis import Analysis, SpecError, Summary, sweep_problem
 from jaxloco.sweep import store
 from jaxloco.sweep.errors import SweepInterrupted
 from jaxloco.sweep.grid import Grid, chunk_bounds, expand
@@ -215,6 +215,7 @@ def prepare(spec: SweepSpec, batch_fn: Callable[..., Any] | None = None) -> Prep
     import jax
 
     analysis = spec.analysis
+    _check_swept(spec)
     grid = expand(spec)
     host = analysis.executor == "host"
     fn = batch_fn if batch_fn is not None else analysis.make_batch_fn(dict(spec.fixed))
@@ -246,6 +247,15 @@ def prepare(spec: SweepSpec, batch_fn: Callable[..., Any] | None = None) -> Prep
         x64=bool(jax.config.jax_enable_x64),
         keys_by_seed=keys_by_seed,
     )
+
+
+def _check_swept(spec: SweepSpec) -> None:
+    """SpecError if a swept parameter cannot be swept (e.g. a string under JAX). Spec
+    validation already refuses these; this guards specs changed with `dataclasses.replace`."""
+    for name in spec.swept:
+        problem = sweep_problem(spec.analysis.param(name), spec.analysis.executor)
+        if problem:
+            raise SpecError(f"{spec.source}: params.{name}: {problem}")
 
 
 def rows_per_call(chunk_size: int, n_rows: int, n_devices: int, platform: str, host: bool) -> int:

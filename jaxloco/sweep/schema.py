@@ -4,8 +4,9 @@ Columns, in order: `row` (int64); every parameter of the analysis in its declare
 (float64 / int64 / bool / string); every metric (float64 / int64 / bool); `status`
 (string, from `Analysis.statuses`); `seed` (int64); `analysis`, `jaxloco_version`,
 `jax_version`, `mujoco_version` (strings). Each parameter and metric field carries
-`unit`, `doc` and `role` field metadata; the schema metadata key `jaxloco` holds a JSON
-description of the analysis and the spec hash.
+`unit`, `doc` and `role` field metadata (role "swept" or "fixed" for a parameter, a
+swept string parameter included: its column is a string column like a fixed one's); the
+schema metadata key `jaxloco` holds a JSON description of the analysis and the spec hash.
 """
 
 from __future__ import annotations

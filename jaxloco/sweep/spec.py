@@ -19,7 +19,9 @@ Spec format::
 
     [fixed]                       # non-swept values overriding the analysis defaults
     [params]                      # swept: a list, or {start, stop, num[, scale="log"]},
-                                  # or {start, stop, step}
+                                  # or {start, stop, step}; a string parameter with
+                                  # choices (host analyses only): a list of its choices,
+                                  # e.g. task = ["step1", "step2_front"]
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ from typing import Any
 
 from jaxloco import analysis as registry
 from jaxloco import specs
-from jaxloco.analysis import Analysis, Param, SpecError
+from jaxloco.analysis import Analysis, Param, SpecError, sweep_problem
 from jaxloco.sweep import ranges
 from jaxloco.sweep.spec_model import (
     MAX_ROWS,
@@ -171,10 +173,9 @@ def _resolve(doc: Mapping[str, Any], source: str, default_name: str) -> SweepSpe
             param = analysis.param(name, where=where)
             if name in raw.fixed:
                 raise fail(where, f"'{name}' is also set in [fixed]; a parameter is either fixed or swept")
-            if param.kind == "str":
-                raise fail(where, f"'{name}' is a string parameter and cannot be swept; set it in [fixed]")
-            if not param.sweepable:
-                raise fail(where, f"'{name}' cannot be swept (it changes the compiled program); set it in [fixed]")
+            problem = sweep_problem(param, analysis.executor)
+            if problem:
+                raise fail(where, problem)
             swept[name] = _swept_values(param, entry, where, source)
     except SpecError as exc:
         msg = str(exc)
@@ -220,6 +221,11 @@ def _swept_values(param: Param, entry: Any, where: str, source: str) -> tuple[An
             raise SpecError(f"{where}: empty list; give at least one value")
         return tuple(param.check(v, where=f"{where}[{i}]") for i, v in enumerate(entry))
     if isinstance(entry, dict):
+        if param.kind == "str":
+            raise SpecError(
+                f"{where}: a range needs a numeric parameter; '{param.name}' is a string: list its values"
+                f" ({param.range_text()})"
+            )
         if param.kind not in ("float", "int"):
             raise SpecError(
                 f"{where}: a range needs a numeric parameter ('{param.name}' is {param.kind}); list the values"

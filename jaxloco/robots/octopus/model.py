@@ -19,9 +19,18 @@ Structure ({R} = the `chassis` body frame, see `params.py`; 100 kg in all):
     boom end), the forearm (l2 to the roller centre), then the passive two-axis roller:
     hinges `arm{i}_roller_a` (forearm z) and `arm{i}_roller_b` (y) and a sphere of radius
     50 mm. The site `arm{i}_tip` at the roller centre is the EPRA of Eqs. 1-6;
-  * contact-point sites for the stability margin: `crawler_{l,r}_{front,rear}` under the
-    main crawler end axles and `flipper_*_tip` under the flipper tip wheels (the contact
-    points when the crawler / flipper bottom line rests on a plane);
+  * contact-point sites (`scenarios.CONTACT_SITES`, observed by the controllers; the
+    stability margin uses every wheel and roller, `scenarios.SUPPORT_BODIES`):
+    `crawler_{l,r}_{front,rear}` under the main crawler end axles and `flipper_*_tip`
+    under the flipper tip wheels (the contact points when the crawler / flipper bottom
+    line rests on a plane);
+  * touch sensors (MuJoCo `touch`: the normal force [N] of the contacts of one body inside
+    a site volume), each on a sphere site TOUCH_MARGIN larger than its wheel or roller,
+    centred on it (sites never collide; they add no mass): first those of the
+    contact-point sites, in the order of `touch_names()` (= `scenarios.CONTACT_SITES`):
+    `crawler_{l,r}_{front,rear}_touch` (main end wheels), `flipper_*_touch` (tip wheels),
+    `arm{i}_touch` (rollers); then the other wheels, `wheel_{l,r}{2..5}_touch` and
+    `flipper_*_w{1,2}_touch`, so that the load of every track segment is known;
   * actuators (ctrl order `params.ACTUATOR_NAMES`): `crawler_l`, `crawler_r` velocity
     servos [m/s, +-63 mm/s] on a tendon per side; position servos [rad] on the four
     flippers and twelve arm joints, with torque limits; sensors: joint encoders
@@ -75,6 +84,11 @@ CRAWLER_KV = 10000.0  # track velocity servo gain [N/(m/s)]
 CRAWLER_FORCE = 600.0  # traction limit per side [N]
 WHEEL_ARMATURE = 0.01
 ROLLER_DAMPING, ROLLER_ARMATURE = 0.01, 0.002
+# touch site radius beyond its wheel / roller sphere [m]: MuJoCo counts a contact when its
+# point (mid-penetration, < 1 mm inside the sphere here) lies in the site; 10 mm covers
+# deep transient penetration. Only contacts of the site's own body count, so the sites of
+# the overlapping wheels do not see each other's contacts. Default (ours).
+TOUCH_MARGIN = 0.01
 FRICTION = (0.8, 0.005, 0.0001)
 BOOM_RADIUS, FOREARM_RADIUS = 0.030, 0.025
 CHASSIS_HALF = (0.25, 0.15, 0.18)  # colliding chassis box half sizes [m]
@@ -107,6 +121,36 @@ def wheel_names(side: str) -> list[str]:
     main = [f"wheel_{side}{k + 1}" for k in range(P.MAIN_WHEELS)]
     flips = [f"flipper_{fr}{side}_w{k + 1}" for fr in ("f", "r") for k in range(P.FLIPPER_WHEELS)]
     return main + flips
+
+
+def touch_name(body: str) -> str:
+    """The touch site / sensor of the wheel or roller body `body`: the main end wheels
+    and the flipper tip wheels are named after their contact-point sites
+    (`wheel_l1` -> `crawler_l_rear_touch`, `wheel_l6` -> `crawler_l_front_touch`,
+    `flipper_fl_w3` -> `flipper_fl_touch`), the rollers after their arms (`arm1_roller`
+    -> `arm1_touch`), every other wheel after itself (`wheel_l2_touch`)."""
+    if body.endswith("_roller"):
+        return body[: -len("_roller")] + "_touch"
+    if body.startswith("wheel_"):
+        side, k = body[len("wheel_")], int(body[len("wheel_") + 1:])
+        if k in (1, P.MAIN_WHEELS):
+            return f"crawler_{side}_{'rear' if k == 1 else 'front'}_touch"
+    elif body.endswith(f"_w{P.FLIPPER_WHEELS}"):
+        return body[: -len(f"_w{P.FLIPPER_WHEELS}")] + "_touch"
+    return f"{body}_touch"
+
+
+def touch_names() -> tuple[str, ...]:
+    """The touch sensors in sensordata order: those of the contact-point sites
+    (crawler_l_front, crawler_l_rear, crawler_r_front, crawler_r_rear, the flipper tips
+    in `P.FLIPPER_NAMES` order, the arm rollers; the order of `scenarios.CONTACT_SITES`),
+    then the other wheels (`wheel_names` order, left then right)."""
+    ends = [f"crawler_{s}_{e}_touch" for s in "lr" for e in ("front", "rear")]
+    tips = [f"{f}_touch" for f in P.FLIPPER_NAMES]
+    rollers = [f"{a}_touch" for a in P.ARM_NAMES]
+    first = ends + tips + rollers
+    others = [touch_name(w) for side in "lr" for w in wheel_names(side)]
+    return tuple(first + [n for n in others if n not in first])
 
 
 def home_arm_angles() -> np.ndarray:
@@ -157,6 +201,7 @@ def build_spec() -> mujoco.MjSpec:
             wheel.add_joint(name=f"wheel_{side}{k + 1}", type=_HINGE, axis=[0, 1, 0], armature=WHEEL_ARMATURE)
             wheel.add_geom(name=f"wheel_{side}{k + 1}", type=_SPHERE, size=[P.MAIN_WHEEL_RADIUS, 0, 0],
                            mass=P.MASS_MAIN_WHEEL, rgba=[0.1, 0.1, 0.1, 1], **COLLIDE)
+            _touch_site(wheel, f"wheel_{side}{k + 1}", P.MAIN_WHEEL_RADIUS)
     chassis.add_site(name="imu", size=[0.01, 0, 0])
 
     dist, radii = flipper_wheels()
@@ -177,6 +222,7 @@ def build_spec() -> mujoco.MjSpec:
             wheel.add_joint(name=wname, type=_HINGE, axis=[0, 1, 0], armature=WHEEL_ARMATURE)
             wheel.add_geom(name=wname, type=_SPHERE, size=[float(rad), 0, 0], mass=P.MASS_FLIPPER_WHEEL,
                            rgba=[0.1, 0.1, 0.1, 1], **COLLIDE)
+            _touch_site(wheel, wname, float(rad))
 
     for k, arm in enumerate(P.ARM_NAMES):
         base = [P.ARM_SIGNS[k, 0] * 0.5 * P.ARM_BASE_M, P.ARM_SIGNS[k, 1] * 0.5 * P.ARM_BASE_N, 0.0]
@@ -200,6 +246,7 @@ def build_spec() -> mujoco.MjSpec:
                              armature=ROLLER_ARMATURE)
         roller.add_geom(name=f"{arm}_roller", type=_SPHERE, size=[P.ROLLER_RADIUS, 0, 0], mass=P.MASS_ROLLER,
                         rgba=[0.1, 0.1, 0.1, 1], **COLLIDE)
+        _touch_site(roller, f"{arm}_roller", P.ROLLER_RADIUS)
 
     # Tracks: joint equalities tie every wheel of a side to its first main wheel (equal rim
     # speeds), and a tendon (mean rim travel [m]) carries the side's velocity servo.
@@ -246,6 +293,8 @@ def build_spec() -> mujoco.MjSpec:
     for name, stype in (("imu_quat", sens.mjSENS_FRAMEQUAT), ("imu_gyro", sens.mjSENS_GYRO),
                         ("imu_acc", sens.mjSENS_ACCELEROMETER)):
         spec.add_sensor(name=name, type=stype, objtype=mujoco.mjtObj.mjOBJ_SITE, objname="imu")
+    for name in touch_names():
+        spec.add_sensor(name=name, type=sens.mjSENS_TOUCH, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=name)
 
     model = spec.compile()
     for key, arms in (("home", home_arm_angles()), ("envelope", P.ENVELOPE_POSE)):
@@ -282,6 +331,11 @@ def _wheel_radii() -> dict[str, float]:
             for k in range(P.FLIPPER_WHEELS):
                 out[f"flipper_{fr}{side}_w{k + 1}"] = float(radii[k])
     return out
+
+
+def _touch_site(body: mujoco.MjsBody, name: str, radius: float) -> None:
+    """The touch site of a wheel or roller body (`touch_name`), invisible."""
+    body.add_site(name=touch_name(name), size=[radius + TOUCH_MARGIN, 0, 0], rgba=[1, 0, 0, 0])
 
 
 def _arm_joint(body: mujoco.MjsBody, name: str, axis: list[float], j: int) -> None:

@@ -19,23 +19,53 @@ to the step edge at t = 0), `yaw` (initial heading [rad]), `side_ratio`, and `mu
 terrain friction, a `ModelField` on the terrain geoms' sliding friction).
 
 Observation (what a controller sees): time, IMU quaternion, flipper angles and torques,
-arm joint angles and torques, crawler track speeds, and the contact-point sites
-(`CONTACT_SITES`: crawler end axles, flipper tips, arm rollers) in the world frame.
-Records: rpy (IMU), chassis position, COG, flipper angles and torques, arm torques,
-contact points (the sites, then the crawler-edge contacts of `edge_contacts`) and their
-contact mask, controller phase (if it has one).
+arm joint angles and torques, crawler track speeds, the contact-point sites
+(`CONTACT_SITES`: crawler end axles, flipper tips, arm rollers) in the world frame,
+`touch` [N] (MuJoCo touch sensors: the normal contact force on every wheel and roller,
+`SUPPORT_TOUCH`, in `SUPPORT_BODIES` order: first those of the CONTACT_SITES in that
+order, i.e. the main end wheels, flipper tip wheels and rollers, then the other wheels)
+and `track_load` [N] (2 sides x 3 segments of the bottom line: rear flipper, main
+crawler, front flipper; the summed touch of the wheels on the segment, `SEGMENT_WHEELS`).
+Records: rpy (IMU), chassis position, COG, flipper angles and torques, arm joint angles
+and torques, touch (every wheel and roller), track_load, `contact_points` (N, 3) and
+their `contact` mask (N,): the support set below, N = len(SUPPORT_BODIES) = 28 in
+`SUPPORT_BODIES` order, so [:len(CONTACT_SITES)] are the wheels and rollers of the
+CONTACT_SITES in that order and the arm rollers the last N_ARM_SITES of those (unlike
+the observation's `contact_points`, the sites themselves, these are points on the
+terrain: an arm entry is where its roller touches, not the roller centre), controller
+phase (if it has one).
 
-Contact test: a contact site is in contact when it is within `CONTACT_TOL` of the terrain
-surface below it (arm tips: the roller radius more), with the terrain height computed
-from the same parameters that place the terrain; plus the points where the crawler
-bottom lines rest on a step edge (`edge_contacts`).
+Support set (`contact_points`, `contact`): every wheel and roller (`SUPPORT_BODIES`, 28)
+at its contact point, the point of the terrain nearest to its centre
+(`terrain_contacts`; the terrain is a union of boxes placed from the same parameters as
+the simulated one, so for a sphere touching it this is where it touches, as MuJoCo puts
+it within 1 mm): centre - radius * z on a flat top, the corner on a step edge, the face
+on a riser. (The centre projected to its lowest point, centre - radius * z, is exact on
+flat ground only: on an edge the corner lies up to a radius, 90 mm, horizontally from
+the centre; in a CLM climb of a 200 mm step wheels rest on the edge 27-48 mm from their
+centres' vertical.) A wheel or roller counts when it carries a normal force above
+`LOAD_MIN` (its touch sensor) or is seated, within `SEAT_TOL` of the terrain (distance
+from its centre minus its radius). The second case is for the MuJoCo
+artefact of a rigid body on many soft contacts: its load distribution is indeterminate
+and contacts that touch (gap < 0.5 mm) often carry nothing while their neighbours take
+the load (CCM stance on flat ground: the rear end wheels 0 N, 0.06 mm up; in a CCM climb
+a whole crawler side 0 N, 0.02-0.07 mm up, which left the support polygon a line). A
+roller hovering a few mm above the ground is no support. The robot collides with the
+terrain only (never with itself), and its wheels and rollers are the parts meant to
+touch it, so the loaded or seated ones are its whole support (the chassis box, booms
+or forearms resting on an edge would not be in the set). The crawler bottom line
+between two wheels touches nothing in the model (sphere wheels, no belt), so there are
+no edge contacts between wheels: a wheel resting on a step edge is a support point at
+the edge.
 
 Metrics (`summarize`): success (the COG ends `pass_distance` beyond the last riser on top
 of the step, no tipping: max |roll| < `roll_limit`, max nose-up pitch < `pitch_limit` over
 the run, no divergence), max_pitch (nose up), max_abs_roll, min_margin (static stability
-margin over the sites in contact, samples with >= 3 contacts, `jaxloco.sim.metrics.
-support_margins`), climb_time (first time the success position holds), final_x, final_z,
-tipped, status (0 ok, 1 failed).
+margin over the support set, the loaded or seated wheels and rollers, samples with
+>= 3 of them, `jaxloco.sim.metrics.support_margins`), climb_time (first time the success
+position holds), final_x, final_z, tipped, status (0 ok, 1 failed), arm_over_obstacle
+(an arm roller carried load on top of an obstacle, >= OBSTACLE_MIN above the floor, and
+later on the floor again: the block task's arm sequence, Figs. 19-20).
 """
 
 from __future__ import annotations
@@ -45,7 +75,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.robots.octopus import ccm, clm
+from jaxloco.robots.octopus import ccm, clm, operator
 from jaxloco.robots.octopus import model as octo_model
 from jaxloco.robots.octopus import params as P
 from jaxloco.sim import metrics as sm
@@ -60,13 +90,45 @@ MAX_HEIGHT = 0.6  # [m] highest step the terrain boxes allow
 # the block (the paper gives its height only): a 0.5 m concrete cube
 BLOCK_SIZE = 0.5  # [m] length (x) and width (y)
 ROBOT_SIDE = P.CRAWLER_Y + P.MAIN_WHEEL_RADIUS  # [m] |y| of the crawlers' outer side
-CONTACT_TOL = 0.02  # [m]
+OBSTACLE_MIN = 0.1  # [m] an arm contact this high above the floor is on top of an obstacle
+FLOOR_TOL = 0.02  # [m] an arm contact this low is on the floor
+# Normal force a contact must carry to count as support [N]: 1 % of the weight, default
+# (ours). At rest on flat ground in the CLM start pose (Table 2, arms on the ground) the
+# least loaded roller carries 19.7 N (2.0 % of the weight; the four carry 20-34 N), so
+# 2 % would drop it; a hovering roller carries 0. 9.8 N is half that and twice the
+# roller's own weight (4.9 N).
+LOAD_MIN = 0.01 * P.TOTAL_MASS * P.G
+# A wheel or roller this close to the terrain counts even when it carries less [m],
+# default (ours): in CCM / CLM runs on flat ground and steps the gaps of unloaded contacts
+# within 20 mm of the terrain cluster below 0.5 mm (touching, the load on neighbouring
+# contacts; contact penetration is 0.1-0.7 mm) and spread from 1 to 20 mm (lifting,
+# hovering).
+SEAT_TOL = 0.001
 CONTACT_SITES = (
     tuple(f"crawler_{s}_{e}" for s in "lr" for e in ("front", "rear"))
     + tuple(f"{f}_tip" for f in P.FLIPPER_NAMES)
     + tuple(f"{a}_tip" for a in P.ARM_NAMES)
 )
 N_ARM_SITES = 4  # the last CONTACT_SITES are the arm roller centres
+# the touch sensors of the CONTACT_SITES, in that order (`octo_model.touch_names`): main
+# end wheels, flipper tip wheels, rollers
+CONTACT_TOUCH = tuple(n.removesuffix("_tip") + "_touch" for n in CONTACT_SITES)
+# every touch sensor (one per wheel and roller), `octo_model.touch_names` order: those of
+# the CONTACT_SITES (CONTACT_TOUCH), then the other wheels
+SUPPORT_TOUCH = octo_model.touch_names()
+# the wheel and roller bodies of the SUPPORT_TOUCH sensors, in that order: the support set
+_BODY_OF_TOUCH = {octo_model.touch_name(b): b for b in
+                  [w for s in "lr" for w in octo_model.wheel_names(s)] + [f"{a}_roller" for a in P.ARM_NAMES]}
+SUPPORT_BODIES = tuple(_BODY_OF_TOUCH[n] for n in SUPPORT_TOUCH)
+# the wheel bodies of each segment of the bottom line (`track_load`): side (l, r) x (rear
+# flipper, main crawler, front flipper); a flipper segment has the flipper's wheels and
+# the main end wheel it pivots on
+SEGMENT_WHEELS = tuple(
+    (tuple(f"flipper_r{s}_w{k + 1}" for k in range(P.FLIPPER_WHEELS)) + (f"wheel_{s}1",),
+     tuple(f"wheel_{s}{k + 1}" for k in range(P.MAIN_WHEELS)),
+     (f"wheel_{s}{P.MAIN_WHEELS}",) + tuple(f"flipper_f{s}_w{k + 1}" for k in range(P.FLIPPER_WHEELS)))
+    for s in "lr"
+)
 STATUSES = ("ok", "failed")
 
 PARAM_DEFAULTS: dict[str, float] = {
@@ -81,9 +143,10 @@ PARAM_DEFAULTS: dict[str, float] = {
     "pass_distance": 0.3,  # [m] the COG beyond the last riser (paper: S = 0.3 m)
     "roll_limit": 0.5,  # [rad]
     "pitch_limit": 1.2,  # [rad] nose up
-    # controllers (the CCM baseline and the CLM; their keys do not overlap)
+    # controllers (the CCM baseline, the CLM and the operator layer; their keys do not overlap)
     **ccm.PARAM_DEFAULTS,
     **clm.PARAM_DEFAULTS,
+    **operator.PARAM_DEFAULTS,
 }
 
 
@@ -143,29 +206,25 @@ def terrain_height(kind: str, p, xy: jax.Array) -> jax.Array:
     return rise * terraces / n
 
 
-def edge_contacts(kind: str, p, pts: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """Where the crawler bottom lines rest on the step edges: for each side, the polyline
-    rear flipper tip - main crawler rear - front - front flipper tip (from the contact
-    sites `pts`, `CONTACT_SITES` order) is cut with the vertical plane of every riser;
-    a crossing within `CONTACT_TOL` of that terrace's top is a contact. Returns the
-    points (2 sides x 3 segments x risers, 3) and their mask (fixed shapes)."""
-    n = {"flat": 1, "step1": 1, "block": 1}.get(kind, 2)
-    left, right = _heights(kind, p)
-    risers = jnp.asarray(p["distance"], pts.dtype) + TERRACE_DEPTH * jnp.arange(n, dtype=pts.dtype)
-    # site rows: crawler_l_front 0, crawler_l_rear 1, crawler_r_front 2, crawler_r_rear 3,
-    # flipper_fl 4, flipper_fr 5, flipper_rl 6, flipper_rr 7
-    chains = jnp.asarray([[6, 1, 0, 4], [7, 3, 2, 5]])
-    poly = pts[chains]  # (2, 4, 3)
-    a, b = poly[:, :-1], poly[:, 1:]  # (2, 3, 3)
-    dx = b[..., 0] - a[..., 0]
-    safe = jnp.where(jnp.abs(dx) > 1e-9, dx, 1.0)
-    s = (risers[None, None, :] - a[..., 0:1]) / safe[..., None]  # (2, 3, n)
-    pt = a[..., None, :] + s[..., None] * (b - a)[..., None, :]  # (2, 3, n, 3)
-    rise = jnp.where(pt[..., 1] >= 0.0, left, right)
-    top = rise * (jnp.arange(n, dtype=pts.dtype) + 1.0) / n
-    ok = (jnp.abs(dx) > 1e-9)[..., None] & (s >= 0.0) & (s <= 1.0) & (jnp.abs(pt[..., 2] - top) < CONTACT_TOL)
-    ok = ok & (rise > CONTACT_TOL)
-    return pt.reshape(-1, 3), ok.reshape(-1)
+def terrain_contacts(terrain: tr.Terrain, values, centres: jax.Array, radii) -> tuple[jax.Array, jax.Array]:
+    """Contact points of spheres (centres (N, 3), radii (N,) [m], world frame) with the
+    terrain placed by `values` (`terrain_values`): for each sphere the point of the
+    terrain (a union of boxes, `terrain.place`) nearest to its centre, and its gap [m]
+    (distance from the centre minus the radius; < 0: penetrating). For a sphere that
+    touches the terrain this is where it touches, exact on every face and edge of the
+    boxes (on a flat top the centre minus radius * z; on a step edge the corner, up to a
+    radius horizontally from the centre). Pure JAX, fixed shapes."""
+    pos, quat = terrain.place(values)
+    centres = jnp.asarray(centres)
+    pos = pos.astype(centres.dtype)
+    rot = tr.quat_to_matrix(quat.astype(centres.dtype))  # (P, 3, 3), columns: box axes
+    half = jnp.asarray([piece.half_size for piece in terrain.pieces], centres.dtype)
+    local = jnp.einsum("pji,npj->npi", rot, centres[:, None, :] - pos[None])  # box frames
+    near = pos[None] + jnp.einsum("pij,npj->npi", rot, jnp.clip(local, -half, half))  # (N, P, 3)
+    dist = jnp.sqrt(jnp.sum((centres[:, None, :] - near) ** 2, axis=-1))
+    k = jnp.argmin(dist, axis=1)
+    point = jnp.take_along_axis(near, k[:, None, None], axis=1)[:, 0]
+    return point, jnp.min(dist, axis=1) - jnp.asarray(radii, centres.dtype)
 
 
 def top_x(kind: str, p) -> jax.Array:
@@ -212,8 +271,10 @@ def make_scenario(
     arm_tau = [sensor_slice(m, f"{a}_{j}_torque") for a in P.ARM_NAMES for j in P.ARM_JOINTS]
     track_v = [sensor_slice(m, f"{c}_vel") for c in P.CRAWLER_NAMES]
     sites = np.array([m.site(n).id for n in CONTACT_SITES])
-    lift = np.zeros(len(CONTACT_SITES))
-    lift[-N_ARM_SITES:] = P.ROLLER_RADIUS
+    touch_adr = np.array([sensor_slice(m, n).start for n in SUPPORT_TOUCH])
+    support = np.array([m.body(b).id for b in SUPPORT_BODIES])
+    radii = np.array([_sphere_radius(m, b) for b in support])
+    segment_sum = np.array([[[b in seg for b in SUPPORT_BODIES] for seg in side] for side in SEGMENT_WHEELS], float)
     qpos0, ctrl0 = octo_model.pose_qpos_ctrl(m, arms0, [PARAM_DEFAULTS[front_key]] * 2 + [0.0, 0.0])
     qpos0, ctrl0 = jnp.asarray(qpos0), jnp.asarray(ctrl0)
     flip_adr = np.array([m.joint(n).qposadr[0] for n in P.FLIPPER_NAMES])
@@ -243,13 +304,16 @@ def make_scenario(
             "arm_tau": read(arm_tau),
             "track_speed": read(track_v),
             "contact_points": data.site_xpos[sites],
+            "touch": data.sensordata[touch_adr],
+            "track_load": jnp.asarray(segment_sum, data.sensordata.dtype) @ data.sensordata[touch_adr],
         }
 
     def record(p, data: SimData, obs, c, e):
-        pts = obs["contact_points"]
-        gap = pts[:, 2] - jnp.asarray(lift, pts.dtype) - terrain_height(kind, p, pts[:, :2])
-        phase = c["phase"] if isinstance(c, dict) and "phase" in c else jnp.asarray(-1, jnp.int32)
-        edge_pts, edge_ok = edge_contacts(kind, p, pts)
+        phase = _phase(c)
+        # the support set (module docstring): every wheel and roller, at its contact point;
+        # those that carry load or sit on the terrain count
+        pts, gap = terrain_contacts(terrain, terrain_values(kind, p), data.xpos[support], radii)
+        on = (obs["touch"] > LOAD_MIN) | (gap < SEAT_TOL)
         return {
             "rpy": sm.quat_to_rpy(obs["quat"]),
             "pos": data.xpos[chassis],
@@ -257,8 +321,11 @@ def make_scenario(
             "flipper_q": obs["flipper_q"],
             "flipper_tau": obs["flipper_tau"],
             "arm_tau": obs["arm_tau"],
-            "contact_points": jnp.concatenate([pts, edge_pts]),
-            "contact": jnp.concatenate([gap < CONTACT_TOL, edge_ok]),
+            "arm_q": obs["arm_q"],
+            "touch": obs["touch"],
+            "track_load": obs["track_load"],
+            "contact_points": pts,
+            "contact": on,
             "phase": phase,
         }
 
@@ -281,7 +348,17 @@ def make_scenario(
         contacts = r["contact"]
         margins = sm.support_margins(cog, r["contact_points"], contacts)
         use = (jnp.sum(contacts, axis=1) >= 3).at[0].set(False)
+        # the block task's arm sequence (Figs. 19-20): an arm roller loaded on top of an
+        # obstacle (its contact >= OBSTACLE_MIN above the floor) and later on the floor again
+        arm = slice(len(CONTACT_SITES) - N_ARM_SITES, len(CONTACT_SITES))  # the rollers
+        arm_on = contacts[:, arm]
+        arm_z = r["contact_points"][:, arm, 2]
+        up = arm_on & (arm_z > OBSTACLE_MIN)
+        down = arm_on & (arm_z < FLOOR_TOL)
+        first_up = jnp.where(jnp.any(up, axis=0), jnp.argmax(up, axis=0), n_rec)
+        later_down = jnp.any(down & (jnp.arange(n_rec)[:, None] > first_up[None, :]), axis=0)
         return {
+            "arm_over_obstacle": jnp.any(later_down),
             "success": success,
             "max_pitch": max_pitch,
             "max_abs_roll": max_roll,
@@ -307,6 +384,22 @@ def make_scenario(
         model_fields=(friction_field(terrain_geoms),),
         statuses=STATUSES,
     )
+
+
+def _phase(c) -> jax.Array:
+    """The controller phase of a controller state: a dict's "phase" (ccm) or a NamedTuple's
+    `phase` field (clm.ClmState); -1 for a controller without phases."""
+    if isinstance(c, dict):
+        return c.get("phase", jnp.asarray(-1, jnp.int32))
+    return getattr(c, "phase", jnp.asarray(-1, jnp.int32))
+
+
+def _sphere_radius(m: mujoco.MjModel, body: int) -> float:
+    """Radius [m] of the one colliding sphere of a wheel or roller body."""
+    geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] == body and m.geom_contype[g]]
+    if len(geoms) != 1 or m.geom_type[geoms[0]] != mujoco.mjtGeom.mjGEOM_SPHERE:
+        raise ValueError(f"body {m.body(body).name}: expected one colliding sphere")
+    return float(m.geom_size[geoms[0], 0])
 
 
 def params_batch(n: int = 1, **overrides) -> dict[str, jax.Array]:

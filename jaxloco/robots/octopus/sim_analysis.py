@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
-from jaxloco.robots.octopus import ccm, clm, scenarios
+from jaxloco.robots.octopus import ccm, clm, operator, scenarios
 
 _CLM = clm.PARAM_DEFAULTS
 _SC = scenarios.PARAM_DEFAULTS
@@ -45,6 +45,7 @@ PARAMS = (
     Param("distance_jitter", 0.0, "distance + U(-1, 1) x this, from the row's seed (the simulation itself is "
           "deterministic: seeds only matter through the jitters)", "m", lo=0.0, hi=0.5),
     Param("yaw_jitter", 0.0, "yaw + U(-1, 1) x this, from the row's seed", "rad", lo=0.0, hi=0.5),
+    Param("mu_jitter", 0.0, "mu + U(-1, 1) x this, from the row's seed (mu stays >= 0.1)", "", lo=0.0, hi=1.0),
     # CLM gains (clm.PARAM_DEFAULTS)
     Param("T0", _CLM["T0"], "CLM: front flipper torque threshold T0 (flipper rule Cases 1-3)", "N m",
           lo=1.0, hi=80.0),
@@ -57,8 +58,13 @@ PARAMS = (
     Param("delta_f", _CLM["delta_f"], "CLM: Delta_F, flipper step of the climb / release", "rad/period",
           lo=0.001, hi=0.1),
     Param("clm_speed", _CLM["clm_speed"], "CLM: crawler speed", "m/s", lo=0.005, hi=0.063),
+    Param("climb_paper", _CLM["climb_paper"], "CLM climb: 1 = the paper's Eqs. 28-29 (booms and front flippers "
+          "turn down, crawlers drive); 0 = our level lift (not the paper's method)", "", lo=0.0, hi=1.0),
     Param("crawl_max_h", _CLM["crawl_max_h"], "CLM: steps up to this H_EST are climbed by crawlers and flippers, "
           "arms carried (CRAWL)", "m", lo=0.0, hi=scenarios.MAX_HEIGHT),
+    Param("operator_gain", operator.PARAM_DEFAULTS["operator_gain"], "operator steering (not the CLM: it cannot "
+          "measure the yaw): track speed difference per rad of heading error while driving straight; 0 = no "
+          "operator, the paper's rows", "m/s per rad", lo=0.0, hi=1.0),
     # the CCM baseline
     Param("speed", ccm.PARAM_DEFAULTS["speed"], "CCM: commanded crawler speed", "m/s", lo=0.005, hi=0.063),
     # run
@@ -73,12 +79,14 @@ METRICS = (
     Metric("success", "the COG ends pass_distance beyond the last riser on top, no tipping, no divergence",
            kind="bool"),
     Metric("climb_time", "first time the success position holds (nan if never)", "s"),
-    Metric("min_margin", "smallest static stability margin over the sites in contact (>= 3 contacts)", "m"),
+    Metric("min_margin", "smallest static stability margin over the contacts that carry load (>= 3 contacts)", "m"),
     Metric("max_pitch", "largest nose-up pitch of the body (IMU)", "rad"),
     Metric("max_abs_roll", "largest |roll| of the body (IMU)", "rad"),
     Metric("tipped", "|roll| > roll_limit or nose-up pitch > pitch_limit at some time, or diverged", kind="bool"),
     Metric("final_x", "x of the COG at the end (first riser at `distance`)", "m"),
     Metric("final_z", "height of the COG at the end", "m"),
+    Metric("arm_over_obstacle", "an arm roller carried load on top of an obstacle (>= 0.1 m up) and later on the "
+           "floor again (the block task's arm sequence, paper Figs. 19-20)", kind="bool"),
     Metric("final_phase", "controller phase at the end (clm.PHASE_NAMES / ccm.PHASE_NAMES; -1: none)", kind="int"),
     Metric("t_diverged", "time the simulation diverged (nan: it did not)", "s"),
 )
@@ -90,16 +98,16 @@ RECORD_EVERY = 5  # control periods (0.1 s) between records
 
 @lru_cache(maxsize=4)
 def _scenario(kind: str, controller: str, horizon: float):
-    ctrl = clm.make_controller() if controller == "clm" else ccm.make_controller()
+    ctrl = operator.with_operator(clm.make_controller() if controller == "clm" else ccm.make_controller())
     return scenarios.make_scenario(kind, ctrl, horizon_s=horizon, record_every=RECORD_EVERY)
 
 
 def _jitter(keys: np.ndarray) -> np.ndarray:
-    """(B, 2) uniform numbers in [-1, 1) from the rows' PRNG keys."""
+    """(B, 3) uniform numbers in [-1, 1) from the rows' PRNG keys (distance, yaw, mu)."""
     import jax
 
     keys = jax.numpy.asarray(np.asarray(keys, np.uint32))
-    return np.asarray(jax.vmap(lambda k: jax.random.uniform(k, (2,), minval=-1.0, maxval=1.0))(keys))
+    return np.asarray(jax.vmap(lambda k: jax.random.uniform(k, (3,), minval=-1.0, maxval=1.0))(keys))
 
 
 def make_batch_fn(fixed: Mapping[str, Any]):
@@ -117,6 +125,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
         u = _jitter(keys)
         values["distance"] = values["distance"] + u[:, 0] * values.pop("distance_jitter")
         values["yaw"] = values["yaw"] + u[:, 1] * values.pop("yaw_jitter")
+        values["mu"] = np.maximum(values["mu"] + u[:, 2] * values.pop("mu_jitter"), 0.1)
         params = scenarios.params_batch(n, **values)
         params["key"] = np.asarray(keys, np.uint32)
         result = rollout(scenario, params, backend=backend, nthread=nthread)

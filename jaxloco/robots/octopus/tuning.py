@@ -36,8 +36,8 @@ loss = mean over the reachable samples of sum_c p_c cost(c), in units of one fal
 the HARD classifier's scores on the same bank (`accuracy`, `danger_rate`,
 `undetectable_rate`, `hard_cost`: the same cost with the hard answer).
 
-Reference "paper": the paper leaves the sigmas "set according to actual condition"; its
-row is `params.SIGMA` = (0.05, 0.45, 0.45) m, the analysis' defaults. The tuned values
+Reference "default (ours)": the paper gives no values (the sigmas are "set according to
+actual condition"); the row is our default `params.SIGMA` = (0.05, 0.45, 0.45) m, the analysis' defaults. The tuned values
 have the analysis' parameter names, so they can be put into jaxloco/specs/octopus_sigma.toml for
 validation with `octopus.terrain_classification`.
 """
@@ -251,6 +251,6 @@ SIGMA_TUNE = Objective(
     tunables=TUNABLES,
     settings=SETTINGS,
     make_loss=make_loss,
-    references={"paper": PAPER},
+    references={"default (ours)": PAPER},
     x64=True,
 )

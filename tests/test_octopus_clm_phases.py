@@ -1,0 +1,215 @@
+"""The CLM controller's phases one at a time (`clm`'s module-level functions on hand-built
+states and observations, no rollouts): the support arms (Eqs. 22-27), the crawl gait's
+sequencing, the PREPARE approach, the CLIMB release condition, RELEASE, the DONE carry
+and the phase transitions, against closed-form expectations."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxloco.robots.octopus import clm
+from jaxloco.robots.octopus import clm_rules as cr
+from jaxloco.robots.octopus import kinematics as kin
+from jaxloco.robots.octopus import params as P
+
+KP = P.default_params()
+DT = clm.CONTROL_DT
+
+
+@pytest.fixture(scope="module")
+def p():
+    return {k: jnp.asarray(v) for k, v in clm.PARAM_DEFAULTS.items()}
+
+
+def _obs(flipper_q=(0.5, 0.5, 0.0, 0.0), flipper_tau=(0.0, 0.0, 0.0, 0.0), track_speed=(0.0, 0.0)):
+    """Level robot, arms in the start pose (rollers on the ground)."""
+    return {"time": jnp.asarray(1.0), "quat": jnp.array([1.0, 0.0, 0.0, 0.0]),
+            "flipper_q": jnp.asarray(flipper_q, float), "flipper_tau": jnp.asarray(flipper_tau, float),
+            "arm_q": jnp.asarray(clm.start_pose()[0].reshape(-1)), "arm_tau": jnp.zeros(12),
+            "track_speed": jnp.asarray(track_speed, float)}
+
+
+def _no_transfer(arms: clm.ArmState, just_placed=(False,) * 4) -> clm.Transfer:
+    """A transfer period in which nothing moves (optionally some arm just placed)."""
+    return clm.Transfer(cmd=arms.q_cmd, arm_phase=arms.arm_phase, transferring=jnp.zeros(4, bool),
+                        just_placed=jnp.asarray(just_placed), contacts=arms.contacts, stop_case=arms.stop_case,
+                        on_step=arms.on_step, lift=arms.lift_to, hit_n=arms.hit_n)
+
+
+def test_init_state_is_typed_and_walking(p):
+    s = clm.clm_init(p, _obs())
+    assert isinstance(s, clm.ClmState) and isinstance(s.arms, clm.ArmState)
+    assert int(s.phase) == clm.WALK and (np.asarray(s.arms.arm_phase) == cr.PLACED).all()
+    np.testing.assert_allclose(s.arms.contacts, P.TABLE2_INIT, atol=1e-5)
+    np.testing.assert_allclose(s.flip, [p["front_start"], p["front_start"], 0.0, 0.0])
+
+
+def test_support_arms_hold_ground_contacts(p):
+    """A support arm's ground-fixed contact moves by -L (cos a, 0, sin a) in {R} (a = T_P -
+    R_P) and the hold command puts its EPRA there; an arm not in support keeps its contact."""
+    s = clm.clm_init(p, _obs())
+    arms = s.arms._replace(arm_phase=s.arms.arm_phase.at[2].set(clm.IDLE))
+    L, t_p, pitch = 0.01, 0.1, 0.3
+    contacts, q_hold = clm.support_arms(p, arms, jnp.asarray(L), jnp.asarray(t_p), jnp.asarray(pitch))
+    a = t_p - pitch
+    expect = np.asarray(arms.contacts) - L * np.array([np.cos(a), 0.0, np.sin(a)])
+    support = np.array([True, True, False, True])
+    np.testing.assert_allclose(np.asarray(contacts)[support], expect[support], atol=1e-12)
+    np.testing.assert_allclose(contacts[2], arms.contacts[2])
+    np.testing.assert_allclose(np.asarray(kin.arm_tips(KP, q_hold))[support], expect[support], atol=1e-9)
+    # the start pose's contacts read flat: T_P = 0 on level ground
+    assert float(clm.terrain_pitch(arms.contacts, jnp.asarray(0.0), jnp.asarray(0.0))) == pytest.approx(0.0, abs=1e-5)
+
+
+def test_gait_starts_the_next_arm_in_crawl_order_after_the_pause(p):
+    s = clm.clm_init(p, _obs())
+    ph = clm.phase_masks(s.phase)
+    no = jnp.asarray(False)
+    pause = float(p["gait_pause"])
+    for ptr in range(4):
+        arms = s.arms._replace(ptr=jnp.asarray(ptr, jnp.int32), pause=jnp.asarray(pause - 2.5 * DT))
+        waiting = clm.gait_sequence(p, arms, _no_transfer(arms), ph, no, no, DT)
+        assert int(waiting.active) == -1 and float(waiting.pause) == pytest.approx(pause - 1.5 * DT)
+        arms = arms._replace(pause=jnp.asarray(pause - 0.5 * DT))
+        g = clm.gait_sequence(p, arms, _no_transfer(arms), ph, no, no, DT)
+        arm = int(clm.CRAWL_ORDER[ptr])
+        assert int(g.active) == arm and int(g.arm_phase[arm]) == cr.LIFT
+        assert (np.delete(np.asarray(g.arm_phase), arm) == cr.PLACED).all()
+        assert float(g.lift_to[arm]) == pytest.approx(float(arms.q_cmd[arm, 1] - p["lift_min"]))
+    # a confirmed step stops the gait in WALK
+    g = clm.gait_sequence(p, arms, _no_transfer(arms), ph, jnp.asarray(True), no, DT)
+    assert int(g.active) == -1
+
+
+def test_gait_sends_the_other_front_arm_after_one_lands_on_the_step(p):
+    """A transfer ends: the pointer moves on in CRAWL_ORDER, the pause restarts; if it was
+    a front arm that stopped on the step, the other front arm is next (Fig. 14 C)."""
+    s = clm.clm_init(p, _obs())
+    ph = clm.phase_masks(s.phase)
+    no = jnp.asarray(False)
+    lf = int(np.flatnonzero(clm.CRAWL_ORDER == 0)[0])
+    arms = s.arms._replace(ptr=jnp.asarray(lf, jnp.int32), active=jnp.asarray(0, jnp.int32),
+                           pause=jnp.asarray(1.0))
+    plain = clm.gait_sequence(p, arms, _no_transfer(arms, (True, False, False, False)), ph, no, no, DT)
+    assert int(plain.ptr) == (lf + 1) % 4 and int(plain.active) == -1 and float(plain.pause) == 0.0
+    on_step = _no_transfer(arms, (True, False, False, False))._replace(on_step=jnp.array([True, False, False, False]))
+    g = clm.gait_sequence(p, arms, on_step, ph, no, no, DT)
+    assert int(clm.CRAWL_ORDER[int(g.ptr)]) == 1 and int(g.active) == -1  # RF next
+
+
+def test_prepare_approach_blocks_a_pressed_side(p):
+    """PREPARE on a high step, front flippers at A0: a side whose flipper is pressed beyond
+    approach_tau for more than approach_touch_s is blocked and stops; the other drives on;
+    both blocked -> squared. A low step skips the approach (squared at once)."""
+    a0 = float(p["A0"])
+    flip = jnp.array([a0, a0, 0.0, 0.0])
+    v = float(p["clm_speed"])
+    tau = -2.0 * float(p["approach_tau"])
+    sense = clm.measure(_obs(flipper_q=(a0, a0, 0.0, 0.0), flipper_tau=(0.0, tau, 0.0, 0.0), track_speed=(v, v)))
+    s = clm.clm_init(p, _obs())
+    st = s.approach
+    prepare, h_est = jnp.asarray(True), jnp.asarray(0.4)
+    s = s._replace(phase=jnp.asarray(clm.PREPARE, jnp.int32), h_est=h_est)
+    ph = clm.phase_masks(s.phase)
+    need = float(p["approach_touch_s"])
+    n = int(np.ceil(need / DT)) + 2
+    for k in range(1, n + 1):
+        st, approaching = clm.approach_step(p, st, flip, h_est, sense, prepare, DT)
+        assert bool(approaching)
+        assert float(st.side_touch[1]) == pytest.approx(k * DT)
+        assert bool(st.blocked[1]) == (float(st.side_touch[1]) > need)
+        assert not bool(st.blocked[0]) and not bool(st.squared)
+    assert bool(st.blocked[1])
+    t = n * DT
+    np.testing.assert_allclose(st.side_touch, [0.0, t], atol=1e-12)
+    np.testing.assert_allclose(st.approached, t * v, atol=1e-12)
+    _, _, v_side = clm.crawler_drive(p, s._replace(approach=st), ph, jnp.asarray(True), st)
+    np.testing.assert_allclose(v_side, [v, 0.0])
+    # both pressed: squared once the left one has been pressed long enough too
+    both = clm.measure(_obs(flipper_q=(a0, a0, 0.0, 0.0), flipper_tau=(tau, tau, 0.0, 0.0), track_speed=(v, v)))
+    for _ in range(n):
+        st, _ = clm.approach_step(p, st, flip, h_est, both, prepare, DT)
+        if bool(st.squared):
+            break
+    assert bool(st.squared) and bool(st.blocked.all())  # (the approach is over: blocked resets next period)
+    # a low step: no approach
+    low, approaching = clm.approach_step(p, s.approach, flip, jnp.asarray(0.2), sense, prepare, DT)
+    assert bool(low.squared) and not bool(approaching)
+
+
+def test_crawlers_wait_while_an_arm_is_idle(p):
+    s = clm.clm_init(p, _obs())
+    ph = clm.phase_masks(s.phase)
+    drive, v_cmd, _ = clm.crawler_drive(p, s, ph, jnp.asarray(False), s.approach)
+    assert bool(drive) and float(v_cmd) == pytest.approx(float(p["clm_speed"]))
+    idle = s._replace(arms=s.arms._replace(arm_phase=s.arms.arm_phase.at[1].set(clm.IDLE)))
+    drive, v_cmd, _ = clm.crawler_drive(p, idle, ph, jnp.asarray(False), s.approach)
+    assert not bool(drive) and float(v_cmd) == 0.0
+
+
+def test_phase_transitions(p):
+    s = clm.clm_init(p, _obs())
+    no, yes = jnp.asarray(False), jnp.asarray(True)
+
+    def nxt(phase, h_est=0.4, at_riser=no, climb_over=no, release_over=no, crawl_over=no, s=s):
+        s = s._replace(phase=jnp.asarray(phase, jnp.int32))
+        tr = clm.phase_transition(p, s, clm.phase_masks(s.phase), s.arms, yes, jnp.asarray(h_est), at_riser,
+                                  jnp.asarray(0.0), climb_over, release_over, crawl_over)
+        return int(tr.phase), tr
+
+    assert nxt(clm.CLIMB)[0] == clm.CLIMB
+    phase, tr = nxt(clm.CLIMB, climb_over=yes)
+    assert phase == clm.RELEASE and bool(tr.changed) and not bool(tr.finished)
+    assert nxt(clm.WALK)[0] == clm.WALK
+    assert nxt(clm.WALK, at_riser=yes)[0] == clm.PREPARE
+    assert nxt(clm.WALK, h_est=0.2, at_riser=yes)[0] == clm.CRAWL  # H_EST <= crawl_max_h
+    phase, tr = nxt(clm.RELEASE, release_over=yes)
+    assert phase == clm.DONE and bool(tr.finished) and not bool(tr.crawled)
+    phase, tr = nxt(clm.CRAWL, crawl_over=yes)
+    assert phase == clm.DONE and bool(tr.crawled)
+    assert nxt(clm.PREPARE)[0] == clm.PREPARE
+    placed = s._replace(arms=s.arms._replace(placed_n=jnp.asarray(clm.N_PREPARE, jnp.int32)))
+    assert nxt(clm.PREPARE, s=placed)[0] == clm.CLIMB
+    assert nxt(clm.DONE, s=s._replace(travel=jnp.asarray(float(p["done_distance"]) + 0.01)))[0] == clm.WALK
+    # a finished climb: every arm idle, the step detection cleared
+    arms, confirmed, crawl = clm.enter_phase(tr, jnp.asarray(5.0), s.arms, yes, s.crawl)
+    assert (np.asarray(arms.arm_phase) == clm.IDLE).all() and not bool(confirmed) and bool(crawl.crawled_last)
+
+
+def test_paper_climb_release_condition(p):
+    """climb_paper = 1: CLIMB is over when H > H_EST and S > L (S the stored travel)."""
+    pp = {**p, "climb_paper": jnp.asarray(1.0)}
+    s = clm.clm_init(pp, _obs())
+    s = s._replace(phase=jnp.asarray(clm.CLIMB, jnp.int32), h_est=jnp.asarray(0.3))
+    sense = clm.measure(_obs())
+    L = float(p["settle_distance"])
+    for h, travel, over in ((0.4, L + 0.05, True), (0.2, L + 0.05, False), (0.4, L - 0.05, False)):
+        c = clm.climb_step(pp, s._replace(travel=jnp.asarray(travel)), sense, jnp.asarray(h), jnp.asarray(travel))
+        assert bool(c.over) == over
+        q, f = clm.paper_climb_step(pp, s.arms.q_cmd, s.flip, sense.flip_q, sense.flip_tau, jnp.asarray(over))
+        np.testing.assert_array_equal(c.q, q)
+        np.testing.assert_array_equal(c.flip, f)
+
+
+def test_release_and_carry(p):
+    """RELEASE (level lift): arms at the Table 2 height and flippers >= 0 -> back, commands
+    held; a flipper below 0 turns up by delta_f. DONE: booms up by delta_b first, elbows
+    held until the booms are up."""
+    s = clm.clm_init(p, _obs())
+    q = s.arms.q_cmd
+    zero = jnp.asarray(0.0)
+    q_r, f_r, back = clm.release_step(p, q, jnp.zeros(4), zero, zero)
+    assert bool(back)
+    np.testing.assert_allclose(q_r, q)
+    _, f_r, back = clm.release_step(p, q, jnp.array([-0.1, 0.0, -0.005, 0.2]), zero, zero)
+    assert not bool(back)
+    np.testing.assert_allclose(f_r, [-0.1 + float(p["delta_f"]), 0.0, 0.0, 0.2])
+    db = float(p["delta_b"])
+    q_d = clm.carry_step(p, q)
+    np.testing.assert_allclose(q_d[:, 1], q[:, 1] - db)
+    np.testing.assert_allclose(q_d[:, [0, 2]], q[:, [0, 2]])
+    up = q.at[:, 1].set(float(p["lift_boom_front"]))
+    q_d = clm.carry_step(p, up)
+    np.testing.assert_allclose(q_d[:, 2], up[:, 2] + np.clip(float(p["carry_elbow"]) - up[:, 2], -db, db))
