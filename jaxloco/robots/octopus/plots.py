@@ -14,7 +14,6 @@ imports JAX at import time (`climb_trace` computes margins with `jaxloco.sim.met
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -23,7 +22,7 @@ import numpy as np
 __all__ = ["TERRAIN_NAMES", "climb_trace", "plot_accuracy_map", "plot_climb_traces"]
 
 TERRAIN_NAMES = ("flat", "step up", "step down", "slope up", "slope down", "rough")  # analysis.TERRAINS order
-from jaxloco.plots import column, heatmap  # noqa: E402  (the OCTOPUS plots build on them)
+from jaxloco.plots import column, heatmap
 
 
 # ------------------------------------------------------------------------- OCTOPUS

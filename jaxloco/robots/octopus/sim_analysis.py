@@ -60,6 +60,16 @@ PARAMS = (
     Param("clm_speed", _CLM["clm_speed"], "CLM: crawler speed", "m/s", lo=0.005, hi=0.063),
     Param("climb_paper", _CLM["climb_paper"], "CLM climb: 1 = the paper's Eqs. 28-29 (booms and front flippers "
           "turn down, crawlers drive); 0 = our level lift (not the paper's method)", "", lo=0.0, hi=1.0),
+    Param("flip_encoder", _CLM["flip_encoder"], "paper climb reading: 1 = A' of Eq. 29 is the flipper encoder "
+          "(\"obtained\"), 0 = the last command", "", lo=0.0, hi=1.0),
+    Param("climb_yield", _CLM["climb_yield"], "paper climb reading: 1 = the front flippers' torque rule (Case 2) keeps "
+          "running in CLIMB", "", lo=0.0, hi=1.0),
+    Param("climb_rear_flippers", _CLM["climb_rear_flippers"], "paper climb reading: 1 = Eq. 29 turns the rear "
+          "flippers too, 0 = the front ones (A of 'Crawler controls')", "", lo=0.0, hi=1.0),
+    Param("s_from_touch", _CLM["s_from_touch"], "paper climb reading: 1 = S (Eq. 18) from the front flippers' "
+          "touch-down on the step top, 0 = from the CLIMB start", "", lo=0.0, hi=1.0),
+    Param("prepare_rear_init", _CLM["prepare_rear_init"], "PREPARE places the rear arms at their Table 2 start "
+          "points (1, ours) or targets (0)", "", lo=0.0, hi=1.0),
     Param("crawl_max_h", _CLM["crawl_max_h"], "CLM: steps up to this H_EST are climbed by crawlers and flippers, "
           "arms carried (CRAWL)", "m", lo=0.0, hi=scenarios.MAX_HEIGHT),
     Param("operator_gain", operator.PARAM_DEFAULTS["operator_gain"], "operator steering (not the CLM: it cannot "
