@@ -316,3 +316,35 @@ def test_paper_climb_and_release_rules_are_eqs_28_29():
     np.testing.assert_allclose(f5, [-0.3 + df, 0.0, 0.2, 0.0], atol=1e-12)
     assert not bool(back)
     assert bool(clm.paper_release_step(p, q, jnp.array([0.0, 0.1, 0.0, 0.0]))[2])
+
+
+def test_clm_stops_at_a_pit_and_picks_new_targets():
+    """Arm stop Case 3 (paper, "Arm stop"): on a 0.4 m platform whose far edge is 0.8 m
+    ahead, with no ground beyond it ("pit"), a front arm's target falls in the pit; the
+    arm lifts again for a target pit_backoff nearer the body ("a new target point will
+    be selected"), lands on the platform short of the edge, and the crawlers stop (the
+    paper leaves the way down to the operator). The robot stays on the platform."""
+    height, edge = 0.4, 0.8
+    sc = scenarios.make_scenario("pit", clm.make_controller(), horizon_s=40.0, record_every=10)
+    base = sc.record
+    tips = np.array([sc.model.site(n).id for n in TIP_SITES])
+
+    def record(p, data, obs, c, e):
+        r = base(p, data, obs, c, e)
+        r.update(pit=c.pit, backoff=c.arms.backoff, arm_phase=c.arms.arm_phase, rollers=data.site_xpos[tips])
+        return r
+
+    r = rollout(sc.with_(record=record), scenarios.params_batch(1, height=height, distance=edge), nthread=2)
+    row = r.row(0)
+    assert row["status"] == "ok" and row["success"] and not row["tipped"], row
+    R = {k: v[0] for k, v in r.records.items()}
+    assert R["pit"][-1] and not R["pit"][0]
+    front = np.asarray(clm.FRONT)
+    assert (R["backoff"][-1][front] > 0).all() and (R["backoff"][-1][~front] == 0).all()
+    # the front rollers end in support on the platform top, short of the edge
+    placed = R["arm_phase"][-1] == cr.PLACED
+    ends = R["rollers"][-1][front & placed]
+    assert len(ends) >= 1 and np.allclose(ends[:, 2], height + P.ROLLER_RADIUS, atol=0.02) and (ends[:, 0] < edge).all()
+    # stopped: the COG moves less than 2 cm in the last 10 s, and stays short of the edge
+    cog = R["cog"]
+    assert abs(cog[-1, 0] - cog[-50, 0]) < 0.02 and cog[-1, 0] < edge - 0.3

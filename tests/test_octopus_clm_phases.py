@@ -35,7 +35,8 @@ def _no_transfer(arms: clm.ArmState, just_placed=(False,) * 4) -> clm.Transfer:
     """A transfer period in which nothing moves (optionally some arm just placed)."""
     return clm.Transfer(cmd=arms.q_cmd, arm_phase=arms.arm_phase, transferring=jnp.zeros(4, bool),
                         just_placed=jnp.asarray(just_placed), contacts=arms.contacts, stop_case=arms.stop_case,
-                        on_step=arms.on_step, lift=arms.lift_to, hit_n=arms.hit_n)
+                        on_step=arms.on_step, lift=arms.lift_to, hit_n=arms.hit_n,
+                        deep=jnp.zeros(4, bool), backoff=arms.backoff)
 
 
 def test_init_state_is_typed_and_walking(p):

@@ -198,6 +198,10 @@ PARAM_DEFAULTS: dict[str, float] = {
     # collision_periods = collision in LIFT, SWING, OVER (`python benchmarks/octopus_collision_torque.py`)
     "collision_still": 0.005,  # [rad] ... the joint moved less than this in a period
     "collision_periods": 2.0,  # periods in a row
+    # arm stop Case 3, a deep pit (no ground at the boom's limit): a new target this much nearer the
+    # body, at most pit_backoff_max in all; the crawlers stop (the operator's call)
+    "pit_backoff": 0.15,  # [m] default (ours)
+    "pit_backoff_max": 0.45,  # [m] default (ours)
     "contact_lag": 0.04,  # [rad] boom / elbow behind its command = blocked (LOWER only)
     "transfer_press": 0.05,  # [m] a transfer aims this far below its target
     "carry_elbow": 1.6,  # [rad] elbow of the carrying pose after the release
@@ -378,6 +382,7 @@ class ArmState(NamedTuple):
     lift_to: Array  # (4,) [rad] the boom angle the current LIFT aims at (A_B)
     tau_prev: Array  # (4, 3) [N m] the arm joint torques of the last period (collision signal)
     q_prev: Array  # (4, 3) [rad] the arm joint encoders of the last period
+    backoff: Array  # (4,) [m] each arm's target moved toward the body after deep pits (Case 3)
     hit_n: Array  # (4,) int32: consecutive periods of a transfer with a boom / elbow torque above
     # collision_torque while that joint stands still (the collision stop of LIFT, SWING, OVER)
 
@@ -423,6 +428,8 @@ class ClmState(NamedTuple):
     stall: Array  # () [s] the crawlers below a third of clm_speed
     travel: Array  # () [m] crawler-encoder travel: S (Eq. 18) in CLIMB, the drive on the top in DONE
     climbed: Array  # () int32: climbs finished (RELEASE or CRAWL -> DONE)
+    pit: Array  # () bool: a pit ahead (Case 3: an arm found no ground within reach, or a front arm stopped
+    # in a pit): the crawlers stay stopped in WALK
     arms: ArmState
     approach: ApproachState
     climb: ClimbState
@@ -468,6 +475,9 @@ class Transfer(NamedTuple):
     on_step: Array  # (4,) bool: front arms stopped on an obstacle
     lift: Array  # (4,) [rad] A_B of the LIFT (boom angle)
     hit_n: Array  # (4,) int32: the collision counter (`ArmState.hit_n`)
+    deep: Array  # (4,) bool: a pit at the arm's target (Case 3): its LOWER reached the boom limit without
+    # contact, or (front arms) it stopped delta_d below the target; the arm lifts again for a nearer one
+    backoff: Array  # (4,) [m] targets moved toward the body (`ArmState.backoff`)
 
 
 class Climb(NamedTuple):
@@ -540,6 +550,7 @@ def clm_init(p, obs) -> ClmState:
         lift_to=q[:, 1],
         tau_prev=sense.tau,
         q_prev=q,
+        backoff=jnp.zeros((4,), dt),
         hit_n=jnp.zeros((4,), jnp.int32),
     )
     approach = ApproachState(
@@ -561,6 +572,7 @@ def clm_init(p, obs) -> ClmState:
         stall=jnp.zeros((), dt),
         travel=jnp.zeros((), dt),
         climbed=jnp.zeros((), jnp.int32),
+        pit=jnp.asarray(False),
         arms=arms,
         approach=approach,
         climb=climb,
@@ -604,10 +616,11 @@ def crawler_drive(p, s: ClmState, ph: Phases, approaching: Array, approach: Appr
     """The crawler commands [m/s]: both crawlers drive at clm_speed in WALK unless an arm
     is IDLE, in CLIMB once the front is up (the paper's climb: at once), in DONE, in CRAWL
     past RAISE (at crawl_speed); in the PREPARE approach each side drives until blocked.
-    Returns whether the crawlers drive (both), their speed, and the approach's (left,
-    right) speeds."""
+    A deep pit found by an arm (`ClmState.pit`) stops them in WALK for good: the paper
+    leaves what follows to the operator. Returns whether the crawlers drive (both), their
+    speed, and the approach's (left, right) speeds."""
     any_idle = jnp.any(s.arms.arm_phase == IDLE)
-    drive = ((ph.walk & ~any_idle) | (ph.climb & (s.climb.front_up | (p["climb_paper"] > 0))) | ph.done
+    drive = ((ph.walk & ~any_idle & ~s.pit) | (ph.climb & (s.climb.front_up | (p["climb_paper"] > 0))) | ph.done
              | (approaching & ~approach.squared) | (ph.crawl & (s.crawl.sub > RAISE)))
     v_cmd = jnp.where(drive, jnp.where(ph.crawl, p["crawl_speed"], p["clm_speed"]), 0.0)
     v_side = jnp.where(approaching & ~approach.squared & ~approach.blocked, p["clm_speed"], 0.0)
@@ -638,16 +651,20 @@ def support_arms(p, arms: ArmState, moved: Array, t_p: Array, pitch: Array) -> t
     return contacts, q_hold
 
 
-def transfer_targets(p, prepare: Array, h_est: Array, dt) -> tuple[Array, Array, Array]:
+def transfer_targets(p, prepare: Array, h_est: Array, dt, backoff: Array | None = None
+                     ) -> tuple[Array, Array, Array]:
     """Where the arms transfer to, in {R} [m]: the Table 2 targets; in PREPARE the front
     arms' on the step top (z + h_est) and the rear arms' at their Table 2 *start* points,
     farther back (from the Table 2 targets the rear rollers reached the riser before the
     body had travelled L). Returns the targets (4, 3), the joint angles (4, 3) [rad]
     transfer_press below them (so that the roller meets the ground before the command
-    stops: the servo then lags, contact) and clearance_front / clearance_rear above them."""
+    stops: the servo then lags, contact) and clearance_front / clearance_rear above them.
+    `backoff` (4,) [m] moves the targets toward the body along x (after deep pits)."""
     front = jnp.asarray(FRONT)
     tgt = jnp.where((prepare & ~front & (p["prepare_rear_init"] > 0))[:, None], jnp.asarray(P.TABLE2_INIT, dt),
                     jnp.asarray(P.TABLE2_TARGET).astype(dt))
+    if backoff is not None:
+        tgt = tgt.at[:, 0].add(-jnp.where(front, 1.0, -1.0) * backoff)
     tgt = tgt.at[:, 2].add(jnp.where(prepare & front, h_est, 0.0))
     clear = jnp.where(front, p["clearance_front"], p["clearance_rear"])
     q_tgt, _ = kin.inverse_kinematics_all(_KP, tgt.at[:, 2].add(-p["transfer_press"]))
@@ -676,14 +693,18 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     front = jnp.asarray(FRONT)
     arm_phase, active = arms.arm_phase, arms.active
     is_active = (jnp.arange(4) == active) & (active >= 0)
-    tgt, q_tgt, q_abv = transfer_targets(p, prepare, h_est, dt)
+    tgt, q_tgt, q_abv = transfer_targets(p, prepare, h_est, dt, arms.backoff)
     # > 0: the boom is held up, short of the command of two periods ago (the servo
     # follows a free arm's command within a period; the last command may be a step)
     lag = jnp.max(arms.q_cmd2[:, 1:] - q[:, 1:], axis=-1)  # boom or elbow held up
     hit = cr.collision(tau, arms.tau_prev, p["collision_threshold"])
     lower = arm_phase == cr.LOWER
     at_limit = arms.q_cmd[:, 1] >= BOOM_MAX - 1e-6
-    contact = lower & (hit | (lag > p["contact_lag"]) | at_limit)
+    contact = lower & (hit | (lag > p["contact_lag"]))
+    # Case 3, a deep pit: the boom at its limit and still no contact ("a new target point
+    # will be selected"): the arm lifts again for a target pit_backoff nearer the body
+    deep = lower & at_limit & ~contact & (arms.backoff < p["pit_backoff_max"])
+    contact = contact | (lower & at_limit & ~deep)
     # A_B: the boom turns up to lift_boom, or by lift_min if it is already higher (a
     # front arm on a high step stands with its boom near vertical: turning it "up" to
     # lift_boom would push the roller into the step)
@@ -715,6 +736,17 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     collided = hit_n >= p["collision_periods"]
     tr_cmd = jnp.where(collided[:, None], arms.q_cmd, tr_cmd)
     tr_next = jnp.where(collided, cr.PLACED, tr_next)
+    # Case 3 (a pit at the target) of a front arm: a deep one (above), or the roller
+    # stopped more than delta_d below its target: hold this period, then LIFT again (A_B
+    # lift_min above the boom) for a target pit_backoff nearer the body ("a new target
+    # point will be selected"; the text says so for the deep pit, we do it for both: an
+    # arm in a pit holds no support)
+    stop_now = cr.arm_stop_case(tips, tgt, p["delta_c"], p["delta_d"])
+    in_pit = lower & contact & front & (stop_now == cr.STOP_IN_PIT) & (arms.backoff < p["pit_backoff_max"])
+    deep = transferring & (deep | in_pit)
+    tr_cmd = jnp.where(deep[:, None], arms.q_cmd, tr_cmd)
+    tr_next = jnp.where(deep, cr.LIFT, tr_next)
+    lift = jnp.where(deep, arms.q_cmd[:, 1] - p["lift_min"], lift)
     just_placed = transferring & (tr_next == cr.PLACED)
     # a placed arm: its contact is where the encoders put the EPRA
     stop = cr.arm_stop_case(tips, tgt, p["delta_c"], p["delta_d"])
@@ -728,6 +760,8 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
         on_step=jnp.where(just_placed, front & (stop == cr.STOP_ON_OBSTACLE), arms.on_step),
         lift=lift,
         hit_n=hit_n,
+        deep=deep,
+        backoff=arms.backoff + jnp.where(deep, p["pit_backoff"], 0.0),
     )
 
 
@@ -1068,6 +1102,9 @@ def clm_step(p, s: ClmState, obs, control_dt: float = CONTROL_DT) -> tuple[ClmSt
         stall=stall.astype(dt),
         travel=travel.astype(dt),
         climbed=s.climbed + jnp.where(trans.finished, 1, 0).astype(jnp.int32),
+        # a pit ahead (Case 3 of a transfer, `Transfer.deep`): the paper does not say how
+        # the CLM goes down, so the crawlers stop and the operator decides
+        pit=s.pit | (ph.walk & jnp.any(tr.deep)),
         arms=ArmState(
             arm_phase=arms.arm_phase.astype(jnp.int32),
             ptr=arms.ptr.astype(jnp.int32),
@@ -1082,6 +1119,7 @@ def clm_step(p, s: ClmState, obs, control_dt: float = CONTROL_DT) -> tuple[ClmSt
             lift_to=arms.lift_to.astype(dt),
             tau_prev=sense.tau,
             q_prev=sense.q,
+            backoff=tr.backoff.astype(dt),
             hit_n=tr.hit_n.astype(jnp.int32),
         ),
         approach=approach,

@@ -12,7 +12,11 @@ floor at the origin heading +x, yawed by `yaw`):
     a concrete block of `height` (paper: 500 mm), `BLOCK_SIZE` long and wide, standing
     `block_gap` (paper: about 10 mm) beside the robot's right side (its right crawler
     wheels, `ROBOT_SIDE`), its near face at x = `distance`; the right arms run into it;
-  * "flat": the floor only (`tr.flat`).
+  * "flat": the floor only (`tr.flat`);
+  * "pit": the robot starts on a platform of `height` whose far edge is at x =
+    `distance`; beyond it there is no ground (a deep pit: the arm stop Case 3, "a new
+    target point will be selected"). Success: the robot stays on the platform, its COG
+    short of the edge.
 Every terrain parameter is per simulation (mocap poses, no recompiling): `height`,
 `distance` (x of the first riser, i.e. horizontal distance from the chassis origin {R}
 to the step edge at t = 0), `yaw` (initial heading [rad]), `side_ratio`, and `mu` (the
@@ -84,9 +88,11 @@ from jaxloco.sim.data import SimData, sensor_slice
 from jaxloco.sim.scenario import Controller, InitialState, Scenario, friction_field
 from jaxloco.sim.scenario import params_batch as sim_params_batch
 
-KINDS = ("step1", "step2_front", "step2_side", "block", "flat")
+KINDS = ("step1", "step2_front", "step2_side", "block", "flat", "pit")
 TERRACE_DEPTH = 0.8  # [m] depth of the first terrace of the two-terrace steps
 MAX_HEIGHT = 0.6  # [m] highest step the terrain boxes allow
+PIT_PLATFORM = 5.0  # [m] length of the platform the robot starts on in "pit" (its far edge at `distance`)
+PIT_BOTTOM = -10.0  # [m] the "height" reported beyond the pit's edge (there is no ground there)
 # the block (the paper gives its height only): a 0.5 m concrete cube
 BLOCK_SIZE = 0.5  # [m] length (x) and width (y)
 ROBOT_SIDE = P.CRAWLER_Y + P.MAIN_WHEEL_RADIUS  # [m] |y| of the crawlers' outer side
@@ -159,8 +165,8 @@ def build_model(kind: str) -> tuple[mujoco.MjModel, tr.Terrain]:
         terrain = tr.flat(half_extent=10.0, half_depth=0.5)
     elif kind == "block":
         terrain = tr.blocks(n=1, half_size=(0.5 * BLOCK_SIZE, 0.5 * BLOCK_SIZE, 0.5 * MAX_HEIGHT))
-    elif kind == "step1":
-        terrain = tr.steps(n_terraces=1, max_height=MAX_HEIGHT)
+    elif kind in ("step1", "pit"):
+        terrain = tr.steps(n_terraces=1, max_height=MAX_HEIGHT, last_length=PIT_PLATFORM)
     else:
         terrain = tr.steps(n_terraces=2, depth=TERRACE_DEPTH, max_height=MAX_HEIGHT)
     terrain.add_to(spec, friction=(PARAM_DEFAULTS["mu"], 0.005, 0.0001))
@@ -186,7 +192,8 @@ def terrain_values(kind: str, p) -> dict[str, jax.Array]:
         return {"block0_x": p["distance"] + 0.5 * BLOCK_SIZE, "block0_y": -(ROBOT_SIDE + p["block_gap"] + 0.5 * BLOCK_SIZE),
                 "block0_height": h, "block0_yaw": 0.0 * h}
     left, right = _heights(kind, p)
-    return {"height_left": left, "height_right": right, "start": jnp.asarray(p["distance"], left.dtype)}
+    start = jnp.asarray(p["distance"], left.dtype) - (PIT_PLATFORM if kind == "pit" else 0.0)
+    return {"height_left": left, "height_right": right, "start": start}
 
 
 def terrain_height(kind: str, p, xy: jax.Array) -> jax.Array:
@@ -199,6 +206,8 @@ def terrain_height(kind: str, p, xy: jax.Array) -> jax.Array:
         dy = -(ROBOT_SIDE + p["block_gap"]) - xy[..., 1]
         inside = (dx >= 0.0) & (dx <= BLOCK_SIZE) & (dy >= 0.0) & (dy <= BLOCK_SIZE)
         return jnp.where(inside, jnp.asarray(p["height"], left.dtype), 0.0)
+    if kind == "pit":  # the platform up to its edge, then nothing
+        return jnp.where(xy[..., 0] <= p["distance"], left, PIT_BOTTOM)
     n = 1 if kind == "step1" else 2
     rise = jnp.where(xy[..., 1] >= 0.0, left, right)
     x = xy[..., 0] - p["distance"]
@@ -232,6 +241,8 @@ def top_x(kind: str, p) -> jax.Array:
     d = jnp.asarray(p["distance"], jnp.result_type(float))
     if kind == "block":  # passed: beyond the block's far face
         return d + BLOCK_SIZE
+    if kind == "pit":  # the platform's edge
+        return d
     return d + (TERRACE_DEPTH if kind in ("step2_front", "step2_side") else 0.0)
 
 
@@ -287,6 +298,8 @@ def make_scenario(
         front = p[front_key]
         flips = jnp.stack([front, front, 0.0 * front, 0.0 * front])
         qpos = qpos0.astype(pos.dtype).at[3:7].set(tr.quat_z(p["yaw"])).at[flip_adr].set(flips)
+        if kind == "pit":  # on the platform
+            qpos = qpos.at[2].add(p["height"])
         ctrl = ctrl0.astype(pos.dtype).at[flip_act].set(flips)
         return InitialState(qpos=qpos, qvel=jnp.zeros(m.nv, pos.dtype), ctrl=ctrl, mocap_pos=full_pos,
                             mocap_quat=full_quat)
@@ -342,6 +355,8 @@ def make_scenario(
         top = jnp.minimum(left, right)
         ground = terrain_height(kind, p, cog[:, :2])
         on_top = (cog[:, 0] > top_x(kind, p) + p["pass_distance"]) & (ground >= top - 1e-6)
+        if kind == "pit":  # the task is to stay on the platform, short of its edge
+            on_top = (cog[:, 0] < top_x(kind, p)) & (cog[:, 2] > top)
         ok_att = (jnp.abs(roll) < p["roll_limit"]) & (nose_up < p["pitch_limit"])
         there = on_top & ok_att
         success = there[-1] & ~tipped & final.alive

@@ -29,9 +29,10 @@ _CLM = clm.PARAM_DEFAULTS
 _SC = scenarios.PARAM_DEFAULTS
 
 PARAMS = (
-    Param("kind", "step1", "terrain: one terrace, two terraces from the front, or from the side, or a block "
-          "(height) beside the robot's right side", kind="str",
-          choices=("step1", "step2_front", "step2_side", "block"), sweepable=False),
+    Param("kind", "step1", "terrain: one terrace, two terraces from the front, or from the side, a block "
+          "(height) beside the robot's right side, or a pit (the robot on a platform of height whose edge is at "
+          "distance, nothing beyond)", kind="str",
+          choices=("step1", "step2_front", "step2_side", "block", "pit"), sweepable=False),
     Param("controller", "clm", "the CLM controller (crawlers, flippers and arms) or the CCM baseline (crawlers "
           "and flippers only)", kind="str", choices=("clm", "ccm"), sweepable=False),
     # terrain and physics
