@@ -4,7 +4,7 @@ perturbed runs each, printed beside the paper's numbers: the `octopus.paper` ana
 octopus_paper`), then the same tasks with our options (not the paper's method) and with
 the operator layer, and the rollout throughput.
 
-    python benchmarks/octopus_experiments.py [N] [--quick]
+    python benchmarks/octopus_experiments.py [N] [--quick | --options]
 
 Row sets:
   * paper: the five tasks on the paper's method (CLM climbing by Eqs. 28-29, never in
@@ -14,7 +14,7 @@ Row sets:
     (low terraces climbed by crawlers and flippers, arms carried);
   * operator: the CLM tasks on the paper's method with the operator steering
     (`operator_gain` = 0.2 m/s per rad: the CLM cannot measure the yaw, a person can).
---quick runs the paper set only.
+--quick runs the paper set only, --options every set but it.
 Perturbations (seeded, from the row's seed): start distance 0.7 +- 0.1 m, heading
 +- 0.05 rad, friction 0.8 +- 0.2. Cells: mean over the runs (worst run) / the paper's value.
 """
@@ -54,7 +54,7 @@ def run_set(tasks, fixed: dict, n: int, out: str):
 def main(argv: list[str]) -> None:
     args = [a for a in argv[1:] if not a.startswith("--")]
     n = int(args[0]) if args else 20
-    sets = ROW_SETS[:1] if "--quick" in argv else ROW_SETS
+    sets = ROW_SETS[:1] if "--quick" in argv else ROW_SETS[1:] if "--options" in argv else ROW_SETS
     print(f"OCTOPUS paper experiments, {n} perturbed runs per row; cells: mean (worst) / paper")
     head = (f"{'set':<26} {'task':<12} {'success':>14} | {'max pitch':>18} | {'max |roll|':>18} | "
             f"{'min margin':>21} | {'time s':>6} | failures")
