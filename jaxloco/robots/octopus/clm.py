@@ -741,15 +741,15 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     # lift_min above the boom) for a target pit_backoff nearer the body ("a new target
     # point will be selected"; the text says so for the deep pit, we do it for both: an
     # arm in a pit holds no support)
-    stop_now = cr.arm_stop_case(tips, tgt, p["delta_c"], p["delta_d"])
-    in_pit = lower & contact & front & (stop_now == cr.STOP_IN_PIT) & (arms.backoff < p["pit_backoff_max"])
+    # where the roller stands against its target (Cases 1-3), for the pit and for a placed arm
+    stop = cr.arm_stop_case(tips, tgt, p["delta_c"], p["delta_d"])
+    in_pit = lower & contact & front & (stop == cr.STOP_IN_PIT) & (arms.backoff < p["pit_backoff_max"])
     deep = transferring & (deep | in_pit)
     tr_cmd = jnp.where(deep[:, None], arms.q_cmd, tr_cmd)
     tr_next = jnp.where(deep, cr.LIFT, tr_next)
     lift = jnp.where(deep, arms.q_cmd[:, 1] - p["lift_min"], lift)
     just_placed = transferring & (tr_next == cr.PLACED)
     # a placed arm: its contact is where the encoders put the EPRA
-    stop = cr.arm_stop_case(tips, tgt, p["delta_c"], p["delta_d"])
     return Transfer(
         cmd=tr_cmd,
         arm_phase=jnp.where(transferring, tr_next, arm_phase),

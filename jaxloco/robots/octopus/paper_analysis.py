@@ -30,7 +30,7 @@ The summary prints, per task, the success rate and the mean and worst of max pit
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -77,8 +77,6 @@ _DEFAULTS = {"climb_paper": 1.0, "crawl_max_h": 0.0, "horizon": 150.0, "distance
 
 
 def _with_default(p: Param) -> Param:
-    from dataclasses import replace
-
     return replace(p, default=_DEFAULTS[p.name]) if p.name in _DEFAULTS else p
 
 
@@ -107,7 +105,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
         if task not in batches:
             values = task_values(task)
             step_fixed = {**sa.PARAM_DEFAULTS, **{k: v for k, v in fixed.items() if k != "task"}, **values}
-            batches[task] = (sa.make_batch_fn(step_fixed), values)
+            batches[task] = sa.make_batch_fn(step_fixed)
         return batches[task]
 
     def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
@@ -116,9 +114,9 @@ def make_batch_fn(fixed: Mapping[str, Any]):
         out: dict[str, np.ndarray] = {}
         for task in dict.fromkeys(tasks.tolist()):
             rows = np.flatnonzero(tasks == task)
-            fn, values = batch_of(task)
+            fn = batch_of(task)
+            # the task's height (and side ratio) are fixed values of its step_climb batch
             sub = {k: np.asarray(v)[rows] for k, v in swept.items() if k != "task"}
-            sub.update({k: np.full(rows.size, v) for k, v in values.items() if k not in ("kind", "controller")})
             res = fn(sub, np.asarray(keys)[rows])
             for k, v in res.items():
                 v = np.asarray(v)
