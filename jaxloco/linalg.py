@@ -47,10 +47,33 @@ def _backward(U: Array, B: Array) -> Array:
     return X
 
 
-def spd_solve(M: Array, B: Array) -> Array:
-    """X with M X = B for a symmetric positive definite M (n, n); B (n,) or (n, k)."""
-    vector = B.ndim == 1
-    B2 = B[:, None] if vector else B
+def _solve_with_factor(L: Array, B: Array) -> Array:
+    """X with L L^T X = B (L lower triangular, B (n, k))."""
+    return _backward(L.T, _forward(L, B))
+
+
+@jax.custom_jvp
+def _solve(M: Array, B: Array) -> Array:
+    return _solve_with_factor(cholesky(M), B)
+
+
+@_solve.defjvp
+def _solve_jvp(primals, tangents):
+    """d(M^-1 B) = M^-1 (dB - dM M^-1 B): two triangular solves with the primal's factor,
+    instead of differentiating the unrolled factorization (smaller programs to compile
+    and run; linear in the tangents, so reverse mode transposes it; differentiable
+    again for higher orders)."""
+    M, B = primals
+    dM, dB = tangents
     L = cholesky(M)
-    X = _backward(L.T, _forward(L, B2))
+    X = _solve_with_factor(L, B)
+    return X, _solve_with_factor(L, dB - dM @ X)
+
+
+def spd_solve(M: Array, B: Array) -> Array:
+    """X with M X = B for a symmetric positive definite M (n, n); B (n,) or (n, k).
+    Derivatives follow M^-1 (dB - dM X), which along symmetric dM (the only ones a
+    symmetric M has) is the derivative of the factorization's solve."""
+    vector = B.ndim == 1
+    X = _solve(M, B[:, None] if vector else B)
     return X[:, 0] if vector else X

@@ -211,11 +211,12 @@ def test_mjx_batch_is_sharded_over_every_device_and_matches_one_device(short_sce
         return wrapped
 
     monkeypatch.setattr(mjx_backend, "batched_fn", spy)
-    # one row, padded to one per device: with 2 devices the sharded program is the one
-    # test_backends_agree_on_a_short_rollout compiled (2 rows), so only the single-device
-    # run compiles anew
+    # one row, padded to one per device, its key among the parameters as `rollout` puts
+    # it: with 2 devices the sharded program is the one test_backends_agree_on_a_short_rollout
+    # compiled (2 rows, same structure), so only the single-device run compiles anew
     p = _params(1, ground=[0.05], offset=[0.02])
-    keys = jax.random.split(jax.random.PRNGKey(0), 1)
+    keys = jnp.stack([jax.random.PRNGKey(0)])
+    p["key"] = keys
     sharded = mjx_backend.run(short_scenario, p, keys, shard=True)
     single = mjx_backend.run(short_scenario, p, keys, shard=False)
     n_dev = len(jax.devices())
