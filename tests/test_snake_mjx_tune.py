@@ -170,7 +170,7 @@ def test_mjx_loss_agrees_with_native_mujoco(mjx_loss):
 
 
 def test_a_short_tune_lowers_the_loss(tmp_path, mjx_loss):
-    spec = {"tune": {"objective": "snake.reach_gain", "params": ["gain_k"], "learning_rate": 0.15, "steps": 2,
+    spec = {"tune": {"objective": "snake.reach_gain", "params": ["gain_k"], "learning_rate": 0.15, "steps": 1,
                      "formats": ["parquet"]},
             "init": {"gain_k": 1.0}, "settings": {"horizon": HORIZON}}
     res = runner.run(spec_from_dict(spec), progress=False, out=tmp_path / "tune", configure_jax=False)
