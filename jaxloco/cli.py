@@ -420,6 +420,20 @@ def _info_table(rows: list[tuple[str, str]]):
     return table
 
 
+def _one_line_summaries(application: typer.Typer) -> None:
+    """Each command's listing line is its docstring's first paragraph as one line, so the
+    terminal wraps it (typer keeps the docstring's line breaks in the command list)."""
+    import inspect
+
+    for command in application.registered_commands:
+        doc = inspect.cleandoc(command.callback.__doc__ or "") if command.callback else ""
+        if command.short_help is None and doc:
+            command.short_help = " ".join(doc.split("\n\n")[0].split())
+
+
+_one_line_summaries(app)
+
+
 def main() -> None:
     app()
 

@@ -179,3 +179,18 @@ def test_help_shows_flags_without_a_value_type(command):
     if command == ["sweep"]:
         assert re.search(r"--resume\s+continue", result.stdout)
         assert re.search(r"--chunk-size\s+<int>", result.stdout)  # options with a value keep their type
+
+
+
+def test_the_command_list_wraps_each_summary_as_one_paragraph():
+    """`jaxloco --help` lists each command with its docstring's first paragraph wrapped to
+    the terminal: a description line breaks only where its next word would not fit (not
+    where the docstring's source line ended)."""
+    result = invoke("--help")
+    assert result.exit_code == 0, result.output
+    panel = [BOX.sub(" ", line).rstrip() for line in result.stdout.split("Commands")[1].splitlines()]
+    limit = max(len(line) for line in panel)
+    pairs = [(a, b) for a, b in zip(panel, panel[1:]) if b.strip() and not b[:12].strip()]  # b continues a
+    assert len(pairs) >= 5  # several descriptions wrap at 80 columns
+    ragged = [(a, b) for a, b in pairs if len(a) + 1 + len(b.split()[0]) <= limit]
+    assert not ragged, ragged
