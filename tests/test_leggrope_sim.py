@@ -54,6 +54,22 @@ def test_normal_forces_stay_below_r_ref_outside_the_grope(walk):
     assert np.abs(np.diff(fn, axis=0)).mean() < 0.1
 
 
+def test_load_over_probe_compares_later_loads_with_the_probed_force(walk):
+    """max_load_over_probe, recomputed record by record: a leg whose grope is done (its
+    place in the order L2, L1, L3, L4 before the grope counter) takes later normal
+    forces against the force its D'-2 ended with (the controller's grope_force)."""
+    _, r = walk
+    probed_with = np.asarray(r.final.ctrl_state.grope_force)[0]
+    grope, fn = r.records["grope"][0], r.records["normal_force"][0]
+    ratios = [fn[i, leg] / probed_with[leg] for i in range(len(grope))
+              for rank, leg in enumerate(control.ORDER) if rank < grope[i]]
+    assert len(ratios) > 10  # at least one grope finished well before the end
+    assert r.metrics["max_load_over_probe"][0] == pytest.approx(max(ratios), rel=1e-12)
+    # a probed foothold goes on carrying about what it was probed with (the walk loads it
+    # to R_ref, the grope stopped within grope_tolerance of it)
+    assert 0.8 < r.metrics["max_load_over_probe"][0] < 1.3
+
+
 def test_standing_toes_do_not_creep_on_the_slope():
     """No-slip solver: a robot standing on the pi/12 slope (gravity tilted instead) keeps
     its toes; plain soft contacts let them creep about 50 mm/s (model.py)."""

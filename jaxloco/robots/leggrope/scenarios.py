@@ -197,6 +197,11 @@ def make_scenario(
         # collapses of pads that were not being groped at the time (should not happen)
         groped_pads = jnp.zeros(N_PADS, bool).at[4:].set(True)
         unexpected = jnp.sum(e["collapsed"] & ~groped_pads)
+        # the load a probed foothold takes later, against the force its grope verified:
+        # > 1 means the walk put more on it than it was probed with (at the records' rate)
+        probed = _moved_legs(r["grope"][:, None])  # (n_rec, 4): the leg's grope is done
+        per_probe = fn / jnp.where(c.grope_force > 0, c.grope_force, jnp.inf)[None, :]
+        load_over_probe = jnp.where(jnp.any(probed), jnp.max(jnp.where(probed, per_probe, -jnp.inf)), jnp.nan)
         t_end = sm.first_time(r["phase"] >= control.DONE, jnp.arange(r["phase"].shape[0]) * (
             record_every * settings.control_dt))
         return {
@@ -207,6 +212,7 @@ def make_scenario(
             "max_abs_pitch": att["max_abs_pitch"],
             "max_normal_ratio": sm.force_ratio(fn, t.r_ref, outside),
             "grope_ratio_min": jnp.min(jnp.where(jnp.arange(4) < 4, c.grope_force / t.r_ref, jnp.inf)),
+            "max_load_over_probe": load_over_probe,
             "min_margin": jnp.where(jnp.any(margin_ok), sm.masked_min(margins, margin_ok), jnp.nan),
             "collapses_met": c.collapses,
             "collapses_survived": survived,
@@ -314,7 +320,8 @@ def standing_scenario(horizon: int = 10, substeps: int = 5, record_every: int = 
 
 
 def _moved_legs(k):
-    """Which legs (4,) have finished their grope after k gropes (order L2, L1, L3, L4)."""
+    """Which legs (4,) have finished their grope after k gropes (order L2, L1, L3, L4);
+    k of shape (..., 1) gives (..., 4)."""
     rank = jnp.argsort(jnp.asarray(control.ORDER))  # position of each leg in the order
     return rank < k
 

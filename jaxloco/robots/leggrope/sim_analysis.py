@@ -55,6 +55,8 @@ METRICS = (
     Metric("max_abs_pitch", "largest |pitch| of the body (IMU)", "rad"),
     Metric("max_normal_ratio", "largest toe normal force / R_ref outside the leg-grope step D'"),
     Metric("grope_ratio_min", "smallest normal force / R_ref reached at the end of a grope (0 if not groped)"),
+    Metric("max_load_over_probe", "largest normal force on a groped foothold after its grope / the force the "
+           "grope probed it with (> 1: loaded beyond what was verified; nan before the first grope ends)"),
     Metric("min_margin", "smallest static stability margin over the actual toe contacts (>= 3 loaded)", "m"),
     Metric("collapses_met", "footholds that collapsed under the groping leg", kind="int"),
     Metric("collapses_survived", "collapses met without falling", kind="int"),
