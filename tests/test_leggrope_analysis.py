@@ -44,6 +44,9 @@ def test_metrics_are_consistent(small_sweep):
         assert 0.0 < t["max_relaxation"][i] < 0.1
         assert t["min_static_margin"][i] > 0 and t["min_reach"][i] > 0
         assert t["max_move_time"][i] <= 1.5 and t["cycle_time"][i] == pytest.approx(720 * 0.015)
+    # feasible: ok with Eq. 19 hard (no relaxation of R_ref at all)
+    for i in range(4):
+        assert t["feasible"][i] == (t["status"][i] == "ok" and t["max_relaxation"][i] <= 1e-6)
     # beyond atan(mu) no distribution holds the robot: the best margin is negative
     assert t["min_capacity"][2] < 0
     # steeper slopes use more of the friction available
@@ -78,6 +81,25 @@ def test_summary_finds_critical_theta_per_direction():
     assert by_psi["+0.000"][5:7] == ("0.380", "0.390")
     assert by_psi["+0.700"][2] == "0.360" and by_psi["+0.700"][5] == "0.390"
     assert any("0.40" in n for n in s.notes)
+
+
+def test_summary_reports_the_hard_rule_and_the_relaxation_used():
+    """With `feasible` and `max_relaxation` columns: the critical |theta| with Eq. 19 hard
+    (+ / -), and the largest relaxation among the rows inside the critical range."""
+    rows, feasible, relax = [], [], []
+    for i, th in enumerate(np.round(np.arange(-0.45, 0.451, 0.01), 2)):
+        ok = -0.38 - 1e-9 <= th <= 0.4 + 1e-9
+        rows.append((i, float(th), 0.0, "ok" if ok else "failed: slip (no distribution with s >= 0 at some step)"))
+        feasible.append(bool(-0.1 - 1e-9 <= th <= 0.2 + 1e-9))  # the hard rule holds on a narrower range
+        relax.append(0.02 + 0.1 * abs(th) if ok else 0.9)  # the failing rows' values must not count
+    table = _table(rows).append_column("feasible", pa.array(feasible)).append_column("max_relaxation",
+                                                                                    pa.array(relax))
+    s = summarize(table)
+    assert s.columns[-2:] == ("hard crit", "relax")
+    row = s.rows[0]
+    assert row[-2] == "0.200 / 0.100"
+    assert row[-1] == f"{0.02 + 0.1 * 0.4:.3f}"  # the largest inside [-0.38, 0.40]
+    assert summarize(_table(rows)).columns[-1] == "why -"  # older tables: no extra columns
 
 
 def test_registered_and_documented():

@@ -22,6 +22,9 @@ from jaxloco.robots.leggrope import forces, gait, results
 from jaxloco.robots.leggrope.params import G, default_params
 
 HALF_PI = 0.5 * math.pi
+# a cycle is feasible with Eq. 19 hard when no step needed more relaxation than this
+# (fraction of R_ref; the interior-point QP leaves r at ~1e-9 where none is needed)
+HARD_RELAXATION = 1e-6
 
 PARAMS = (
     Param("theta", 0.0, "slope inclination (positive: walking direction psi = 0 climbs)", "rad",
@@ -59,6 +62,8 @@ METRICS = (
     Metric("min_capacity", "smallest slip capacity max s (only with capacity = true, else inf)", "N"),
     Metric("max_normal_ratio", "largest free stance-leg normal force / R_ref"),
     Metric("max_relaxation", "largest normal-force relaxation r (R_ref excess or grope shortfall) / R_ref"),
+    Metric("feasible", "ok with Eq. 19 hard: status ok and max_relaxation <= 1e-6 (no R_ref excess or grope "
+           "shortfall at all)", kind="bool"),
     Metric("plan_margin", "smallest geometric margin of the plan (COG in pi_g, foothold in step-D region)", "m"),
     Metric("min_static_margin", "smallest static stability margin of the stance", "m"),
     Metric("min_ne_margin", "smallest normalized energy stability margin of the stance", "m"),
@@ -113,14 +118,16 @@ def run_one(values: Mapping[str, jax.Array], key: jax.Array, config: gait.WalkCo
         [3, 4, 1, 5, 2],
         0,
     )
+    relaxation = sm.max_overshoot / r_ref
     return dict(
+        feasible=(status == 0) & (relaxation <= HARD_RELAXATION),
         slip_free=n_bad == 0,
         slip_steps=n_bad,
         min_s=sm.min_s,
         min_s_norm=sm.min_s / weight,
         min_capacity=sm.min_capacity,
         max_normal_ratio=sm.max_normal_ratio,
-        max_relaxation=sm.max_overshoot / r_ref,
+        max_relaxation=relaxation,
         plan_margin=plan.margin,
         min_static_margin=sm.min_static_margin,
         min_ne_margin=sm.min_ne_margin,
@@ -169,16 +176,27 @@ def summarize(table) -> Summary:
         return bad[0].replace("failed: ", "").split(" (")[0] if bad else "-"
 
     fmt = lambda v: f"{v:.3f}" if np.isfinite(v) else "none"  # noqa: E731
+    hard = results.critical_theta(table, ok=results._column(table, "feasible").astype(bool)) \
+        if "feasible" in results._names(table) else None
+    relaxation = results._floats(table, "max_relaxation") if "max_relaxation" in results._names(table) else None
     rows = []
     for i, p in enumerate(crit.psi):
         row = [f"{p:+.3f}", f"{math.degrees(p):+.0f}"]
         for sign, c, first in ((1.0, crit.plus, crit.first_fail_plus), (-1.0, crit.minus, crit.first_fail_minus)):
             row += [fmt(c[i]), fmt(first[i]) if np.isfinite(first[i]) else "-", reason(p, first[i], sign)]
+        if hard is not None:
+            row.append(f"{fmt(hard.plus[i])} / {fmt(hard.minus[i])}")
+        if relaxation is not None:
+            inside = (psi == p) & (theta <= np.nan_to_num(crit.plus[i], nan=-1.0) + 1e-12) \
+                & (-theta <= np.nan_to_num(crit.minus[i], nan=-1.0) + 1e-12)
+            row.append(f"{np.max(relaxation[inside]):.3f}" if np.any(inside) else "-")
         rows.append(tuple(row))
     swept = [n for n in table.column_names if n not in ("row", "theta", "psi", "seed")
              and (table.schema.field(n).metadata or {}).get(b"role") == b"swept"] if hasattr(table, "schema") else []
     notes = [
         "critical = largest |theta| with every smaller |theta| of that psi ok (grid resolution applies)",
+        "hard crit: the same with Eq. 19 hard (feasible: no relaxation of R_ref at all), +theta / -theta; "
+        "relax: the largest max_relaxation [R_ref] the ok rows within the critical range needed",
         f"paper (Ambe & Matsuno 2016): critical |theta| ~ {results.PAPER_CRITICAL_THETA:.2f} rad for every psi; "
         f"rigid block atan(mu) = {math.atan(0.45):.3f} rad at mu = 0.45",
     ]
@@ -187,7 +205,8 @@ def summarize(table) -> Summary:
     return Summary(
         title="leg-grope walk on slopes: critical inclination per walking direction",
         columns=("psi [rad]", "psi [deg]", "crit +theta", "first fail +", "why +",
-                 "crit -theta", "first fail -", "why -"),
+                 "crit -theta", "first fail -", "why -",
+                 *(("hard crit",) if hard is not None else ()), *(("relax",) if relaxation is not None else ())),
         rows=tuple(rows),
         notes=tuple(notes),
     )

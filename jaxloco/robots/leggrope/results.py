@@ -80,14 +80,15 @@ class CriticalTheta(NamedTuple):
     first_fail_minus: np.ndarray
 
 
-def critical_theta(table: Any) -> CriticalTheta:
+def critical_theta(table: Any, ok: np.ndarray | None = None) -> CriticalTheta:
     """Critical +theta and -theta per psi of a sweep table (see `CriticalTheta`).
 
-    When other swept parameters are pooled, a |theta| counts as ok only if every row
-    with it is ok."""
+    A row counts as ok where `ok` (bool per row) says so; by default where its status is
+    "ok". When other swept parameters are pooled, a |theta| counts as ok only if every
+    row with it is ok."""
     theta = _floats(table, "theta")
     psi = _floats(table, "psi")
-    ok = _categories(table) == 0
+    ok = _categories(table) == 0 if ok is None else np.asarray(ok, bool)
     psis = np.unique(psi)
     out = {k: np.full(len(psis), np.nan) for k in ("plus", "minus", "first_fail_plus", "first_fail_minus")}
     for i, p in enumerate(psis):
