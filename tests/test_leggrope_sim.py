@@ -132,3 +132,23 @@ def test_params_batch_rejects_unknown_parameters():
     assert p["theta"].shape == (3,) and p["weak_leg"].dtype == np.int32
     with pytest.raises(KeyError, match="thetta"):
         scenarios.params_batch(2, thetta=0.1)
+
+
+def test_summary_reports_load_over_probe_of_the_successful_runs():
+    """The fragile summary's last column: mean (worst) of max_load_over_probe over the
+    successful runs of each (R_ref factor, p_weak) group; '-' where none succeeded."""
+    import pyarrow as pa
+
+    from jaxloco.robots.leggrope import sim_analysis
+
+    n = 6
+    table = pa.table({
+        "r_ref_factor": [0.5] * 4 + [0.6] * 2, "p_weak": [0.0] * n,
+        "success": [True, True, False, True, False, False],
+        "max_load_over_probe": [1.05, 1.20, 3.0, 1.10, 0.9, float("nan")],  # row 2 failed: not counted
+        "max_attitude_change": [0.01] * n, "max_normal_ratio": [0.9] * n, "collapses_met": [0] * n,
+        "collapses_survived": [0] * n, "min_margin": [0.005] * n,
+    })
+    s = sim_analysis.summarize(table)
+    assert s.columns[-1] == "load / probe"
+    assert s.rows[0][-1] == "1.12 (1.20)" and s.rows[1][-1] == "-"

@@ -115,14 +115,27 @@ def summarize(table) -> Summary:
             f"{np.nanmax(cols['max_normal_ratio'][sel]):.2f}",
             f"{int(np.sum(cols['collapses_met'][sel]))}/{int(np.sum(cols['collapses_survived'][sel]))}",
             f"{np.nanmin(cols['min_margin'][sel]) * 1000:.0f}",
+            _load_over_probe(cols, sel),
         ))
     return Summary(
         title="leg-grope walk over fragile footholds (native MuJoCo)",
         columns=("R_ref/Mg cos", "p_weak", "runs", "success", "max tilt change [deg]", "max N/R_ref outside D'",
-                 "collapses met/survived", "min margin [mm]"),
+                 "collapses met/survived", "min margin [mm]", "load / probe"),
         rows=tuple(rows),
-        notes=("other swept parameters are pooled; paper: attitude change ~2 deg when L1's foothold collapses",),
+        notes=("other swept parameters are pooled; paper: attitude change ~2 deg when L1's foothold collapses",
+               "load / probe: a groped foothold's largest later normal force / the force its grope ended with, "
+               "mean (worst) over the successful runs; > 1: loaded beyond what the grope verified"),
     )
+
+
+def _load_over_probe(cols: dict, sel: np.ndarray) -> str:
+    """'mean (worst)' of max_load_over_probe over the successful rows of `sel` ('-' if none
+    or an older table without the column)."""
+    if "max_load_over_probe" not in cols:
+        return "-"
+    v = cols["max_load_over_probe"][sel & cols["success"].astype(bool)]
+    v = v[np.isfinite(v)]
+    return f"{v.mean():.2f} ({v.max():.2f})" if v.size else "-"
 
 
 FRAGILE_WALK = Analysis(
