@@ -60,7 +60,9 @@ def qp_table(walk: gait.WalkParams, config: gait.WalkConfig) -> list[str]:
     for i, (t, s) in enumerate(SLOPES):
         bad = np.flatnonzero(~ok[i])
         k = int(grope[i, bad[0]]) if bad.size else 0
-        where = f"grope {k + 1} ({PHYSICAL[config.order[k]]}), phase {PHASES[int(phase[i, bad[0]])]}" if bad.size else "-"
+        where = "-"
+        if bad.size:
+            where = f"grope {k + 1} ({PHYSICAL[config.order[k]]}), phase {PHASES[int(phase[i, bad[0]])]}"
         lines.append(f"| {t:+.3f} | {np.degrees(s):3.0f} | {margin[i] * 1e3:+.1f} | {bad.size} | {where} | "
                      f"{static[i] * 1e3:.1f} |")
     return lines

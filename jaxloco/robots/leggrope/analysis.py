@@ -162,7 +162,9 @@ def make_batch_fn(fixed: Mapping[str, Any]):
 def summarize(table) -> Summary:
     """Critical inclination per walking direction (`results.critical_theta`): the largest
     |theta| such that every row of that psi with 0 <= theta' <= theta (or theta <=
-    theta' <= 0) is ok, the first failing |theta| and why it failed."""
+    theta' <= 0) is ok, the first failing |theta| and why it failed. Tables with the
+    `feasible` and `max_relaxation` columns add the critical |theta| with Eq. 19 hard
+    ("hard crit", + / -) and the largest relaxation used within the critical range."""
     crit = results.critical_theta(table)
     theta = results._floats(table, "theta")
     psi = results._floats(table, "psi")
@@ -187,9 +189,7 @@ def summarize(table) -> Summary:
         if hard is not None:
             row.append(f"{fmt(hard.plus[i])} / {fmt(hard.minus[i])}")
         if relaxation is not None:
-            inside = (psi == p) & (theta <= np.nan_to_num(crit.plus[i], nan=-1.0) + 1e-12) \
-                & (-theta <= np.nan_to_num(crit.minus[i], nan=-1.0) + 1e-12)
-            row.append(f"{np.max(relaxation[inside]):.3f}" if np.any(inside) else "-")
+            row.append(_relaxation_within(relaxation, psi == p, theta, crit.plus[i], crit.minus[i]))
         rows.append(tuple(row))
     swept = [n for n in table.column_names if n not in ("row", "theta", "psi", "seed")
              and (table.schema.field(n).metadata or {}).get(b"role") == b"swept"] if hasattr(table, "schema") else []
@@ -210,6 +210,15 @@ def summarize(table) -> Summary:
         rows=tuple(rows),
         notes=tuple(notes),
     )
+
+
+def _relaxation_within(relaxation: np.ndarray, rows: np.ndarray, theta: np.ndarray, plus: float,
+                       minus: float) -> str:
+    """The largest relaxation [R_ref] among `rows` with -minus <= theta <= plus (a nan
+    critical value: no row on that side), formatted; '-' if there is none."""
+    upper, lower = np.nan_to_num(plus, nan=-1.0) + 1e-12, np.nan_to_num(minus, nan=-1.0) + 1e-12
+    inside = rows & (theta <= upper) & (-theta <= lower)
+    return f"{np.max(relaxation[inside]):.3f}" if np.any(inside) else "-"
 
 
 SLOPE_CYCLE = Analysis(
