@@ -651,8 +651,7 @@ def support_arms(p, arms: ArmState, moved: Array, t_p: Array, pitch: Array) -> t
     return contacts, q_hold
 
 
-def transfer_targets(p, prepare: Array, h_est: Array, dt, backoff: Array | None = None
-                     ) -> tuple[Array, Array, Array]:
+def transfer_targets(p, prepare: Array, h_est: Array, dt, backoff: Array) -> tuple[Array, Array, Array]:
     """Where the arms transfer to, in {R} [m]: the Table 2 targets; in PREPARE the front
     arms' on the step top (z + h_est) and the rear arms' at their Table 2 *start* points,
     farther back (from the Table 2 targets the rear rollers reached the riser before the
@@ -663,8 +662,7 @@ def transfer_targets(p, prepare: Array, h_est: Array, dt, backoff: Array | None 
     front = jnp.asarray(FRONT)
     tgt = jnp.where((prepare & ~front & (p["prepare_rear_init"] > 0))[:, None], jnp.asarray(P.TABLE2_INIT, dt),
                     jnp.asarray(P.TABLE2_TARGET).astype(dt))
-    if backoff is not None:
-        tgt = tgt.at[:, 0].add(-jnp.where(front, 1.0, -1.0) * backoff)
+    tgt = tgt.at[:, 0].add(-jnp.where(front, 1.0, -1.0) * backoff)
     tgt = tgt.at[:, 2].add(jnp.where(prepare & front, h_est, 0.0))
     clear = jnp.where(front, p["clearance_front"], p["clearance_rear"])
     q_tgt, _ = kin.inverse_kinematics_all(_KP, tgt.at[:, 2].add(-p["transfer_press"]))
@@ -740,8 +738,8 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     # stopped more than delta_d below its target: hold this period, then LIFT again (A_B
     # lift_min above the boom) for a target pit_backoff nearer the body ("a new target
     # point will be selected"; the text says so for the deep pit, we do it for both: an
-    # arm in a pit holds no support)
-    # where the roller stands against its target (Cases 1-3), for the pit and for a placed arm
+    # arm in a pit holds no support). `stop`: where the roller stands against its target
+    # (Cases 1-3), for the pit and for a placed arm
     stop = cr.arm_stop_case(tips, tgt, p["delta_c"], p["delta_d"])
     in_pit = lower & contact & front & (stop == cr.STOP_IN_PIT) & (arms.backoff < p["pit_backoff_max"])
     deep = transferring & (deep | in_pit)

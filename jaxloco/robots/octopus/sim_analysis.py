@@ -48,17 +48,18 @@ PARAMS = (
     Param("yaw_jitter", 0.0, "yaw + U(-1, 1) x this, from the row's seed", "rad", lo=0.0, hi=0.5),
     Param("mu_jitter", 0.0, "mu + U(-1, 1) x this, from the row's seed (mu stays >= 0.1)", "", lo=0.0, hi=1.0),
     # CLM gains (clm.PARAM_DEFAULTS)
-    Param("T0", _CLM["T0"], "CLM: front flipper torque threshold T0 (flipper rule Cases 1-3); default ours, the paper gives none", "N m",
-          lo=1.0, hi=80.0),
+    Param("T0", _CLM["T0"], "CLM: front flipper torque threshold T0 (flipper rule Cases 1-3); default ours, the "
+          "paper gives none", "N m", lo=1.0, hi=80.0),
     Param("flip_delta_a", _CLM["flip_delta_a"], "CLM: Delta_A, front flipper step of the torque rule; default ours",
           "rad/period", lo=0.001, hi=0.1),
     Param("flip_delta_b", _CLM["flip_delta_b"], "CLM: Delta_B, front flipper step of the torque rule; default ours",
           "rad/period", lo=0.001, hi=0.1),
     Param("delta_e", _CLM["delta_e"], "CLM: Delta_E, boom step of the climb / release (the level lift moves the "
           "EPRAs Delta_E l1 per period); default ours", "rad/period", lo=0.0005, hi=0.05),
-    Param("delta_f", _CLM["delta_f"], "CLM: Delta_F, flipper step of the climb / release; default ours", "rad/period",
-          lo=0.001, hi=0.1),
-    Param("clm_speed", _CLM["clm_speed"], "CLM: crawler speed (default ours; the crawlers reach 63 mm/s, Table 3)", "m/s", lo=0.005, hi=0.063),
+    Param("delta_f", _CLM["delta_f"], "CLM: Delta_F, flipper step of the climb / release; default ours",
+          "rad/period", lo=0.001, hi=0.1),
+    Param("clm_speed", _CLM["clm_speed"], "CLM: crawler speed (default ours; the crawlers reach 63 mm/s, Table 3)",
+          "m/s", lo=0.005, hi=0.063),
     Param("climb_paper", _CLM["climb_paper"], "CLM climb: 1 = the paper's Eqs. 28-29 (booms and front flippers "
           "turn down, crawlers drive); 0 = our level lift (not the paper's method)", "", lo=0.0, hi=1.0),
     Param("flip_encoder", _CLM["flip_encoder"], "paper climb reading: 1 = A' of Eq. 29 is the flipper encoder "
