@@ -54,6 +54,27 @@ def test_normal_forces_stay_below_r_ref_outside_the_grope(walk):
     assert np.abs(np.diff(fn, axis=0)).mean() < 0.1
 
 
+def test_first_collapse_names_the_groping_leg_and_the_tilt_after_it(walk):
+    """collapsed_leg / collapse_tilt (the paper's Fig. 13 figure): in the walk whose L2
+    target is weak the collapse comes in L2's grope, and the tilt over the 0.2 s after it
+    equals the change between the records around it; the sound walk has neither."""
+    sc, r = walk
+    assert r.metrics["collapsed_leg"][0] == -1 and np.isnan(r.metrics["collapse_tilt"][0])
+    assert r.metrics["collapsed_leg"][1] == 1
+    k = int(np.argmax(np.asarray(r.records["collapsed"][1]) >= 1))
+    window = round(scenarios.COLLAPSE_WINDOW / (sc.record_every * control.GropeSettings().control_dt))
+    quat = np.asarray(r.records["quat"][1])
+
+    def z_axis(q):  # MuJoCo's own quaternion -> rotation matrix, third column
+        mat = np.zeros(9)
+        mujoco.mju_quat2Mat(mat, np.asarray(q, float))
+        return mat.reshape(3, 3)[:, 2]
+
+    expected = np.arccos(np.clip(z_axis(quat[k - 1]) @ z_axis(quat[k + window]), -1, 1))
+    assert r.metrics["collapse_tilt"][1] == pytest.approx(expected, abs=1e-9)
+    assert 0.0 < r.metrics["collapse_tilt"][1] < 0.35
+
+
 def test_load_over_probe_compares_later_loads_with_the_probed_force(walk):
     """max_load_over_probe, recomputed record by record: a leg whose grope is done (its
     place in the order L2, L1, L3, L4 before the grope counter) takes later normal
@@ -152,3 +173,26 @@ def test_summary_reports_load_over_probe_of_the_successful_runs():
     s = sim_analysis.summarize(table)
     assert s.columns[-1] == "load / probe"
     assert s.rows[0][-1] == "1.12 (1.20)" and s.rows[1][-1] == "-"
+
+
+def test_summary_groups_the_collapse_experiments_by_weak_leg():
+    """Rows with weak_leg L1 and L2 are summarized apart; the collapse tilt column is the
+    mean (worst) over the runs that met a collapse, in degrees."""
+    import pyarrow as pa
+
+    from jaxloco.robots.leggrope import sim_analysis
+
+    n = 4
+    table = pa.table({
+        "r_ref_factor": [0.5] * n, "p_weak": [0.0] * n, "weak_leg": [0, 0, 1, 1],
+        "success": [False, False, True, True], "max_load_over_probe": [1.0] * n,
+        "collapse_tilt": [np.radians(2.0), np.radians(4.0), np.radians(1.0), float("nan")],
+        "max_attitude_change": [0.05, 0.5, 0.02, 0.01], "max_normal_ratio": [0.9] * n,
+        "collapses_met": [1, 1, 1, 0], "collapses_survived": [1, 0, 1, 0], "min_margin": [0.005] * n,
+    })
+    s = sim_analysis.summarize(table)
+    col = s.columns.index("collapse tilt [deg]")
+    assert [row[2] for row in s.rows] == ["L1", "L2"]
+    assert s.rows[0][col] == "3.0 (4.0)" and s.rows[1][col] == "1.0 (1.0)"
+    assert s.rows[0][4] == "0%" and s.rows[1][4] == "100%"
+

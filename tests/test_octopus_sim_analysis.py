@@ -62,8 +62,12 @@ def test_valid_spec_expands():
 
 
 def test_jitter_is_per_seed_and_bounded():
+    """The perturbed trials' draws (`seed_jitter`, shared with the leg-grope analysis):
+    pure per key, in [-1, 1)."""
+    from jaxloco.sim.scenario import seed_jitter
+
     keys = np.array([[0, 0], [0, 1], [0, 0]], np.uint32)
-    u = sim_analysis._jitter(keys)
+    u = seed_jitter(keys, 3)
     assert u.shape == (3, 3) and (np.abs(u) <= 1.0).all()
     np.testing.assert_array_equal(u[0], u[2])
     assert not np.allclose(u[0], u[1])

@@ -228,3 +228,11 @@ def params_batch(defaults: Mapping[str, float], n: int, overrides: Mapping[str, 
         raise KeyError(f"params_batch: unknown parameters {sorted(unknown)}")
     return {k: jnp.broadcast_to(jnp.asarray(v, jnp.int32 if k in int_keys else jnp.result_type(float)), (n,))
             for k, v in {**defaults, **overrides}.items()}
+
+
+def seed_jitter(keys: Any, n: int) -> np.ndarray:
+    """(B, n) numbers uniform in [-1, 1) drawn from the rows' PRNG keys (B, 2): the
+    perturbations of a "perturbed trial" (start pose, friction, ...), one draw per key.
+    Pure: the same keys give the same numbers."""
+    keys = jnp.asarray(np.asarray(keys, np.uint32))
+    return np.asarray(jax.vmap(lambda k: jax.random.uniform(k, (n,), minval=-1.0, maxval=1.0))(keys))

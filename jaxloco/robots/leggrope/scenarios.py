@@ -45,6 +45,7 @@ N_PADS = 12
 UNBREAKABLE = 1e9  # [N]
 FELL_TILT = 0.35  # [rad] an attitude change beyond this counts as a fall
 CONTACT_FORCE = 1.0  # [N] a toe with more normal force than this is a support point
+COLLAPSE_WINDOW = 0.2  # [s] `collapse_tilt`: the attitude change over this long after a collapse
 
 PARAM_DEFAULTS: dict[str, float] = {
     "theta": float(np.pi / 12),
@@ -66,7 +67,7 @@ PARAM_DEFAULTS: dict[str, float] = {
 METRIC_NAMES = (
     "success", "completed_gropes", "max_attitude_change", "max_abs_roll", "max_abs_pitch", "max_normal_ratio",
     "grope_ratio_min", "min_margin", "collapses_met", "collapses_survived", "unexpected_collapses", "fell",
-    "cycle_time", "plan_margin", "status",
+    "cycle_time", "plan_margin", "collapsed_leg", "collapse_tilt", "status",
 )
 
 
@@ -204,6 +205,7 @@ def make_scenario(
         load_over_probe = jnp.where(jnp.any(probed), jnp.max(jnp.where(probed, per_probe, -jnp.inf)), jnp.nan)
         t_end = sm.first_time(r["phase"] >= control.DONE, jnp.arange(r["phase"].shape[0]) * (
             record_every * settings.control_dt))
+        collapsed_leg, collapse_tilt = _first_collapse(r, round(COLLAPSE_WINDOW / (record_every * settings.control_dt)))
         return {
             "success": done & ~fell & (c.status == 0),
             "completed_gropes": c.k,
@@ -220,6 +222,8 @@ def make_scenario(
             "fell": fell,
             "cycle_time": t_end,
             "plan_margin": t.margin,
+            "collapsed_leg": collapsed_leg,
+            "collapse_tilt": collapse_tilt,
             "status": jnp.where(done, 0, jnp.where(c.status > 0, c.status, 2)),
         }
 
@@ -317,6 +321,20 @@ def standing_scenario(horizon: int = 10, substeps: int = 5, record_every: int = 
         model_fields=(friction_field([geom]),),
     )
 
+
+
+def _first_collapse(r, window: int) -> tuple[jax.Array, jax.Array]:
+    """The leg (0..3 = L1..L4) that was groping when a foothold first collapsed (-1: none)
+    and the attitude change [rad] from the record before that collapse to `window` records
+    after it (the paper's Fig. 13: about 2 deg for L1; nan without a collapse)."""
+    hit = r["collapsed"] >= 1
+    any_hit = jnp.any(hit)
+    n = hit.shape[0]
+    k = jnp.argmax(hit)
+    before = r["quat"][jnp.maximum(k - 1, 0)]
+    after = r["quat"][jnp.minimum(k + window, n - 1)]
+    tilt = sm.tilt_change(after[None], before)[0]
+    return jnp.where(any_hit, r["leg"][k], -1), jnp.where(any_hit, tilt, jnp.nan)
 
 
 def _moved_legs(k):

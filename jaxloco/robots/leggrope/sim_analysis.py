@@ -19,6 +19,7 @@ import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
 from jaxloco.robots.leggrope import scenarios
+from jaxloco.sim.scenario import seed_jitter
 
 HALF_PI = 0.5 * math.pi
 
@@ -43,6 +44,10 @@ PARAMS = (
     Param("r_break_hi", 0.45, "weak footholds break at R_break ~ U(lo, hi) M g: upper end", "", lo=0.0, hi=2.0),
     Param("weak_leg", -1, "this leg's (0..3 = L1..L4) first target is weak for certain (-1: none)", "",
           kind="int", lo=-1, hi=3),
+    Param("mu_jitter", 0.0, "perturbed trials: mu + U(-1, 1) x this, from the row's seed (mu stays >= 0.05)", "",
+          lo=0.0, hi=0.5),
+    Param("theta_jitter", 0.0, "perturbed trials: theta + U(-1, 1) x this, from the row's seed", "rad",
+          lo=0.0, hi=0.1),
     Param("horizon", 30.0, "simulated time", "s", lo=1.0, hi=300.0, sweepable=False),
     Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
 )
@@ -64,10 +69,19 @@ METRICS = (
     Metric("fell", "the body tilted more than 0.35 rad from the start, or the simulation diverged", kind="bool"),
     Metric("cycle_time", "time to finish the cycle (nan if not finished)", "s"),
     Metric("plan_margin", "smallest geometric margin of the plan (primary footholds)", "m"),
+    Metric("collapsed_leg", "the leg (0..3 = L1..L4) groping when a foothold first collapsed (-1: none)",
+           kind="int"),
+    Metric("collapse_tilt", "attitude change over the 0.2 s after the first collapse (paper Fig. 13: ~2 deg; nan: "
+           "no collapse)", "rad"),
+    Metric("tilt_change", "largest change of the body's tilt from the start, in degrees (max_attitude_change)",
+           "deg"),
     Metric("t_diverged", "time the simulation diverged (nan: it did not)", "s"),
 )
 
 STATUSES = ("ok", "failed: no foothold", "failed: timeout", "diverged", "fell")
+# the jitters draw from the row's key with its low bits flipped, so that they do not
+# repeat the draws the same key makes for the terrain and the weak footholds
+JITTER_SALT = 0x5EED
 _SCENARIO_STATUS = {"ok": 0, "no_foothold": 1, "timeout": 2}
 
 
@@ -87,11 +101,15 @@ def make_batch_fn(fixed: Mapping[str, Any]):
     def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
         n = keys.shape[0]
         values = {name: np.asarray(swept[name]) if name in swept else np.full(n, fixed[name]) for name in names}
+        u = seed_jitter(np.asarray(keys, np.uint32) ^ np.uint32(JITTER_SALT), 2)  # mu, theta
+        values["mu"] = np.maximum(values["mu"] + u[:, 0] * values.pop("mu_jitter"), 0.05)
+        values["theta"] = values["theta"] + u[:, 1] * values.pop("theta_jitter")
         params = scenarios.params_batch(n, **values)
         params["key"] = np.asarray(keys, np.uint32)
         result = rollout(scenario, params, backend="native", nthread=nthread)
         out = {m.name: np.asarray(result.metrics[m.name]) for m in METRICS if m.name in result.metrics}
         out["t_diverged"] = result.t_diverged
+        out["tilt_change"] = np.degrees(out["max_attitude_change"])
         fell = np.asarray(result.metrics["fell"], bool)
         code = np.array([_SCENARIO_STATUS.get(s, 3) for s in result.status])
         code = np.where(result.diverged, 3, np.where(fell & ~result.diverged, 4, code))
@@ -103,15 +121,20 @@ def make_batch_fn(fixed: Mapping[str, Any]):
 
 
 def summarize(table) -> Summary:
-    """Success rate and the worst cases, grouped by R_ref factor and p_weak."""
+    """Success rate and the worst cases, grouped by R_ref factor, p_weak and the weak leg
+    (`weak_leg`: the collapse experiments)."""
     cols = {n: table.column(n).to_numpy(zero_copy_only=False) for n in table.column_names}
-    keys = sorted({(float(a), float(b)) for a, b in zip(cols["r_ref_factor"], cols["p_weak"])})
+    n_rows = len(cols["r_ref_factor"])
+    weak = cols.get("weak_leg", np.full(n_rows, -1))
+    keys = sorted({(float(a), float(b), int(c)) for a, b, c in zip(cols["r_ref_factor"], cols["p_weak"], weak)})
     rows = []
-    for r_ref, p_weak in keys:
-        sel = (cols["r_ref_factor"] == r_ref) & (cols["p_weak"] == p_weak)
+    for r_ref, p_weak, leg in keys:
+        sel = (cols["r_ref_factor"] == r_ref) & (cols["p_weak"] == p_weak) & (weak == leg)
         rows.append((
-            f"{r_ref:.2f}", f"{p_weak:.2f}", str(int(sel.sum())), f"{100 * np.mean(cols['success'][sel]):.0f}%",
+            f"{r_ref:.2f}", f"{p_weak:.2f}", "-" if leg < 0 else f"L{leg + 1}", str(int(sel.sum())),
+            f"{100 * np.mean(cols['success'][sel]):.0f}%",
             f"{np.degrees(np.nanmax(cols['max_attitude_change'][sel])):.1f}",
+            _mean_worst(cols, "collapse_tilt", sel, np.degrees(1.0), ".1f"),
             f"{np.nanmax(cols['max_normal_ratio'][sel]):.2f}",
             f"{int(np.sum(cols['collapses_met'][sel]))}/{int(np.sum(cols['collapses_survived'][sel]))}",
             f"{np.nanmin(cols['min_margin'][sel]) * 1000:.0f}",
@@ -119,23 +142,31 @@ def summarize(table) -> Summary:
         ))
     return Summary(
         title="leg-grope walk over fragile footholds (native MuJoCo)",
-        columns=("R_ref/Mg cos", "p_weak", "runs", "success", "max tilt change [deg]", "max N/R_ref outside D'",
-                 "collapses met/survived", "min margin [mm]", "load / probe"),
+        columns=("R_ref/Mg cos", "p_weak", "weak leg", "runs", "success", "max tilt change [deg]",
+                 "collapse tilt [deg]", "max N/R_ref outside D'", "collapses met/survived", "min margin [mm]",
+                 "load / probe"),
         rows=tuple(rows),
         notes=("other swept parameters are pooled; paper: attitude change ~2 deg when L1's foothold collapses",
+               "collapse tilt: the attitude change over the 0.2 s after the first collapse, mean (worst) over the "
+               "runs with a collapse",
                "load / probe: a groped foothold's largest later normal force / the force its grope ended with, "
                "mean (worst) over the successful runs; > 1: loaded beyond what the grope verified"),
     )
 
 
-def _load_over_probe(cols: dict, sel: np.ndarray) -> str:
-    """'mean (worst)' of max_load_over_probe over the successful rows of `sel` ('-' if none
-    or an older table without the column)."""
-    if "max_load_over_probe" not in cols:
+def _mean_worst(cols: dict, name: str, sel: np.ndarray, scale: float = 1.0, fmt: str = ".2f") -> str:
+    """'mean (worst)' of column `name` (times `scale`) over the finite values of `sel`, worst
+    = largest ('-' if none or an older table without the column)."""
+    if name not in cols:
         return "-"
-    v = cols["max_load_over_probe"][sel & cols["success"].astype(bool)]
+    v = cols[name][sel].astype(float) * scale
     v = v[np.isfinite(v)]
-    return f"{v.mean():.2f} ({v.max():.2f})" if v.size else "-"
+    return f"{v.mean():{fmt}} ({v.max():{fmt}})" if v.size else "-"
+
+
+def _load_over_probe(cols: dict, sel: np.ndarray) -> str:
+    """'mean (worst)' of max_load_over_probe over the successful rows of `sel`."""
+    return _mean_worst(cols, "max_load_over_probe", sel & cols["success"].astype(bool))
 
 
 FRAGILE_WALK = Analysis(

@@ -24,6 +24,7 @@ import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
 from jaxloco.robots.octopus import ccm, clm, operator, scenarios
+from jaxloco.sim.scenario import seed_jitter
 
 _CLM = clm.PARAM_DEFAULTS
 _SC = scenarios.PARAM_DEFAULTS
@@ -115,14 +116,6 @@ def _scenario(kind: str, controller: str, horizon: float):
     return scenarios.make_scenario(kind, ctrl, horizon_s=horizon, record_every=RECORD_EVERY)
 
 
-def _jitter(keys: np.ndarray) -> np.ndarray:
-    """(B, 3) uniform numbers in [-1, 1) from the rows' PRNG keys (distance, yaw, mu)."""
-    import jax
-
-    keys = jax.numpy.asarray(np.asarray(keys, np.uint32))
-    return np.asarray(jax.vmap(lambda k: jax.random.uniform(k, (3,), minval=-1.0, maxval=1.0))(keys))
-
-
 def make_batch_fn(fixed: Mapping[str, Any]):
     """A host batch function: numpy swept values and keys -> metrics (native or MJX backend)."""
     from jaxloco.sim.rollout import rollout
@@ -135,7 +128,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
     def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
         n = keys.shape[0]
         values = {name: np.asarray(swept[name]) if name in swept else np.full(n, fixed[name]) for name in names}
-        u = _jitter(keys)
+        u = seed_jitter(keys, 3)  # distance, yaw, mu
         values["distance"] = values["distance"] + u[:, 0] * values.pop("distance_jitter")
         values["yaw"] = values["yaw"] + u[:, 1] * values.pop("yaw_jitter")
         values["mu"] = np.maximum(values["mu"] + u[:, 2] * values.pop("mu_jitter"), 0.1)
