@@ -18,11 +18,14 @@ THETA = float(np.pi / 12)
 
 @pytest.fixture(scope="module")
 def walk():
-    """Two 9 s walks on the pi/12 slope: sound footholds, and L2's first target weak
-    (L2 gropes first, so its foothold collapses during the first grope)."""
+    """Three 9 s walks on the pi/12 slope: sound footholds; L2's first target weak (L2
+    gropes first, so its foothold collapses during the first grope); L2's first target
+    just under R_ref (0.482-0.483 M g against R_ref = 0.4830 M g), which the grope, ending
+    at a filtered 0.95 R_ref, accepts."""
     sc = scenarios.make_scenario(horizon_s=9.0, record_every=5)
-    p = scenarios.params_batch(2, theta=THETA, weak_leg=np.array([-1, 1]))
-    return sc, rollout(sc, p, seeds=[0, 0])
+    p = scenarios.params_batch(3, theta=THETA, weak_leg=np.array([-1, 1, 1]),
+                               r_break_lo=np.array([0.35, 0.35, 0.482]), r_break_hi=np.array([0.45, 0.45, 0.483]))
+    return sc, rollout(sc, p, seeds=[0, 0, 0])
 
 
 def test_toe_force_sensors_carry_the_weight(walk):
@@ -73,6 +76,22 @@ def test_first_collapse_names_the_groping_leg_and_the_tilt_after_it(walk):
     expected = np.arccos(np.clip(z_axis(quat[k - 1]) @ z_axis(quat[k + window]), -1, 1))
     assert r.metrics["collapse_tilt"][1] == pytest.approx(expected, abs=1e-9)
     assert 0.0 < r.metrics["collapse_tilt"][1] < 0.35
+
+
+def test_probe_outcomes_count_weak_footholds_the_grope_accepted(walk):
+    """weak_accepted / late_collapses: the sound walk and the walk whose weak foothold broke
+    in its grope have neither; the foothold just under R_ref passes its grope (which stops
+    at 0.95 R_ref), so the walk stands on a foothold weaker than R_ref; if it breaks later
+    that is a late collapse, and the counts agree with the collapse record."""
+    _, r = walk
+    assert r.metrics["weak_accepted"][0] == 0 and r.metrics["late_collapses"][0] == 0
+    assert r.metrics["collapses_met"][1] >= 1 and r.metrics["late_collapses"][1] == 0
+    assert r.metrics["weak_accepted"][1] == 0
+    assert r.metrics["completed_gropes"][2] >= 1
+    late, accepted = int(r.metrics["late_collapses"][2]), int(r.metrics["weak_accepted"][2])
+    assert late + accepted == 1  # the L2 foothold: accepted, and still standing or broken later
+    assert late == int(np.asarray(r.records["collapsed"][2])[-1] >= 1)
+    assert r.metrics["collapses_met"][2] == 0  # the grope itself did not see it break
 
 
 def test_load_over_probe_compares_later_loads_with_the_probed_force(walk):
@@ -169,10 +188,13 @@ def test_summary_reports_load_over_probe_of_the_successful_runs():
         "max_load_over_probe": [1.05, 1.20, 3.0, 1.10, 0.9, float("nan")],  # row 2 failed: not counted
         "max_attitude_change": [0.01] * n, "max_normal_ratio": [0.9] * n, "collapses_met": [0] * n,
         "collapses_survived": [0] * n, "min_margin": [0.005] * n,
+        "late_collapses": [1, 0, 2, 0, 0, 0], "weak_accepted": [0, 1, 0, 1, 0, 0],
     })
     s = sim_analysis.summarize(table)
-    assert s.columns[-1] == "load / probe"
-    assert s.rows[0][-1] == "1.12 (1.20)" and s.rows[1][-1] == "-"
+    col = s.columns.index("load / probe")
+    assert s.rows[0][col] == "1.12 (1.20)" and s.rows[1][col] == "-"
+    assert s.columns[-1] == "late / weak accepted"
+    assert s.rows[0][-1] == "3 / 2" and s.rows[1][-1] == "0 / 0"  # every row of the group, failed ones too
 
 
 def test_summary_groups_the_collapse_experiments_by_weak_leg():

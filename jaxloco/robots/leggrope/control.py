@@ -137,6 +137,7 @@ class GropeState:
     collapses: Array  # collapses met
     status: Array  # index into STATUSES
     grope_force: Array  # (4,) normal force reached at the end of each leg's D'-2 [N]
+    grope_time: Array  # (4,) when each leg's D'-2 ended [s] (inf: not yet)
     force: Array  # (4, 3) low-pass filtered toe forces (world) [N]
     targets: WalkTargets = field(default=None)
 
@@ -226,7 +227,7 @@ def make_controller(settings: GropeSettings = GropeSettings()):
         i0 = jnp.zeros((), jnp.int32)
         return GropeState(k=i0, phase=i0, tau=z, cand=i0, bits=i0, body_from=t.body0, body_cmd=t.body0,
                           toe_from=toes[ORDER[0]], toe_cmd=toes, f_peak=z, collapses=i0, status=i0,
-                          grope_force=jnp.zeros(4, dtype), force=jnp.asarray(obs["foot_force"], dtype), targets=t)
+                          grope_force=jnp.zeros(4, dtype), grope_time=jnp.full(4, jnp.inf, dtype), force=jnp.asarray(obs["foot_force"], dtype), targets=t)
 
     def step(p, s: GropeState, obs):
         robot = robot_params(p)
@@ -302,6 +303,7 @@ def make_controller(settings: GropeSettings = GropeSettings()):
         toe_cmd = s.toe_cmd.at[g].set(jnp.where(grope_done, target, toe_g))
         next_g = order[jnp.minimum(k, 3)]
         grope_force = jnp.where(grope_done, s.grope_force.at[g].set(f_n), s.grope_force)
+        grope_time = jnp.where(grope_done, s.grope_time.at[g].set(obs["time"]), s.grope_time)
         new = GropeState(
             k=k,
             phase=nxt,
@@ -316,6 +318,7 @@ def make_controller(settings: GropeSettings = GropeSettings()):
             collapses=s.collapses + collapsed.astype(s.collapses.dtype),
             status=status,
             grope_force=grope_force,
+            grope_time=grope_time.astype(s.grope_time.dtype),
             force=force,
             targets=t,
         )

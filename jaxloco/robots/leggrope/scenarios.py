@@ -67,7 +67,7 @@ PARAM_DEFAULTS: dict[str, float] = {
 METRIC_NAMES = (
     "success", "completed_gropes", "max_attitude_change", "max_abs_roll", "max_abs_pitch", "max_normal_ratio",
     "grope_ratio_min", "min_margin", "collapses_met", "collapses_survived", "unexpected_collapses", "fell",
-    "cycle_time", "plan_margin", "collapsed_leg", "collapse_tilt", "status",
+    "cycle_time", "plan_margin", "collapsed_leg", "collapse_tilt", "late_collapses", "weak_accepted", "status",
 )
 
 
@@ -206,6 +206,7 @@ def make_scenario(
         t_end = sm.first_time(r["phase"] >= control.DONE, jnp.arange(r["phase"].shape[0]) * (
             record_every * settings.control_dt))
         collapsed_leg, collapse_tilt = _first_collapse(r, round(COLLAPSE_WINDOW / (record_every * settings.control_dt)))
+        late, weak_accepted = _probe_outcomes(c, e)
         return {
             "success": done & ~fell & (c.status == 0),
             "completed_gropes": c.k,
@@ -224,6 +225,8 @@ def make_scenario(
             "plan_margin": t.margin,
             "collapsed_leg": collapsed_leg,
             "collapse_tilt": collapse_tilt,
+            "late_collapses": late,
+            "weak_accepted": weak_accepted,
             "status": jnp.where(done, 0, jnp.where(c.status > 0, c.status, 2)),
         }
 
@@ -335,6 +338,22 @@ def _first_collapse(r, window: int) -> tuple[jax.Array, jax.Array]:
     after = r["quat"][jnp.minimum(k + window, n - 1)]
     tilt = sm.tilt_change(after[None], before)[0]
     return jnp.where(any_hit, r["leg"][k], -1), jnp.where(any_hit, tilt, jnp.nan)
+
+
+def _probe_outcomes(c: control.GropeState, e) -> tuple[jax.Array, jax.Array]:
+    """How well the gropes verified the footholds the walk stands on. Each leg's groped
+    foothold is its fallback pad (8 + leg) if it moved there, else its primary (4 + leg).
+    late: groped footholds that collapsed once their grope had accepted them (in the
+    period it ended, or later), under a load the grope did not verify (the method's
+    premise says never); weak_accepted: groped footholds weaker than R_ref (R_break <
+    R_ref) that their grope accepted and that still stand."""
+    legs = jnp.arange(4)
+    t_done = c.grope_time  # (4,) when each leg's grope ended (inf: not yet)
+    pad = jnp.where((c.bits >> legs) & 1, 8 + legs, 4 + legs)
+    t_col = e["t_collapse"][pad]
+    late = jnp.sum(jnp.isfinite(t_col) & (t_col >= t_done))
+    accepted = jnp.isfinite(t_done) & ~e["collapsed"][pad]
+    return late, jnp.sum(accepted & (e["r_break"][pad] < c.targets.r_ref))
 
 
 def _moved_legs(k):

@@ -73,6 +73,10 @@ METRICS = (
            kind="int"),
     Metric("collapse_tilt", "attitude change over the 0.2 s after the first collapse (paper Fig. 13: ~2 deg; nan: "
            "no collapse)", "rad"),
+    Metric("late_collapses", "groped footholds that collapsed once their grope had accepted them, under a load it "
+           "did not verify (the method's premise: never)", kind="int"),
+    Metric("weak_accepted", "groped footholds weaker than R_ref that their grope accepted and that still stand",
+           kind="int"),
     Metric("tilt_change", "largest change of the body's tilt from the start, in degrees (max_attitude_change)",
            "deg"),
     Metric("t_diverged", "time the simulation diverged (nan: it did not)", "s"),
@@ -139,19 +143,29 @@ def summarize(table) -> Summary:
             f"{int(np.sum(cols['collapses_met'][sel]))}/{int(np.sum(cols['collapses_survived'][sel]))}",
             f"{np.nanmin(cols['min_margin'][sel]) * 1000:.0f}",
             _load_over_probe(cols, sel),
+            _sum_pair(cols, "late_collapses", "weak_accepted", sel),
         ))
     return Summary(
         title="leg-grope walk over fragile footholds (native MuJoCo)",
         columns=("R_ref/Mg cos", "p_weak", "weak leg", "runs", "success", "max tilt change [deg]",
                  "collapse tilt [deg]", "max N/R_ref outside D'", "collapses met/survived", "min margin [mm]",
-                 "load / probe"),
+                 "load / probe", "late / weak accepted"),
         rows=tuple(rows),
         notes=("other swept parameters are pooled; paper: attitude change ~2 deg when L1's foothold collapses",
                "collapse tilt: the attitude change over the 0.2 s after the first collapse, mean (worst) over the "
                "runs with a collapse",
                "load / probe: a groped foothold's largest later normal force / the force its grope ended with, "
-               "mean (worst) over the successful runs; > 1: loaded beyond what the grope verified"),
+               "mean (worst) over the successful runs; > 1: loaded beyond what the grope verified",
+               "late / weak accepted: groped footholds that collapsed after their grope accepted them / weaker than "
+               "R_ref and accepted, summed over the runs (the method's premise: 0 / 0)"),
     )
+
+
+def _sum_pair(cols: dict, a: str, b: str, sel: np.ndarray) -> str:
+    """'sum(a) / sum(b)' over `sel` ('-' for an older table without the columns)."""
+    if a not in cols or b not in cols:
+        return "-"
+    return f"{int(np.sum(cols[a][sel]))} / {int(np.sum(cols[b][sel]))}"
 
 
 def _mean_worst(cols: dict, name: str, sel: np.ndarray, scale: float = 1.0, fmt: str = ".2f") -> str:
