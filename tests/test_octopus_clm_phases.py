@@ -35,7 +35,7 @@ def _no_transfer(arms: clm.ArmState, just_placed=(False,) * 4) -> clm.Transfer:
     """A transfer period in which nothing moves (optionally some arm just placed)."""
     return clm.Transfer(cmd=arms.q_cmd, arm_phase=arms.arm_phase, transferring=jnp.zeros(4, bool),
                         just_placed=jnp.asarray(just_placed), contacts=arms.contacts, stop_case=arms.stop_case,
-                        on_step=arms.on_step, lift=arms.lift_to, hit_n=arms.hit_n,
+                        on_step=arms.on_step, lift=arms.lift_to, lift_from=arms.lift_from, hit_n=arms.hit_n,
                         deep=jnp.zeros(4, bool), backoff=arms.backoff)
 
 
@@ -214,3 +214,37 @@ def test_release_and_carry(p):
     up = q.at[:, 1].set(float(p["lift_boom_front"]))
     q_d = clm.carry_step(p, up)
     np.testing.assert_allclose(q_d[:, 2], up[:, 2] + np.clip(float(p["carry_elbow"]) - up[:, 2], -db, db))
+
+
+@pytest.mark.parametrize("phase", [cr.LIFT, cr.SWING, cr.OVER])
+def test_collision_stops_a_transfer_in_lift_swing_and_over(p, phase):
+    """Figs. 19-20: a boom torque beyond collision_torque while the boom stands still, for
+    collision_periods periods in a row, stops the transferring arm where it is (PLACED,
+    command held, its contact at its EPRA) in LIFT, SWING and OVER alike. In LIFT the
+    signal counts only once the boom has risen collision_lift from where the lift began:
+    an arm that starts on the ground presses it first (no obstacle)."""
+    arm = 3  # RR
+    s = clm.clm_init(p, _obs())
+    obs = _obs()
+    q = obs["arm_q"].reshape(4, 3)
+    risen = q.at[arm, 1].add(-2.0 * float(p["collision_lift"]))  # boom turned up past collision_lift
+    tau = jnp.zeros((4, 3)).at[arm, 1].set(2.0 * float(p["collision_torque"]))
+    arms = s.arms._replace(arm_phase=s.arms.arm_phase.at[arm].set(phase), active=jnp.asarray(arm, jnp.int32),
+                           q_cmd=risen, q_cmd2=risen, q_prev=risen, lift_from=q[:, 1])
+    sense = clm.measure({**obs, "arm_q": risen.reshape(-1), "arm_tau": tau.reshape(-1)})
+    no = jnp.asarray(False)
+    n = int(p["collision_periods"])
+    for k in range(n):
+        tr = clm.arm_transfer(p, arms, arms.contacts, sense, no, jnp.asarray(0.0))
+        stopped = int(tr.arm_phase[arm]) == cr.PLACED
+        assert stopped == (k == n - 1), (k, int(tr.arm_phase[arm]))
+        arms = arms._replace(hit_n=tr.hit_n)
+    np.testing.assert_allclose(tr.cmd[arm], risen[arm])
+    np.testing.assert_allclose(tr.contacts[arm], sense.tips[arm], atol=1e-12)
+    if phase == cr.LIFT:  # the same torque before the boom has risen: no collision
+        arms = arms._replace(hit_n=jnp.zeros(4, jnp.int32), q_cmd=q, q_cmd2=q, q_prev=q)
+        grounded = clm.measure({**obs, "arm_tau": tau.reshape(-1)})
+        for _ in range(n + 2):
+            tr = clm.arm_transfer(p, arms, arms.contacts, grounded, no, jnp.asarray(0.0))
+            assert int(tr.arm_phase[arm]) != cr.PLACED and int(tr.hit_n[arm]) == 0
+            arms = arms._replace(hit_n=tr.hit_n)

@@ -198,6 +198,7 @@ PARAM_DEFAULTS: dict[str, float] = {
     # collision_periods = collision in LIFT, SWING, OVER (`python benchmarks/octopus_collision_torque.py`)
     "collision_still": 0.005,  # [rad] ... the joint moved less than this in a period
     "collision_periods": 2.0,  # periods in a row
+    "collision_lift": 0.05,  # [rad] ... in LIFT once the boom has risen this much (default (ours))
     # arm stop Case 3, a deep pit (no ground at the boom's limit): a new target this much nearer the
     # body, at most pit_backoff_max in all; the crawlers stop (the operator's call)
     "pit_backoff": 0.15,  # [m] default (ours)
@@ -380,6 +381,7 @@ class ArmState(NamedTuple):
     q_cmd: Array  # (4, 3) [rad] the last arm commands (theta' of the rules)
     q_cmd2: Array  # (4, 3) [rad] the arm commands of the period before
     lift_to: Array  # (4,) [rad] the boom angle the current LIFT aims at (A_B)
+    lift_from: Array  # (4,) [rad] the boom command when the current LIFT began
     tau_prev: Array  # (4, 3) [N m] the arm joint torques of the last period (collision signal)
     q_prev: Array  # (4, 3) [rad] the arm joint encoders of the last period
     backoff: Array  # (4,) [m] each arm's target moved toward the body after deep pits (Case 3)
@@ -474,6 +476,7 @@ class Transfer(NamedTuple):
     stop_case: Array  # (4,) where each arm's last transfer stopped
     on_step: Array  # (4,) bool: front arms stopped on an obstacle
     lift: Array  # (4,) [rad] A_B of the LIFT (boom angle)
+    lift_from: Array  # (4,) [rad] the boom command when the LIFT began (a pit's new LIFT: now)
     hit_n: Array  # (4,) int32: the collision counter (`ArmState.hit_n`)
     deep: Array  # (4,) bool: a pit at the arm's target (Case 3): its LOWER reached the boom limit without
     # contact, or (front arms) it stopped delta_d below the target; the arm lifts again for a nearer one
@@ -548,6 +551,7 @@ def clm_init(p, obs) -> ClmState:
         q_cmd=q,
         q_cmd2=q,
         lift_to=q[:, 1],
+        lift_from=q[:, 1],
         tau_prev=sense.tau,
         q_prev=q,
         backoff=jnp.zeros((4,), dt),
@@ -725,11 +729,15 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     # less than collision_still since the last period), collision_periods periods in a
     # row: the arm is held by something. (The torque alone is no signal: the position
     # servos reach 167 N m in free air when OVER commands fast steps, but the joint is
-    # moving then; an arm that leaves the ground under load starts LIFT above the
-    # threshold, falling within a period.) In LOWER the contact signal above
+    # moving then.) In LOWER the contact signal above
     still = jnp.abs(sense.q[:, 1:] - arms.q_prev[:, 1:]) < p["collision_still"]
-    over = transferring & (arm_phase < cr.LOWER) & jnp.any((jnp.abs(tau[:, 1:]) > p["collision_torque"]) & still,
-                                                          axis=-1)
+    # In LIFT only once the boom has risen collision_lift [rad] from where the lift
+    # began: an arm starting on the ground first presses it (the elbow turns by Delta_B
+    # while the loaded boom has barely moved), which is no obstacle; without this the
+    # rear arm in PREPARE "collided" in its first 0.1 s and was never moved
+    grounded = (arm_phase == cr.LIFT) & (sense.q[:, 1] > arms.lift_from - p["collision_lift"])
+    over = transferring & (arm_phase < cr.LOWER) & ~grounded & jnp.any(
+        (jnp.abs(tau[:, 1:]) > p["collision_torque"]) & still, axis=-1)
     hit_n = jnp.where(over, arms.hit_n + 1, 0)
     collided = hit_n >= p["collision_periods"]
     tr_cmd = jnp.where(collided[:, None], arms.q_cmd, tr_cmd)
@@ -757,6 +765,7 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
         stop_case=jnp.where(just_placed, stop, arms.stop_case),
         on_step=jnp.where(just_placed, front & (stop == cr.STOP_ON_OBSTACLE), arms.on_step),
         lift=lift,
+        lift_from=jnp.where(deep, arms.q_cmd[:, 1], arms.lift_from),
         hit_n=hit_n,
         deep=deep,
         backoff=arms.backoff + jnp.where(deep, p["pit_backoff"], 0.0),
@@ -817,6 +826,7 @@ def gait_sequence(p, arms: ArmState, tr: Transfer, ph: Phases, confirmed: Array,
         stop_case=tr.stop_case,
         on_step=on_step,
         lift_to=jnp.where(starting, arms.q_cmd[:, 1] - p["lift_min"], tr.lift),
+        lift_from=jnp.where(starting, arms.q_cmd[:, 1], tr.lift_from),
     )
 
 
@@ -1115,6 +1125,7 @@ def clm_step(p, s: ClmState, obs, control_dt: float = CONTROL_DT) -> tuple[ClmSt
             q_cmd=q_cmd,
             q_cmd2=s.arms.q_cmd,
             lift_to=arms.lift_to.astype(dt),
+            lift_from=arms.lift_from.astype(dt),
             tau_prev=sense.tau,
             q_prev=sense.q,
             backoff=tr.backoff.astype(dt),
