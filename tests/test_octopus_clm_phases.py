@@ -248,3 +248,27 @@ def test_collision_stops_a_transfer_in_lift_swing_and_over(p, phase):
             tr = clm.arm_transfer(p, arms, arms.contacts, grounded, no, jnp.asarray(0.0))
             assert int(tr.arm_phase[arm]) != cr.PLACED and int(tr.hit_n[arm]) == 0
             arms = arms._replace(hit_n=tr.hit_n)
+
+
+def test_a_front_arm_stopped_high_but_short_of_its_target_is_on_the_step(p):
+    """A front arm whose transfer ends 0.2 m above its target and 0.17 m short of it along x
+    (it met a 200 mm step top near the edge: stop case BLOCKED, |dx| > delta_c) marks the
+    step (dz > delta_d), as one that reaches its target height does not."""
+    arm = 1  # RF
+    s = clm.clm_init(p, _obs())
+    obs = _obs()
+    target = jnp.asarray(P.TABLE2_TARGET[arm])
+    for dz, on_step in ((0.2, True), (0.0, False)):
+        tip = target + jnp.array([-0.17, 0.0, dz])
+        q_all, _ = kin.inverse_kinematics_all(KP, jnp.asarray(P.TABLE2_TARGET).at[arm].set(tip))
+        q = jnp.asarray(obs["arm_q"]).reshape(4, 3).at[arm].set(q_all[arm])
+        tau = jnp.zeros((4, 3)).at[arm, 1].set(2.0 * float(p["collision_torque"]))
+        arms = s.arms._replace(arm_phase=s.arms.arm_phase.at[arm].set(cr.OVER), active=jnp.asarray(arm, jnp.int32),
+                               q_cmd=q, q_cmd2=q, q_prev=q, hit_n=s.arms.hit_n.at[arm].set(
+                                   int(p["collision_periods"]) - 1))
+        sense = clm.measure({**obs, "arm_q": q.reshape(-1), "arm_tau": tau.reshape(-1)})
+        tr = clm.arm_transfer(p, arms, arms.contacts, sense, jnp.asarray(False), jnp.asarray(0.0))
+        assert bool(tr.just_placed[arm])
+        np.testing.assert_allclose(sense.tips[arm], tip, atol=1e-6)
+        assert int(tr.stop_case[arm]) == cr.STOP_BLOCKED
+        assert bool(tr.on_step[arm]) == on_step

@@ -41,7 +41,8 @@ Robot phases (`PHASE_NAMES`; Fig. 9 a-h and the phases A-F of Fig. 14):
     `CRAWL_ORDER` (RR, RF, LR, LF) with `gait_pause` between transfers: at least three
     arms support the robot at any time (while any arm is IDLE the crawlers wait). Where a
     transfer stopped is classified by `arm_stop_case` (delta_c, delta_d).
-    Step detection: a front arm stops on an obstacle (STOP_ON_OBSTACLE, dz > delta_d) ->
+    Step detection: a front arm stops above its target (dz > delta_d: STOP_ON_OBSTACLE, or
+    STOP_BLOCKED short of the target on a step top near the edge) ->
     the other front arm transfers next (the rear arms wait, Fig. 14 C); both front arms
     on it and H_EST (Eq. 9, `explore_terrain` on the contact points) > sigma1 -> the step
     is confirmed, the gait stops and the crawlers drive on until a front flipper touches
@@ -763,7 +764,10 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
         just_placed=just_placed,
         contacts=jnp.where(just_placed[:, None], tips, contacts),
         stop_case=jnp.where(just_placed, stop, arms.stop_case),
-        on_step=jnp.where(just_placed, front & (stop == cr.STOP_ON_OBSTACLE), arms.on_step),
+        # on the step: the roller stopped more than delta_d above its target, whether or not
+        # it also stopped short of it along x (STOP_BLOCKED: a front arm that lands on a
+        # 200 mm step top short of its target, near the edge, is on the step too)
+        on_step=jnp.where(just_placed, front & (tips[:, 2] - tgt[:, 2] > p["delta_d"]), arms.on_step),
         lift=lift,
         lift_from=jnp.where(deep, arms.q_cmd[:, 1], arms.lift_from),
         hit_n=hit_n,
