@@ -30,6 +30,7 @@ def main(trials: int = 5) -> None:
     from jaxloco import runtime
 
     runtime.configure(x64=True, cache_dir=True)
+    from jaxloco.analysis import mean_worst
     from jaxloco.robots.leggrope import sim_analysis
 
     fixed = {p.name: p.default for p in sim_analysis.PARAMS}
@@ -52,12 +53,12 @@ def main(trials: int = 5) -> None:
         ok = np.asarray(m["success"][sel], bool)
         print(" | ".join((
             name, paper, f"{ok.sum()}/{trials}" + _failures(m["status"][sel], sim_analysis.STATUSES),
-            _mw(m["cycle_time"][sel], worst=np.nanmax),
-            _mw(np.degrees(m["max_attitude_change"][sel]), worst=np.nanmax),
-            _mw(np.degrees(m["collapse_tilt"][sel]), worst=np.nanmax),
-            _mw(m["max_normal_ratio"][sel], worst=np.nanmax, fmt=".2f"),
-            _mw(m["grope_ratio_min"][sel][ok], worst=np.nanmin, fmt=".2f"),
-            _mw(m["max_load_over_probe"][sel][ok], worst=np.nanmax, fmt=".2f"),
+            mean_worst(m["cycle_time"][sel], "max", 1),
+            mean_worst(np.degrees(m["max_attitude_change"][sel]), "max", 1),
+            mean_worst(np.degrees(m["collapse_tilt"][sel]), "max", 1),
+            mean_worst(m["max_normal_ratio"][sel]),
+            mean_worst(m["grope_ratio_min"][sel][ok], "min"),
+            mean_worst(m["max_load_over_probe"][sel][ok]),
         )))
 
 
@@ -66,13 +67,6 @@ def _failures(codes: np.ndarray, names: tuple[str, ...]) -> str:
     codes = np.asarray(codes)
     parts = [f"{names[c]} {int((codes == c).sum())}" for c in sorted(set(codes.tolist())) if c != 0]
     return f" ({', '.join(parts)})" if parts else ""
-
-
-def _mw(x: np.ndarray, worst=np.nanmax, fmt: str = ".1f") -> str:
-    """'mean (worst)' over the finite values ('-' if none)."""
-    x = np.asarray(x, float)
-    x = x[np.isfinite(x)]
-    return f"{x.mean():{fmt}} ({worst(x):{fmt}})" if x.size else "-"
 
 
 if __name__ == "__main__":

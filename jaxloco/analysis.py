@@ -144,6 +144,19 @@ class Summary:
     notes: tuple[str, ...] = ()
 
 
+def mean_worst(values: Any, worst: Literal["max", "min"] = "max", digits: int = 2) -> str:
+    """A summary cell 'mean (worst)' over the finite values (worst: the largest or the
+    smallest); '-' if there is none."""
+    import numpy as np
+
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return "-"
+    w = v.max() if worst == "max" else v.min()
+    return f"{v.mean():.{digits}f} ({w:.{digits}f})"
+
+
 @dataclass(frozen=True)
 class Analysis:
     name: str

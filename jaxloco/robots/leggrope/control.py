@@ -227,7 +227,8 @@ def make_controller(settings: GropeSettings = GropeSettings()):
         i0 = jnp.zeros((), jnp.int32)
         return GropeState(k=i0, phase=i0, tau=z, cand=i0, bits=i0, body_from=t.body0, body_cmd=t.body0,
                           toe_from=toes[ORDER[0]], toe_cmd=toes, f_peak=z, collapses=i0, status=i0,
-                          grope_force=jnp.zeros(4, dtype), grope_time=jnp.full(4, jnp.inf, dtype), force=jnp.asarray(obs["foot_force"], dtype), targets=t)
+                          grope_force=jnp.zeros(4, dtype), grope_time=jnp.full(4, jnp.inf, dtype),
+                          force=jnp.asarray(obs["foot_force"], dtype), targets=t)
 
     def step(p, s: GropeState, obs):
         robot = robot_params(p)

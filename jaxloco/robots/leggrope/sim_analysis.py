@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Param, Summary
+from jaxloco.analysis import Analysis, Metric, Param, Summary, mean_worst
 from jaxloco.robots.leggrope import scenarios
 from jaxloco.sim.scenario import seed_jitter
 
@@ -138,7 +138,7 @@ def summarize(table) -> Summary:
             f"{r_ref:.2f}", f"{p_weak:.2f}", "-" if leg < 0 else f"L{leg + 1}", str(int(sel.sum())),
             f"{100 * np.mean(cols['success'][sel]):.0f}%",
             f"{np.degrees(np.nanmax(cols['max_attitude_change'][sel])):.1f}",
-            _mean_worst(cols, "collapse_tilt", sel, np.degrees(1.0), ".1f"),
+            _mean_worst(cols, "collapse_tilt", sel, np.degrees(1.0), 1),
             f"{np.nanmax(cols['max_normal_ratio'][sel]):.2f}",
             f"{int(np.sum(cols['collapses_met'][sel]))}/{int(np.sum(cols['collapses_survived'][sel]))}",
             f"{np.nanmin(cols['min_margin'][sel]) * 1000:.0f}",
@@ -168,14 +168,10 @@ def _sum_pair(cols: dict, a: str, b: str, sel: np.ndarray) -> str:
     return f"{int(np.sum(cols[a][sel]))} / {int(np.sum(cols[b][sel]))}"
 
 
-def _mean_worst(cols: dict, name: str, sel: np.ndarray, scale: float = 1.0, fmt: str = ".2f") -> str:
-    """'mean (worst)' of column `name` (times `scale`) over the finite values of `sel`, worst
-    = largest ('-' if none or an older table without the column)."""
-    if name not in cols:
-        return "-"
-    v = cols[name][sel].astype(float) * scale
-    v = v[np.isfinite(v)]
-    return f"{v.mean():{fmt}} ({v.max():{fmt}})" if v.size else "-"
+def _mean_worst(cols: dict, name: str, sel: np.ndarray, scale: float = 1.0, digits: int = 2) -> str:
+    """`mean_worst` of column `name` (times `scale`) over `sel`, worst = largest ('-' for an
+    older table without the column)."""
+    return mean_worst(cols[name][sel].astype(float) * scale, "max", digits) if name in cols else "-"
 
 
 def _load_over_probe(cols: dict, sel: np.ndarray) -> str:

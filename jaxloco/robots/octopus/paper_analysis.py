@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxloco.analysis import Analysis, Param, Summary
+from jaxloco.analysis import Analysis, Param, Summary, mean_worst
 from jaxloco.robots.octopus import sim_analysis as sa
 
 
@@ -128,14 +128,6 @@ def make_batch_fn(fixed: Mapping[str, Any]):
     return batch
 
 
-def _cell(values: np.ndarray, worst: str, digits: int = 2) -> str:
-    v = values[np.isfinite(values)]
-    if not v.size:
-        return "-"
-    w = v.max() if worst == "max" else v.min()
-    return f"{v.mean():.{digits}f} ({w:.{digits}f})"
-
-
 def _failures(status: np.ndarray) -> str:
     """'2 tipped, 1 stuck' from the runs' statuses ("failed" = never on the top)."""
     names = {"tipped": "tipped", "failed": "stuck", "diverged": "diverged"}
@@ -164,9 +156,9 @@ def summarize(table) -> Summary:
         rows.append((
             task,
             f"{int(ok.sum())}/{int(sel.sum())} / {_paper(task, 'success')}",
-            f"{_cell(cols['max_pitch'][sel], 'max')} / {_paper(task, 'max_pitch')}",
-            f"{_cell(np.abs(cols['max_abs_roll'][sel]), 'max')} / {_paper(task, 'max_abs_roll')}",
-            f"{_cell(cols['min_margin'][sel], 'min', 3)} / {_paper(task, 'min_margin')}",
+            f"{mean_worst(cols['max_pitch'][sel], 'max')} / {_paper(task, 'max_pitch')}",
+            f"{mean_worst(np.abs(cols['max_abs_roll'][sel]), 'max')} / {_paper(task, 'max_abs_roll')}",
+            f"{mean_worst(cols['min_margin'][sel], 'min', 3)} / {_paper(task, 'min_margin')}",
             f"{np.nanmean(t_ok):.0f}" if t_ok.size else "-",
             _failures(status[sel]),
         ))
