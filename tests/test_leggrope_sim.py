@@ -7,7 +7,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from jaxloco.robots.leggrope import control, model, scenarios
+from jaxloco.robots.leggrope import control, gait, model, scenarios
 from jaxloco.robots.leggrope.params import G, default_params
 from jaxloco.sim.rollout import rollout
 from jaxloco.sweep import run as run_sweep
@@ -18,12 +18,12 @@ THETA = float(np.pi / 12)
 
 @pytest.fixture(scope="module")
 def walk():
-    """Three 9 s walks on the pi/12 slope: sound footholds; L2's first target weak (L2
-    gropes first, so its foothold collapses during the first grope); L2's first target
-    just under R_ref (0.482-0.483 M g against R_ref = 0.4830 M g), which the grope, ending
-    at a filtered 0.95 R_ref, accepts."""
+    """Three 9 s walks (the default forward crawl) on the pi/12 slope: sound footholds;
+    L2's first target weak (L2 gropes first, so its foothold collapses during the first
+    grope); L2's first target just under R_ref (0.482-0.483 M g against R_ref = 0.4830
+    M g), with the walk set to stop at a collapse as in the paper's experiment."""
     sc = scenarios.make_scenario(horizon_s=9.0, record_every=5)
-    p = scenarios.params_batch(3, theta=THETA, weak_leg=np.array([-1, 1, 1]),
+    p = scenarios.params_batch(3, theta=THETA, weak_leg=np.array([-1, 1, 1]), regrope=np.array([1, 1, 0]),
                                r_break_lo=np.array([0.35, 0.35, 0.482]), r_break_hi=np.array([0.45, 0.45, 0.483]))
     return sc, rollout(sc, p, seeds=[0, 0, 0])
 
@@ -78,20 +78,20 @@ def test_first_collapse_names_the_groping_leg_and_the_tilt_after_it(walk):
     assert 0.0 < r.metrics["collapse_tilt"][1] < 0.35
 
 
-def test_probe_outcomes_count_weak_footholds_the_grope_accepted(walk):
-    """weak_accepted / late_collapses: the sound walk and the walk whose weak foothold broke
-    in its grope have neither; the foothold just under R_ref passes its grope (which stops
-    at 0.95 R_ref), so the walk stands on a foothold weaker than R_ref; if it breaks later
-    that is a late collapse, and the counts agree with the collapse record."""
+def test_grope_breaks_a_foothold_just_under_r_ref_and_the_walk_stops(walk):
+    """Issue 18, the method's premise: the grope ends over R_ref (1.01 R_ref, the design's
+    overshoot), so a foothold only 0.1-0.3 % weaker than R_ref breaks in its grope, not
+    later under an unprobed load; no walk accepts a weak foothold; with regrope = 0 the
+    walk stops there (paper: "the robot stops walking after the detection of the foothold
+    collapse") without falling."""
     _, r = walk
     assert r.metrics["weak_accepted"][0] == 0 and r.metrics["late_collapses"][0] == 0
     assert r.metrics["collapses_met"][1] >= 1 and r.metrics["late_collapses"][1] == 0
     assert r.metrics["weak_accepted"][1] == 0
-    assert r.metrics["completed_gropes"][2] >= 1
-    late, accepted = int(r.metrics["late_collapses"][2]), int(r.metrics["weak_accepted"][2])
-    assert late + accepted == 1  # the L2 foothold: accepted, and still standing or broken later
-    assert late == int(np.asarray(r.records["collapsed"][2])[-1] >= 1)
-    assert r.metrics["collapses_met"][2] == 0  # the grope itself did not see it break
+    assert r.metrics["collapses_met"][2] == 1 and r.metrics["completed_gropes"][2] == 0
+    assert r.metrics["late_collapses"][2] == 0 and r.metrics["weak_accepted"][2] == 0
+    assert r.status[2] == "stopped_on_collapse" and not r.metrics["fell"][2]
+    assert r.metrics["collapsed_leg"][2] == 1  # L2, the paper's label
 
 
 def test_load_over_probe_compares_later_loads_with_the_probed_force(walk):
@@ -102,12 +102,12 @@ def test_load_over_probe_compares_later_loads_with_the_probed_force(walk):
     probed_with = np.asarray(r.final.ctrl_state.grope_force)[0]
     grope, fn = r.records["grope"][0], r.records["normal_force"][0]
     ratios = [fn[i, leg] / probed_with[leg] for i in range(len(grope))
-              for rank, leg in enumerate(control.ORDER) if rank < grope[i]]
+              for rank, leg in enumerate(gait.DESIGNS["mirrored"].order) if rank < grope[i]]
     assert len(ratios) > 10  # at least one grope finished well before the end
     assert r.metrics["max_load_over_probe"][0] == pytest.approx(max(ratios), rel=1e-12)
-    # a probed foothold goes on carrying about what it was probed with (the walk loads it
-    # to R_ref, the grope stopped within grope_tolerance of it)
-    assert 0.8 < r.metrics["max_load_over_probe"][0] < 1.3
+    # a probed foothold carries no more than it was probed with (issue 18): the grope
+    # ends at 1.01 R_ref and the walk's other steps stay below R_ref
+    assert 0.5 < r.metrics["max_load_over_probe"][0] <= 1.0
 
 
 def test_standing_toes_do_not_creep_on_the_slope():

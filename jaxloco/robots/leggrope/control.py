@@ -54,19 +54,20 @@ Array = jax.Array
 
 PHASES = ("A'", "B'", "C", "C*", "D'-1", "D'-2", "done", "stopped")
 A, B, C, TOUCH, D1, D2, DONE, STOPPED = range(8)
-STATUSES = ("ok", "no_foothold", "timeout")
-ORDER = (1, 0, 2, 3)  # L2, L1, L3, L4
+STATUSES = ("ok", "no_foothold", "timeout", "stopped_on_collapse")
+ORDER = gait.DESIGNS["literal"].order  # L2, L1, L3, L4 of the literal numbering (physical legs)
 # Where each leg gropes next when its target foothold fails: `fallback_distance` from the
-# target in these directions of the walking frame (u forward, v left), legs L1..L4. A
-# fixed-pattern crawl is sensitive to this: a fallback that merely shortens the stride
-# (what we tried first) leaves the *next* gropes infeasible (plan margins -28 to -30 mm
-# for L4 after L1 falls back, L1 after L2), because the later COG targets are planned
-# from the footholds actually taken. A search over offsets of 40 mm (pads must not
-# overlap) at theta 0, pi/12, 0.35 and psi 0, pi/2 (`benchmarks/leggrope_fallbacks.py`)
-# gives these directions: worst plan margin with one leg on its fallback -7.5 mm (L1),
-# -9.3 mm (L2), -3.5 mm (L3) and the primary plan's -1.7 mm (L4, nothing after it); with
-# two or three fallbacks in one cycle down to -19.8 mm.
-FALLBACK_DIRECTIONS = ((0.0, 1.0), (0.0, -1.0), (0.7071067811865476, 0.7071067811865476), (-1.0, 0.0))
+# target in the design's directions (`gait.GaitDesign.fallback`, walking frame u forward,
+# v left). A fixed-pattern crawl is sensitive to this: a fallback that merely shortens
+# the stride (what we tried first) leaves the *next* gropes infeasible (plan margins -28
+# to -30 mm for L4 after L1 falls back, L1 after L2), because the later COG targets are
+# planned from the footholds actually taken. For the literal walk a search over offsets
+# of 40 mm (pads must not overlap) at theta 0, pi/12, 0.35 and psi 0, pi/2
+# (`benchmarks/leggrope_fallbacks.py`) gives these directions: worst plan margin with
+# one leg on its fallback -7.5 mm (L1), -9.3 mm (L2), -3.5 mm (L3) and the primary
+# plan's -1.7 mm (L4, nothing after it); with two or three fallbacks in one cycle down
+# to -19.8 mm. The mirrored walk uses them mirrored (`gait.DESIGNS`).
+FALLBACK_DIRECTIONS = gait.DESIGNS["literal"].fallback
 
 
 @dataclass(frozen=True)
@@ -86,9 +87,10 @@ class GropeSettings:
     swing_time: float = 0.8  # C [s]
     settle: float = 0.2  # pause at the end of A' and D'-1 [s]
     collapse_fraction: float = 0.3  # normal force below this fraction of its peak: collapsed
-    # D'-2 ends at (1 - tolerance) R_ref: a force-sensing tolerance (at 0.02 the L1 grope
-    # times out: from the plan's COG the leg stalls just under R_ref, see D'-2 above)
-    grope_tolerance: float = 0.05
+    # D'-2 ends once the filtered normal force is over (1 + overshoot) R_ref (paper: "until
+    # the normal reaction of a groping leg is over R_ref"); None: the design's
+    # (`gait.GaitDesign.grope_overshoot`)
+    grope_overshoot: float | None = None
     phase_timeout: float = 4.0  # any phase longer than this stops the walk [s]
     force_filter: float = 0.05  # time constant of the toe-force low-pass filter [s]
     collapse_min_peak: float = 0.15  # collapse detection needs a peak above this, fraction of M g
@@ -147,26 +149,27 @@ def robot_params(p: dict) -> LegGropeParams:
     return default_params().with_(mu=p["mu"], r_ref_factor=p["r_ref_factor"])
 
 
-def walk_targets(p: dict, key: Array) -> WalkTargets:
+def walk_targets(p: dict, key: Array, design: gait.GaitDesign = gait.DESIGNS["mirrored"]) -> WalkTargets:
     """Plan the cycle for one simulation's parameters `p` (theta, psi, stride,
     swing_height, facet_spread, fallback_distance, safe_blend, grope_blend, r_ref_factor,
-    mu) and terrain key."""
+    mu), terrain key and leg numbering / footstep design."""
     robot = robot_params(p)
-    walk = gait.WalkParams(stride=p["stride"], swing_height=p["swing_height"])
+    walk = design.walk(stride=p["stride"], swing_height=p["swing_height"])
+    config = design.config()
     terrain = terrain_of(p, key)
     dtype = jnp.asarray(p["theta"]).dtype
     primary = jnp.stack([jnp.full(4, walk.stride, dtype), jnp.asarray(walk.lateral, dtype)], axis=1)
-    fallback = primary + p["fallback_distance"] * jnp.asarray(FALLBACK_DIRECTIONS, dtype)
+    fallback = primary + p["fallback_distance"] * jnp.asarray(design.fallback, dtype)
     combos = np.array([[(c >> g) & 1 for g in range(4)] for c in range(16)], bool)
     steps = jnp.where(jnp.asarray(combos)[:, :, None], fallback[None], primary[None])  # (16, 4, 2)
-    plans = jax.vmap(lambda s: gait.plan_cycle(robot, walk, terrain, steps=s))(steps)
+    plans = jax.vmap(lambda s: gait.plan_cycle(robot, walk, terrain, config, steps=s))(steps)
 
     def blended_bodies(plan):
         """Body origins (4, 3) for A' (COG towards the centroid of the three stance feet)
         and D'-1 (COG towards the groped foothold) of each grope."""
 
         def one(k):
-            g = jnp.asarray(ORDER)[k]
+            g = jnp.asarray(design.order)[k]
             feet = plan.feet[k]
             others = jnp.where((jnp.arange(4) == g)[:, None], 0.0, feet)
             centroid = jnp.sum(others, axis=0)[:2] / 3.0
@@ -194,7 +197,7 @@ def walk_targets(p: dict, key: Array) -> WalkTargets:
         body_safe=body_safe,
         R_GR=plans.R_GR[0],
         r_ref=robot.r_ref_factor * robot.total_mass * G * jnp.cos(p["theta"]),
-        margin=jnp.minimum(jnp.min(plans.cog_margin[0]), jnp.min(plans.grope_margin[0])),
+        margin=jax.tree.map(lambda x: x[0], plans).rule_margin(design.cog_rule),
     )
 
 
@@ -210,23 +213,25 @@ def joint_targets(robot: LegGropeParams, R_GR: Array, body: Array, toes: Array) 
     return q.reshape(12)
 
 
-def make_controller(settings: GropeSettings = GropeSettings()):
-    """(init, step) of the leg-grope walk controller (see the module docstring).
+def make_controller(settings: GropeSettings = GropeSettings(), design: gait.GaitDesign = gait.DESIGNS["mirrored"]):
+    """(init, step) of the leg-grope walk controller (see the module docstring) for a leg
+    numbering and footstep design (`gait.DESIGNS`).
 
     obs: dict with "foot_force" (4, 3) world ground reactions [N] and "time" [s].
     params: dict with the keys of `walk_targets` and "key" (2,) uint32 (terrain)."""
     s_ = settings
     dt = s_.control_dt
-    order = jnp.asarray(ORDER)
+    overshoot = design.grope_overshoot if s_.grope_overshoot is None else s_.grope_overshoot
+    order = jnp.asarray(design.order)
 
     def init(p, obs):
-        t = walk_targets(p, p["key"])
+        t = walk_targets(p, p["key"], design)
         toes = t.feet0 + TOE_RADIUS * t.normals0
         dtype = t.body0.dtype
         z = jnp.zeros((), dtype)
         i0 = jnp.zeros((), jnp.int32)
         return GropeState(k=i0, phase=i0, tau=z, cand=i0, bits=i0, body_from=t.body0, body_cmd=t.body0,
-                          toe_from=toes[ORDER[0]], toe_cmd=toes, f_peak=z, collapses=i0, status=i0,
+                          toe_from=toes[design.order[0]], toe_cmd=toes, f_peak=z, collapses=i0, status=i0,
                           grope_force=jnp.zeros(4, dtype), grope_time=jnp.full(4, jnp.inf, dtype),
                           force=jnp.asarray(obs["foot_force"], dtype), targets=t)
 
@@ -275,7 +280,7 @@ def make_controller(settings: GropeSettings = GropeSettings()):
         finished = jnp.select(
             [ph == A, ph == B, ph == C, ph == TOUCH, ph == D1, ph == D2],
             [tau >= t_a + s_.settle, f_n < s_.f_zero * mg, tau >= s_.swing_time, f_n > s_.f_touch * mg,
-             tau >= t_d1 + s_.settle, f_n >= (1.0 - s_.grope_tolerance) * t.r_ref],
+             tau >= t_d1 + s_.settle, f_n >= (1.0 + overshoot) * t.r_ref],
             False,
         )
         lost = (f_peak > s_.collapse_min_peak * mg) & (f_n < s_.collapse_fraction * f_peak) & ((ph == D1) | (ph == D2))
@@ -287,8 +292,11 @@ def make_controller(settings: GropeSettings = GropeSettings()):
 
         # transitions
         grope_done = (ph == D2) & finished & ~rejected
-        retry = rejected & (s.cand == 0)
-        give_up = rejected & (s.cand == 1)
+        retry = rejected & (s.cand == 0) & ~(collapsed & (p["regrope"] < 0.5))
+        # regrope 0: stop at the first collapse, as in the paper's collapse experiment
+        # ("The robot stops walking after the detection of the foothold collapse")
+        stop = collapsed & (p["regrope"] < 0.5)
+        give_up = rejected & ((s.cand == 1) | stop)
         nxt = jnp.where(grope_done, A, jnp.where(finished, ph + 1, ph))
         k = jnp.where(grope_done, s.k + 1, s.k)
         nxt = jnp.where(grope_done & (k >= 4), DONE, nxt)
@@ -297,7 +305,7 @@ def make_controller(settings: GropeSettings = GropeSettings()):
         changed = nxt != ph
         bits = jnp.where(grope_done, s.bits | (s.cand << g), s.bits)
         cand = jnp.where(retry, 1, jnp.where(grope_done, 0, s.cand))
-        status = jnp.where(give_up, 1, jnp.where(timeout, 2, s.status))
+        status = jnp.where(stop, 3, jnp.where(give_up, 1, jnp.where(timeout, 2, s.status)))
         # once probed, the groping toe's command goes back to the foothold surface: a
         # command left pushed into the ground would keep loading that leg for the rest
         # of the walk (position control of an over-constrained four-leg stance)

@@ -11,7 +11,20 @@ planner calls), subject to a reach margin for every leg. The shipped defaults
     python -m jaxloco.robots.leggrope.design --seed 0
 
 which maximizes the worst margin over `DESIGN_SLOPES` (|theta| <= 0.5, four walking
-directions): -1.7 mm. The plan's barycentric geometry is invariant under the slope's
+directions): -1.7 mm.
+
+The mirrored numbering's experimental walk (`gait.DESIGNS["mirrored"]`) is designed for
+surviving a collapse (issue 18): `collapse_score` maximizes the worst-case triangle margin
+of the cycle (the grope's COG inside the other three legs' triangle) subject to every
+grope reaching R_ref (the groped foothold inside its step-D region), both at least the
+score, with the planner's "collapse_safe" COG rule. Step B's COG is then the walk's A'
+position, not the grope's (the paper's steps A', D'-1 move the COG between them). From
+
+    python -m jaxloco.robots.leggrope.design --numbering mirrored
+
+(`COLLAPSE_SLOPES`: theta 0 and pi/12, psi 0; stride 0.06 m) the design reaches
+`gait.MIRRORED_DESIGN_MARGIN`. A user redesigns for another body (`LegGropeParams`),
+R_ref (`--r-ref-factor`) or stride by the same call. The plan's barycentric geometry is invariant under the slope's
 affine foreshortening, but the swinging leg's mass is not (on a slope the body sits
 uphill of the footprint, which changes the leg configurations), hence the worst case.
 """
@@ -59,11 +72,42 @@ def footstep_score(
     return margin - 2.0 * jnp.maximum(min_reach - reach, 0.0) - 2.0 * over
 
 
+# The experimental walk's collapse-safe design is made for the paper's experiments: the
+# pi/12 slope walked straight up (and level ground).
+COLLAPSE_SLOPES = np.array([(0.0, 0.0), (np.pi / 12, 0.0)])
+OBJECTIVES = ("plan", "collapse")
+
+
+def collapse_score(
+    params: LegGropeParams,
+    walk: gait.WalkParams,
+    config: gait.WalkConfig,
+    x: jax.Array,
+    min_reach: float,
+    max_lateral: float,
+    slopes: np.ndarray,
+) -> jax.Array:
+    """Smallest margin [m] over the (theta, psi) pairs `slopes` and the cycle's four gropes
+    of (the groped foothold inside the step-D region, the grope's COG inside the triangle
+    of the other three legs) for x = (stance (8), lateral (4)), with the "collapse_safe"
+    COG rule: the worst-case triangle margin of the cycle subject to every grope reaching
+    R_ref (both >= the score). Penalized like `footstep_score`."""
+    w = replace(walk, stance=x[:8].reshape(4, 2), lateral=x[8:])
+    config = replace(config, cog_rule="collapse_safe")
+    slopes = jnp.asarray(slopes, x.dtype)
+    plans = jax.vmap(lambda tp: gait.plan_cycle(params, w, gait.simple_slope(tp[0], tp[1]), config))(slopes)
+    margin = jnp.min(jnp.minimum(plans.grope_margin, plans.triangle_margin))
+    reach = jnp.min(plans.reach_margin)
+    over = jnp.sum(jnp.maximum(jnp.abs(x[8:]) - max_lateral, 0.0))
+    return margin - 2.0 * jnp.maximum(min_reach - reach, 0.0) - 2.0 * over
+
+
 def search_footsteps(
     params: LegGropeParams | None = None,
     walk: gait.WalkParams | None = None,
     config: gait.WalkConfig | None = None,
     *,
+    objective: str = "plan",
     seed: int = 0,
     population: int = 128,
     elite: int = 16,
@@ -72,12 +116,19 @@ def search_footsteps(
     max_lateral: float = 0.08,
     slopes: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """Cross-entropy search; returns (stance (4, 2), lateral (4,), score [m])."""
+    """Cross-entropy search from `walk`'s footsteps; returns (stance (4, 2), lateral (4,),
+    score [m]). objective "plan": `footstep_score` (the paper's A-D cycle, region margins,
+    over `DESIGN_SLOPES` by default); "collapse": `collapse_score` (the experimental walk
+    surviving a collapse, over `COLLAPSE_SLOPES` by default)."""
+    if objective not in OBJECTIVES:
+        raise ValueError(f"unknown objective {objective!r}; expected one of {OBJECTIVES}")
     params = params or default_params()
     walk = walk or gait.WalkParams()
     config = config or gait.WalkConfig()
-    slopes = DESIGN_SLOPES if slopes is None else slopes
-    score = jax.jit(jax.vmap(lambda x: footstep_score(params, walk, config, x, min_reach, max_lateral, slopes)))
+    fn = footstep_score if objective == "plan" else collapse_score
+    if slopes is None:
+        slopes = DESIGN_SLOPES if objective == "plan" else COLLAPSE_SLOPES
+    score = jax.jit(jax.vmap(lambda x: fn(params, walk, config, x, min_reach, max_lateral, slopes)))
     rng = np.random.default_rng(seed)
     mean = np.concatenate([np.asarray(walk.stance, float).reshape(-1), np.asarray(walk.lateral, float)])
     std = np.full(12, 0.03)
@@ -94,19 +145,30 @@ def search_footsteps(
     return best[:8].reshape(4, 2), best[8:], best_score
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--numbering", choices=tuple(gait.DESIGNS), default="literal",
+                    help="leg numbering; the search starts from its shipped footsteps")
+    ap.add_argument("--objective", choices=OBJECTIVES, default=None,
+                    help="plan: region margins of the A-D cycle over DESIGN_SLOPES; collapse: worst triangle/grope "
+                         "margin over COLLAPSE_SLOPES (default: the numbering's COG rule)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--stride", type=float, default=float(gait.WalkParams().stride))
     ap.add_argument("--iterations", type=int, default=30)
     ap.add_argument("--max-lateral", type=float, default=0.08)
-    args = ap.parse_args()
+    ap.add_argument("--r-ref-factor", type=float, default=None, help="R_ref / (M g cos theta) (default: the paper's 1/2)")
+    args = ap.parse_args(argv)
     jax.config.update("jax_enable_x64", True)
-    walk = gait.WalkParams(stride=args.stride)
+    design = gait.gait_design(args.numbering)
+    objective = args.objective or ("collapse" if design.cog_rule == "collapse_safe" else "plan")
+    params = default_params()
+    if args.r_ref_factor is not None:
+        params = params.with_(r_ref_factor=args.r_ref_factor)
     stance, lateral, s = search_footsteps(
-        walk=walk, seed=args.seed, iterations=args.iterations, max_lateral=args.max_lateral
+        params, design.walk(stride=args.stride), design.config(), objective=objective, seed=args.seed,
+        iterations=args.iterations, max_lateral=args.max_lateral,
     )
-    print(f"smallest plan margin {s * 1000:.2f} mm with")
+    print(f"{args.numbering} numbering, objective {objective}: smallest margin {s * 1000:.2f} mm with")
     print("stance (u, v) [m] =", np.array2string(np.round(stance, 4), separator=", "))
     print("lateral [m] =", np.array2string(np.round(lateral, 4), separator=", "))
 

@@ -97,6 +97,92 @@ DEFAULT_STANCE = ((0.0917, -0.2548), (-0.0628, -0.2879), (-0.0867, 0.2560), (0.0
 DEFAULT_LATERAL = (0.0631, 0.0618, -0.0521, -0.0571)
 
 
+# The mirrored reading's footstep design for the experimental walk (`control.py`), from
+#     python -m jaxloco.robots.leggrope.design --numbering mirrored --iterations 150 --seed 1
+# (see `design.py`): worst triangle/grope margin MIRRORED_DESIGN_MARGIN over theta = 0 and
+# pi/12, psi = 0, stride 0.06 m. Physical legs (left front, right front, right rear, left
+# rear), walking frame (u forward = x_R, v left = y_R) [m].
+MIRRORED_STANCE = ((0.2726, 0.1403), (0.2875, -0.0739), (-0.2577, -0.1297), (-0.2707, 0.0683))
+MIRRORED_LATERAL = (-0.0709, 0.0793, 0.0799, -0.0061)
+MIRRORED_DESIGN_MARGIN = 12.35e-3
+
+
+@dataclass(frozen=True)
+class GaitDesign:
+    """A reading of the paper's leg numbering with its footstep design (static).
+
+    legs[n]: the physical leg (0..3: left front, right front, right rear, left rear, as
+    `params.hips`) that the paper calls L(n+1). The groping order is the paper's L2, L1,
+    L3, L4. heading: walking direction in the body frame [rad]; stance (4, 2) and lateral
+    (4,) per physical leg as `WalkParams`; cog_rule as `WalkConfig.cog_rule`;
+    fallback (4, 2): unit directions (u, v) of each physical leg's fallback foothold
+    (`control.py`); grope_overshoot: the experimental walk's D'-2 ends once the groping
+    leg's filtered normal force is over (1 + grope_overshoot) R_ref.
+
+    * "literal": L1..L4 clockwise from the left front seen from above. With the groping
+      order a walk along x_R is impossible (module docstring), so it walks along +y_R.
+    * "mirrored": L1..L4 clockwise in a figure drawn from below (L1 left front, L2 left
+      rear, L3 right rear, L4 right front seen from above): the same order is the
+      classical crawl along +x_R, the paper's forward direction (issue 18). Its
+      footsteps and COG targets are designed for surviving a collapse (`design.py`)."""
+
+    name: str
+    legs: tuple[int, int, int, int]
+    heading: float
+    stance: tuple
+    lateral: tuple
+    cog_rule: str
+    fallback: tuple
+    grope_overshoot: float
+
+    @property
+    def order(self) -> tuple[int, ...]:
+        """Physical legs in the groping order L2, L1, L3, L4."""
+        return tuple(self.legs[n] for n in (1, 0, 2, 3))
+
+    def walk(self, stride=0.06, swing_height=0.03) -> "WalkParams":
+        return WalkParams(stride=stride, stance=np.asarray(self.stance), lateral=np.asarray(self.lateral),
+                          heading=self.heading, swing_height=swing_height)
+
+    def config(self, **overrides) -> "WalkConfig":
+        return WalkConfig(order=self.order, cog_rule=self.cog_rule, **overrides)
+
+
+# Fallback directions of the literal walk, per physical leg (searched by
+# `benchmarks/leggrope_fallbacks.py`, see `control.py`); the mirrored crawl is the literal
+# one mirrored in walking terms (v -> -v), so each position in the groping order takes the
+# literal direction of that position with v negated.
+_LITERAL_FALLBACK = ((0.0, 1.0), (0.0, -1.0), (0.7071067811865476, 0.7071067811865476), (-1.0, 0.0))
+
+
+def _mirrored_fallback() -> tuple:
+    out = [None] * 4
+    for lit, mir in zip((1, 0, 2, 3), (3, 0, 2, 1)):
+        u, v = _LITERAL_FALLBACK[lit]
+        out[mir] = (u, -v)
+    return tuple(out)
+
+
+DESIGNS = {
+    # the literal walk's gropes end at 0.95 R_ref: from its plan's COG (region margin
+    # -1.7 mm) the L1 grope stalls just under R_ref (at 0.98 it times out)
+    "literal": GaitDesign("literal", (0, 1, 2, 3), 0.5 * np.pi, DEFAULT_STANCE, DEFAULT_LATERAL, "balanced",
+                          _LITERAL_FALLBACK, -0.05),
+    # the mirrored walk's reach 1.01 R_ref: the 1 % covers the force filter's lag and the
+    # later steps' few tenths of a per cent over R_ref, so that no foothold carries more
+    # than its grope verified (`max_load_over_probe` <= 1)
+    "mirrored": GaitDesign("mirrored", (0, 3, 2, 1), 0.0, MIRRORED_STANCE, MIRRORED_LATERAL, "collapse_safe",
+                           _mirrored_fallback(), 0.01),
+}
+
+
+def gait_design(name: str) -> GaitDesign:
+    """The named `GaitDesign` ("literal" or "mirrored"); ValueError otherwise."""
+    if name not in DESIGNS:
+        raise ValueError(f"unknown leg numbering {name!r}; expected one of {tuple(DESIGNS)}")
+    return DESIGNS[name]
+
+
 @dataclass(frozen=True)
 class WalkConfig:
     """Discrete (static) settings: they fix array shapes and the compiled program."""
@@ -107,6 +193,12 @@ class WalkConfig:
     n_swing: int = 40  # steps of phase C (0.6 s)
     n_load: int = 20  # steps of phase D (0.3 s)
     lattice: int = 32  # barycentric lattice resolution of the COG search
+    # how each grope's COG target is chosen (`_search_cog`): "balanced" maximizes the
+    # smaller region margin (step-B COG in pi_g, groped foothold in the step-D region);
+    # "collapse_safe" maximizes the triangle margin (the COG inside the other three legs'
+    # triangle, what survives a collapse) among targets whose region margins are >= 0,
+    # falling back to "balanced" where none is
+    cog_rule: str = "balanced"
     fixed_point_iters: int = 5  # Newton iterations placing the body under a COG target
 
     @property
@@ -202,7 +294,9 @@ class CyclePlan:
     (k = 1..4). cog_target[k]: horizontal COG at the start (k = 0: above the centroid
     of the feet) and planned for grope k (k = 1..4). cog_margin, grope_margin: signed
     distances [m, in the slope plane] of the COG (step B) inside pi_g and of the groped foothold inside pi_grp,g
-    (negative: not admissible).
+    (negative: not admissible). triangle_margin: signed distance [m, slope plane] of the
+    grope's COG target inside the triangle of the other three footholds (positive: the
+    robot stands on them if the groped foothold collapses).
     reach_margin: the smallest IK reach margin at any planned placement [m]."""
 
     feet: Array  # (5, 4, 3)
@@ -210,6 +304,7 @@ class CyclePlan:
     cog_target: Array  # (5, 2)
     cog_margin: Array  # (4,)
     grope_margin: Array  # (4,)
+    triangle_margin: Array  # (4,)
     reach_margin: Array  # ()
     R_GR: Array  # (3, 3)
     h_ref: Array  # (2, 4) normalized grope force per foothold (before/after its step)
@@ -218,6 +313,14 @@ class CyclePlan:
     def margin(self) -> Array:
         """Smallest geometric margin of the plan [m] (negative: not admissible)."""
         return jnp.minimum(jnp.min(self.cog_margin), jnp.min(self.grope_margin))
+
+    def rule_margin(self, rule: str) -> Array:
+        """The smallest margin that the COG rule `rule` maximizes (`WalkConfig.cog_rule`):
+        "balanced", region margins (`margin`); "collapse_safe", grope-region and triangle
+        margins (step B's COG is then the experimental walk's A' position, elsewhere)."""
+        if rule == "collapse_safe":
+            return jnp.minimum(jnp.min(self.grope_margin), jnp.min(self.triangle_margin))
+        return self.margin
 
 
 def _lattice(n: int) -> np.ndarray:
@@ -237,29 +340,40 @@ def _signed_distance_any_orientation(q: Array, vertices: Array, valid: Array) ->
     return jnp.where(inside, d, -d)
 
 
-def _search_cog(stance, h_stance, h_grp, target, lattice, swing_shift):
-    """COG target c for one grope: the point of a barycentric lattice over the stance
-    triangle maximizing min(margin of the step-B COG c - swing_shift in pi_g, margin of
-    the groped foothold `target` in the step-D region of c). During step B the groped
-    leg has not swung yet, so the COG sits `swing_shift` behind its step-D position. The
-    step-D region is `regions.grope_feasible_region` (the union of pi_grp,g over the
-    float legs), an affine image of one fixed polygon W, so no hull is needed here."""
+COG_RULES = ("balanced", "collapse_safe")
+
+
+def _search_cog(stance, h_stance, h_grp, target, lattice, swing_shift, rule="balanced"):
+    """COG target c for one grope, on a barycentric lattice over the stance triangle.
+
+    Margins of a candidate c: m_cog, the step-B COG c - swing_shift inside pi_g (during
+    step B the groped leg has not swung yet, so the COG sits `swing_shift` behind its
+    step-D position); m_grp, the groped foothold `target` inside the step-D region of c
+    (`regions.grope_feasible_region`, the union of pi_grp,g over the float legs, an
+    affine image of one fixed polygon W, so no hull is needed here); m_tri, c inside the
+    stance triangle. `rule` (see `WalkConfig.cog_rule`) picks c. Returns c and its three
+    margins."""
+    if rule not in COG_RULES:
+        raise ValueError(f"unknown cog_rule {rule!r}; expected one of {COG_RULES}")
     w, w_ok = regions._cog_weights_polygon(h_stance[0], h_stance[1], h_stance[2])
     cog_poly = w[:, :1] * stance[0] + w[:, 1:] * stance[1] + (1.0 - w[:, :1] - w[:, 1:]) * stance[2]
     s, s_ok = regions._support_weights_polygon(h_stance[0], h_stance[1], h_stance[2], 1.0 - h_grp)
     W = s[:, :1] * stance[0] + s[:, 1:] * stance[1] + (1.0 - h_grp - s[:, :1] - s[:, 1:]) * stance[2]
     cand = jnp.asarray(lattice, stance.dtype) @ stance  # (L, 2)
+    tri_ok = jnp.ones(3, bool)
 
     def margins(c):
         m_cog = _signed_distance_any_orientation(c - swing_shift, cog_poly, w_ok)
         m_grp = _signed_distance_any_orientation(target, (c - W) / h_grp, s_ok)
-        return m_cog, m_grp
+        m_tri = _signed_distance_any_orientation(c, stance, tri_ok)
+        return m_cog, m_grp, m_tri
 
-    m_cog, m_grp = jax.vmap(margins)(cand)
+    m_cog, m_grp, m_tri = jax.vmap(margins)(cand)
+    score = jnp.minimum(m_cog, m_grp) if rule == "balanced" else jnp.minimum(m_grp, m_tri)
     # quantize to 10 nm so that near-ties resolve the same way in every compiled variant
     # (batched or not, any device count): argmax then takes the first of equal scores
-    best = jnp.argmax(jnp.round(jnp.minimum(m_cog, m_grp) * 1e8))
-    return cand[best], m_cog[best], m_grp[best]
+    best = jnp.argmax(jnp.round(score * 1e8))
+    return cand[best], m_cog[best], m_grp[best], m_tri[best]
 
 
 def whole_body_cog(params: LegGropeParams, R_GR: Array, body: Array, feet: Array) -> Array:
@@ -344,7 +458,7 @@ def plan_cycle(
     body0 = place_body(params, terrain, R_GR, feet0, uv_to_world_xy(terrain, c0), config.fixed_point_iters)
     feet, uvs = [feet0], [uv]
     moved = np.zeros(4, bool)
-    out: dict[str, list] = {k: [] for k in ("c", "mc", "mg", "body")}
+    out: dict[str, list] = {k: [] for k in ("c", "mc", "mg", "mt", "body")}
     for g in config.order:
         cur, cur_uv = feet[-1], uvs[-1]
         stance_idx = np.array([n for n in range(4) if n != g])
@@ -355,10 +469,12 @@ def plan_cycle(
         b_prev = out["body"][-1] if out["body"] else body0
         uv_cog = lambda f: world_xy_to_uv(terrain, whole_body_cog(params, R_GR, b_prev, f)[:2])  # noqa: E731
         shift = uv_cog(after) - uv_cog(cur)
-        c, mc, mg = _search_cog(cur_uv[stance_idx], h_cur[stance_idx], h_ref[1, g], new_uv[g], lattice, shift)
+        c, mc, mg, mt = _search_cog(
+            cur_uv[stance_idx], h_cur[stance_idx], h_ref[1, g], new_uv[g], lattice, shift, config.cog_rule
+        )
         c_xy = uv_to_world_xy(terrain, c)
         out["body"].append(place_body(params, terrain, R_GR, after, c_xy, config.fixed_point_iters))
-        for key, val in zip(("c", "mc", "mg"), (c_xy, mc, mg)):
+        for key, val in zip(("c", "mc", "mg", "mt"), (c_xy, mc, mg, mt)):
             out[key].append(val)
         feet.append(after)
         uvs.append(new_uv)
@@ -375,6 +491,7 @@ def plan_cycle(
         cog_target=jnp.stack([uv_to_world_xy(terrain, c0)] + out["c"]),
         cog_margin=jnp.stack(out["mc"]),
         grope_margin=jnp.stack(out["mg"]),
+        triangle_margin=jnp.stack(out["mt"]),
         reach_margin=jnp.min(reach),
         R_GR=R_GR,
         h_ref=h_ref,
@@ -488,4 +605,7 @@ __all__ = [
     "move_durations",
     "walk_direction",
     "body_rotation",
+    "GaitDesign",
+    "DESIGNS",
+    "gait_design",
 ]

@@ -13,7 +13,8 @@ the target pads, Mg U(r_break_lo, r_break_hi) with probability p_weak (else infi
 
 Parameters (one dict per simulation, see `PARAM_DEFAULTS`): theta, psi [rad]; mu;
 r_ref_factor (R_ref = factor M g cos theta); stride, swing_height [m]; facet_spread
-[rad]; fallback_distance [m]; safe_blend, grope_blend; p_weak; r_break_lo, r_break_hi [M g]; weak_leg (int, -1 none).
+[rad]; fallback_distance [m]; safe_blend, grope_blend; p_weak; r_break_lo, r_break_hi [M g]; weak_leg (int, -1 none);
+regrope (int: 1 regropes a fallback after a collapse, 0 stops).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.robots.leggrope import control, kinematics, model
+from jaxloco.robots.leggrope import control, gait, kinematics, model
 from jaxloco.robots.leggrope.params import LEG_NAMES, G, default_params
 from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
@@ -56,12 +57,13 @@ PARAM_DEFAULTS: dict[str, float] = {
     "swing_height": 0.03,
     "facet_spread": 0.0,
     "fallback_distance": 0.04,
-    "safe_blend": 0.25,
+    "safe_blend": 0.4,
     "grope_blend": 0.1,
     "p_weak": 0.0,
     "r_break_lo": 0.35,
     "r_break_hi": 0.45,
     "weak_leg": -1,
+    "regrope": 1,
 }
 
 METRIC_NAMES = (
@@ -88,9 +90,16 @@ def make_scenario(
     record_every: int = 5,
     settings: control.GropeSettings | None = None,
     robot_xml: str | Path | None = None,
+    numbering: str = "mirrored",
 ) -> Scenario:
-    """The fragile-slope walk scenario (control period settings.control_dt)."""
+    """The fragile-slope walk scenario (control period settings.control_dt) for a leg
+    numbering (`gait.DESIGNS`: "literal" walks along y_R, "mirrored" along x_R). Leg
+    labels in parameters and metrics (`weak_leg`, `collapsed_leg`) are the paper's L1..L4
+    of that numbering."""
     settings = settings or control.GropeSettings()
+    design = gait.gait_design(numbering)
+    physical = jnp.asarray(design.legs)  # physical leg of the paper's L1..L4
+    label = jnp.argsort(physical)  # paper label of each physical leg
     m, terrain = build_model(robot_xml)
     substeps = round(settings.control_dt / m.opt.timestep)
     horizon = round(horizon_s / settings.control_dt)
@@ -104,12 +113,12 @@ def make_scenario(
     torso = m.body("torso").id
     terrain_geoms = np.array([m.geom(n).id for n in terrain.body_names()])
     slope_half = terrain.pieces[0].half_size
-    init_ctrl, step_ctrl = control.make_controller(settings)
+    init_ctrl, step_ctrl = control.make_controller(settings, design)
     mass = float(default_params().total_mass)
 
     def poses(p, key):
         """Mocap poses (nmocap) of the slope and the intact pads, and the pads' R_break."""
-        t = control.walk_targets(p, key)
+        t = control.walk_targets(p, key, design)
         n_slope = tr.slope_normal(p["theta"], jnp.zeros_like(p["theta"]))
         s_pos, s_quat = tr.box_pose_from_top(-PAD_THICKNESS * n_slope, n_slope, 0.0, jnp.asarray(slope_half))
         centres = jnp.concatenate([t.feet0, t.cand[:, 0], t.cand[:, 1]])
@@ -122,7 +131,8 @@ def make_scenario(
     def r_break(p, key):
         k1, k2 = jax.random.split(jax.random.fold_in(key, 7))
         weak = jax.random.uniform(k1, (8,)) < p["p_weak"]
-        weak = weak | ((jnp.arange(8) == p["weak_leg"]) & (p["weak_leg"] >= 0))
+        weak_pad = physical[jnp.clip(p["weak_leg"], 0, 3)]
+        weak = weak | ((jnp.arange(8) == weak_pad) & (p["weak_leg"] >= 0))
         level = mass * G * jax.random.uniform(k2, (8,), minval=p["r_break_lo"], maxval=p["r_break_hi"])
         targets = jnp.where(weak, level, UNBREAKABLE)
         return jnp.concatenate([jnp.full(4, UNBREAKABLE), targets])
@@ -158,7 +168,7 @@ def make_scenario(
 
     def record(p, data: SimData, obs, c: control.GropeState, e):
         t = c.targets
-        moved = _moved_legs(c.k)
+        moved = _moved_legs(c.k, design.order)
         normals = jnp.where(moved[:, None], t.cand_normals[jnp.arange(4), jnp.where(
             (c.bits >> jnp.arange(4)) & 1, 1, 0)], t.normals0)
         return {
@@ -170,7 +180,7 @@ def make_scenario(
             "cog": data.subtree_com[torso],
             "phase": c.phase,
             "grope": c.k,
-            "leg": jnp.asarray(control.ORDER)[jnp.minimum(c.k, 3)],
+            "leg": jnp.asarray(design.order)[jnp.minimum(c.k, 3)],
             "collapsed": jnp.sum(e["collapsed"]),
             "r_ref": t.r_ref,
         }
@@ -200,12 +210,13 @@ def make_scenario(
         unexpected = jnp.sum(e["collapsed"] & ~groped_pads)
         # the load a probed foothold takes later, against the force its grope verified:
         # > 1 means the walk put more on it than it was probed with (at the records' rate)
-        probed = _moved_legs(r["grope"][:, None])  # (n_rec, 4): the leg's grope is done
+        probed = _moved_legs(r["grope"][:, None], design.order)  # (n_rec, 4): the leg's grope is done
         per_probe = fn / jnp.where(c.grope_force > 0, c.grope_force, jnp.inf)[None, :]
         load_over_probe = jnp.where(jnp.any(probed), jnp.max(jnp.where(probed, per_probe, -jnp.inf)), jnp.nan)
         t_end = sm.first_time(r["phase"] >= control.DONE, jnp.arange(r["phase"].shape[0]) * (
             record_every * settings.control_dt))
-        collapsed_leg, collapse_tilt = _first_collapse(r, round(COLLAPSE_WINDOW / (record_every * settings.control_dt)))
+        collapsed_phys, collapse_tilt = _first_collapse(r, round(COLLAPSE_WINDOW / (record_every * settings.control_dt)))
+        collapsed_leg = jnp.where(collapsed_phys >= 0, label[jnp.maximum(collapsed_phys, 0)], -1)
         late, weak_accepted = _probe_outcomes(c, e)
         return {
             "success": done & ~fell & (c.status == 0),
@@ -327,7 +338,7 @@ def standing_scenario(horizon: int = 10, substeps: int = 5, record_every: int = 
 
 
 def _first_collapse(r, window: int) -> tuple[jax.Array, jax.Array]:
-    """The leg (0..3 = L1..L4) that was groping when a foothold first collapsed (-1: none)
+    """The physical leg (0..3) that was groping when a foothold first collapsed (-1: none)
     and the attitude change [rad] from the record before that collapse to `window` records
     after it (the paper's Fig. 13: about 2 deg for L1; nan without a collapse)."""
     hit = r["collapsed"] >= 1
@@ -356,10 +367,10 @@ def _probe_outcomes(c: control.GropeState, e) -> tuple[jax.Array, jax.Array]:
     return late, jnp.sum(accepted & (e["r_break"][pad] < c.targets.r_ref))
 
 
-def _moved_legs(k):
-    """Which legs (4,) have finished their grope after k gropes (order L2, L1, L3, L4);
-    k of shape (..., 1) gives (..., 4)."""
-    rank = jnp.argsort(jnp.asarray(control.ORDER))  # position of each leg in the order
+def _moved_legs(k, order):
+    """Which physical legs (4,) have finished their grope after k gropes in the groping
+    `order` (physical legs); k of shape (..., 1) gives (..., 4)."""
+    rank = jnp.argsort(jnp.asarray(order))  # position of each leg in the order
     return rank < k
 
 
@@ -380,4 +391,4 @@ def _matrix_to_quat(R):
 def params_batch(n: int = 1, **overrides) -> dict[str, jax.Array]:
     """A batch of n identical parameter dicts (defaults with `overrides`); overrides may
     be arrays of length n to vary one parameter."""
-    return sim_params_batch(PARAM_DEFAULTS, n, overrides, int_keys=("weak_leg",))
+    return sim_params_batch(PARAM_DEFAULTS, n, overrides, int_keys=("weak_leg", "regrope"))

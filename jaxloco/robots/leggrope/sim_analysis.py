@@ -35,10 +35,12 @@ PARAMS = (
           lo=0.0, hi=1.0),
     Param("fallback_distance", 0.04, "the fallback foothold is this far from the target (control.FALLBACK_DIRECTIONS)",
           "m", lo=0.037, hi=0.08),
-    Param("safe_blend", 0.25, "A' COG: this fraction from the grope COG towards the stance centroid", "",
-          lo=0.0, hi=0.6),
+    Param("safe_blend", 0.4, "A' COG: this fraction from the grope COG towards the stance centroid (the literal "
+          "numbering's walk was tuned at 0.25)", "", lo=0.0, hi=0.6),
     Param("grope_blend", 0.1, "D'-2: the body creeps at most this fraction from the grope COG towards the foothold",
           "", lo=0.0, hi=0.5),
+    Param("regrope", 1, "after a foothold collapses: 1 regropes a fallback foothold (the method, step D), 0 stops "
+          "the walk (the paper's collapse experiment)", "", kind="int", lo=0, hi=1),
     Param("p_weak", 0.0, "probability that a target foothold is weak", "", lo=0.0, hi=1.0),
     Param("r_break_lo", 0.35, "weak footholds break at R_break ~ U(lo, hi) M g: lower end", "", lo=0.0, hi=2.0),
     Param("r_break_hi", 0.45, "weak footholds break at R_break ~ U(lo, hi) M g: upper end", "", lo=0.0, hi=2.0),
@@ -48,6 +50,9 @@ PARAMS = (
           lo=0.0, hi=0.5),
     Param("theta_jitter", 0.0, "perturbed trials: theta + U(-1, 1) x this, from the row's seed", "rad",
           lo=0.0, hi=0.1),
+    Param("numbering", "mirrored", "leg numbering and footstep design (gait.DESIGNS): 'mirrored' walks along x_R "
+          "(paper's forward direction), 'literal' along y_R", kind="str", choices=("literal", "mirrored"),
+          sweepable=False),
     Param("horizon", 30.0, "simulated time", "s", lo=1.0, hi=300.0, sweepable=False),
     Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
 )
@@ -68,7 +73,8 @@ METRICS = (
     Metric("unexpected_collapses", "collapses of footholds that were not being groped", kind="int"),
     Metric("fell", "the body tilted more than 0.35 rad from the start, or the simulation diverged", kind="bool"),
     Metric("cycle_time", "time to finish the cycle (nan if not finished)", "s"),
-    Metric("plan_margin", "smallest geometric margin of the plan (primary footholds)", "m"),
+    Metric("plan_margin", "smallest geometric margin of the plan (primary footholds) that its COG rule maximizes "
+           "(gait.CyclePlan.rule_margin)", "m"),
     Metric("collapsed_leg", "the leg (0..3 = L1..L4) groping when a foothold first collapsed (-1: none)",
            kind="int"),
     Metric("collapse_tilt", "attitude change over the 0.2 s after the first collapse (paper Fig. 13: ~2 deg; nan: "
@@ -82,23 +88,23 @@ METRICS = (
     Metric("t_diverged", "time the simulation diverged (nan: it did not)", "s"),
 )
 
-STATUSES = ("ok", "failed: no foothold", "failed: timeout", "diverged", "fell")
+STATUSES = ("ok", "failed: no foothold", "failed: timeout", "diverged", "fell", "stopped: foothold collapsed")
 # the jitters draw from the row's key with its low bits flipped, so that they do not
 # repeat the draws the same key makes for the terrain and the weak footholds
 JITTER_SALT = 0x5EED
-_SCENARIO_STATUS = {"ok": 0, "no_foothold": 1, "timeout": 2}
+_SCENARIO_STATUS = {"ok": 0, "no_foothold": 1, "timeout": 2, "stopped_on_collapse": 5}
 
 
 @lru_cache(maxsize=4)
-def _scenario(horizon: float):
-    return scenarios.make_scenario(horizon_s=horizon, record_every=5)
+def _scenario(horizon: float, numbering: str):
+    return scenarios.make_scenario(horizon_s=horizon, record_every=5, numbering=numbering)
 
 
 def make_batch_fn(fixed: Mapping[str, Any]):
     """A host batch function: numpy swept values and keys -> metrics (native backend)."""
     from jaxloco.sim.rollout import rollout
 
-    scenario = _scenario(float(fixed["horizon"]))
+    scenario = _scenario(float(fixed["horizon"]), str(fixed["numbering"]))
     nthread = int(fixed["nthread"])
     names = [p.name for p in PARAMS if p.sweepable]
 
