@@ -153,3 +153,85 @@ def test_irregular_slope_keeps_inclination():
     assert float(jnp.std(jnp.arctan2(t.normals[..., 1], t.normals[..., 0]))) > 0.05
     same = replace(t, normals=G.simple_slope(jnp.asarray(0.3), jnp.asarray(0.0)).normals)
     np.testing.assert_allclose(same.normals[..., 2], np.cos(0.3))
+
+
+# ------------------------------------------------------- the mirrored numbering (issue 18)
+MIRRORED = G.DESIGNS["mirrored"]
+
+
+@pytest.fixture(scope="module")
+def mirrored_plans():
+    """The mirrored design's plans on level ground and the pi/12 slope (psi = 0) with its
+    collapse-safe COG rule, and the literal design's with the same rule (one compile each)."""
+    th = jnp.array([0.0, np.pi / 12])
+
+    def plans_of(design):
+        walk, cfg = design.walk(), replace(design.config(), cog_rule="collapse_safe")
+        return jax.jit(jax.vmap(lambda t: G.plan_cycle(P, walk, G.simple_slope(t, 0.0), cfg)))(th)
+
+    return th, plans_of(MIRRORED), plans_of(G.DESIGNS["literal"])
+
+
+def test_mirrored_numbering_crawls_forward_along_x_r(mirrored_plans):
+    """L1 left front, L2 left rear, L3 right rear, L4 right front (seen from above): the
+    order L2, L1, L3, L4 is physical legs 3, 0, 2, 1 (each side rear then front, the
+    classical crawl), and one cycle carries the body `stride` along +x_R."""
+    assert MIRRORED.order == (3, 0, 2, 1) and G.DESIGNS["literal"].order == (1, 0, 2, 3)
+    _, pl, _ = mirrored_plans
+    for i in range(2):
+        R_GR = pl.R_GR[i]
+        d_body = (pl.body[i, 4] - pl.body[i, 0]) @ R_GR  # body frame
+        assert d_body[0] > 0.8 * MIRRORED.walk().stride and abs(d_body[1]) < 0.3 * d_body[0]
+        d_feet = (pl.feet[i, 4] - pl.feet[i, 0]) @ R_GR
+        np.testing.assert_allclose(d_feet[:, 0], MIRRORED.walk().stride, atol=1e-12)
+
+
+def _max_grope_share(feet_uv: np.ndarray, g: int, c: np.ndarray, h_ref: float) -> float:
+    """Independent oracle (scipy's LP): the largest share h_g of the weight the groping leg
+    g can take with the COG at c while the other legs carry between 0 and h_ref (vertical
+    forces, the paper's Eqs. 2-8 with any float leg)."""
+    from scipy.optimize import linprog
+
+    a_eq = np.vstack([np.ones(4), feet_uv.T])
+    bounds = [(0.0, 1.0) if n == g else (0.0, h_ref) for n in range(4)]
+    res = linprog(-np.eye(4)[g], A_eq=a_eq, b_eq=np.concatenate([[1.0], c]), bounds=bounds, method="highs")
+    return -res.fun if res.success else -np.inf
+
+
+def test_collapse_safe_design_gropes_to_r_ref_inside_the_other_three_legs(mirrored_plans):
+    """Issue 18, the designer: at every grope of the mirrored design the groping leg can
+    take R_ref (checked by an LP, not by the planner's regions) while the COG stays at
+    least 10 mm inside the triangle of the other three legs (so a collapse leaves the
+    robot standing); the literal design with the same rule reaches under 5 mm."""
+    th, pl, lit = mirrored_plans
+    for i in range(len(th)):
+        terrain = G.simple_slope(th[i], 0.0)
+        uv = lambda p: np.asarray(G.world_xy_to_uv(terrain, p[:2]))  # noqa: E731
+        for k, g in enumerate(MIRRORED.order):
+            feet = np.stack([uv(f) for f in pl.feet[i, k + 1]])  # the groped foot landed
+            c = uv(pl.cog_target[i, k + 1])
+            h_ref = float(pl.h_ref[i, 1, g])
+            assert _max_grope_share(feet, g, c, h_ref) > h_ref + 0.01
+            others = feet[[n for n in range(4) if n != g]]
+            cross = lambda a, b: a[0] * b[1] - a[1] * b[0]  # noqa: E731
+            area2 = cross(others[1] - others[0], others[2] - others[0])
+            dists = [np.sign(area2) * cross(others[(j + 1) % 3] - others[j], c - others[j])
+                     / np.linalg.norm(others[(j + 1) % 3] - others[j]) for j in range(3)]
+            assert min(dists) == pytest.approx(float(pl.triangle_margin[i, k]), abs=1e-9)
+            assert min(dists) > 0.010
+    assert float(jnp.min(pl.rule_margin("collapse_safe"))) > 0.010
+    assert float(jnp.min(jax.vmap(lambda p: p.rule_margin("collapse_safe"))(lit))) < 0.005
+
+
+def test_designer_starts_from_the_shipped_design_and_keeps_its_score():
+    """`design.search_footsteps(objective="collapse")` scores the shipped mirrored design at
+    `gait.MIRRORED_DESIGN_MARGIN` and never returns a worse one (the best so far is kept)."""
+    from jaxloco.robots.leggrope import design
+
+    with pytest.raises(ValueError, match="unknown objective"):
+        design.search_footsteps(objective="fastest")
+    stance, lateral, score = design.search_footsteps(
+        P, MIRRORED.walk(), MIRRORED.config(), objective="collapse", iterations=1, population=4, elite=2
+    )
+    assert score >= G.MIRRORED_DESIGN_MARGIN - 5e-5
+    assert stance.shape == (4, 2) and lateral.shape == (4,)

@@ -310,14 +310,14 @@ def octopus_step_climb(row: Row) -> Replay:
 def leggrope_fragile_walk(row: Row) -> Replay:
     """`leggrope.fragile_walk`: the simulated leg-grope cycle, captioned with grope and phase."""
     from jaxloco.robots.leggrope import control
-    from jaxloco.robots.leggrope.params import LEG_NAMES
 
     def caption(row: Row, records: Mapping[str, np.ndarray]) -> list[str]:
         phase = np.asarray(records["phase"]).astype(int)
         leg = np.asarray(records["leg"]).astype(int)
         grope = np.asarray(records["grope"]).astype(int)
         collapsed = np.asarray(records["collapsed"]).astype(int)
-        return [f"grope {min(g, 3) + 1}/4 {LEG_NAMES[l]}  phase {control.PHASES[p]}  collapsed {c}"
+        # records["leg"] is the paper's label of the groping leg in the row's numbering
+        return [f"grope {min(g, 3) + 1}/4 L{l + 1}  phase {control.PHASES[p]}  collapsed {c}"
                 for g, l, p, c in zip(grope, leg, phase, collapsed)]
 
     return simulated_replay(row, ("success", "completed_gropes", "max_attitude_change", "min_margin"), caption,

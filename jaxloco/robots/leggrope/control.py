@@ -91,6 +91,12 @@ class GropeSettings:
     # the normal reaction of a groping leg is over R_ref"); None: the design's
     # (`gait.GaitDesign.grope_overshoot`)
     grope_overshoot: float | None = None
+    # D'-2 holds this long once over the threshold, without pushing, before it accepts the
+    # foothold: a collapse in the hold is detected as one. (The controller reads filtered
+    # forces; the raw load runs ahead of them, so without the hold a foothold a few per
+    # cent stronger than R_ref broke just after its grope had accepted it: 3 "late"
+    # collapses in a walk of `leggrope_probe`.)
+    grope_hold: float = 0.15
     phase_timeout: float = 4.0  # any phase longer than this stops the walk [s]
     force_filter: float = 0.05  # time constant of the toe-force low-pass filter [s]
     collapse_min_peak: float = 0.15  # collapse detection needs a peak above this, fraction of M g
@@ -136,9 +142,10 @@ class GropeState:
     toe_from: Array  # (3,) groping toe centre at the start of the phase
     toe_cmd: Array  # (4, 3) commanded toe centres
     f_peak: Array  # peak normal force of the groping leg since touchdown [N]
+    hold: Array  # time in D'-2 since the normal force went over the threshold [s] (-1: not yet)
     collapses: Array  # collapses met
     status: Array  # index into STATUSES
-    grope_force: Array  # (4,) normal force reached at the end of each leg's D'-2 [N]
+    grope_force: Array  # (4,) peak normal force of each leg's grope (C* to D'-2) [N]
     grope_time: Array  # (4,) when each leg's D'-2 ended [s] (inf: not yet)
     force: Array  # (4, 3) low-pass filtered toe forces (world) [N]
     targets: WalkTargets = field(default=None)
@@ -231,7 +238,7 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         z = jnp.zeros((), dtype)
         i0 = jnp.zeros((), jnp.int32)
         return GropeState(k=i0, phase=i0, tau=z, cand=i0, bits=i0, body_from=t.body0, body_cmd=t.body0,
-                          toe_from=toes[design.order[0]], toe_cmd=toes, f_peak=z, collapses=i0, status=i0,
+                          toe_from=toes[design.order[0]], toe_cmd=toes, f_peak=z, hold=-jnp.ones((), dtype), collapses=i0, status=i0,
                           grope_force=jnp.zeros(4, dtype), grope_time=jnp.full(4, jnp.inf, dtype),
                           force=jnp.asarray(obs["foot_force"], dtype), targets=t)
 
@@ -269,7 +276,11 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         # D'-2 pushes only while the other three legs all carry load: once one lifts
         # off, more push would only tilt the body, and the body's creep does the rest
         others_loaded = jnp.min(jnp.where(jnp.arange(4) == g, jnp.inf, force @ n_now)) > s_.f_zero * mg
-        toe_push = s.toe_cmd[g] - jnp.where(others_loaded, s_.v_push * dt, 0.0) * n_tgt
+        # over the threshold, D'-2 holds still (no push, no creep) for grope_hold
+        over = (s.phase == D2) & ((s.hold >= 0) | (f_n >= (1.0 + overshoot) * t.r_ref))
+        hold = jnp.where(over, jnp.where(s.hold >= 0, s.hold + dt, 0.0), -1.0)
+        body_d2 = jnp.where(over, s.body_cmd, body_d2)
+        toe_push = s.toe_cmd[g] - jnp.where(others_loaded & ~over, s_.v_push * dt, 0.0) * n_tgt
         depth = jnp.dot(above - s.toe_cmd[g], n_tgt)  # how far below `above` the toe is commanded
 
         ph = s.phase
@@ -280,7 +291,7 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         finished = jnp.select(
             [ph == A, ph == B, ph == C, ph == TOUCH, ph == D1, ph == D2],
             [tau >= t_a + s_.settle, f_n < s_.f_zero * mg, tau >= s_.swing_time, f_n > s_.f_touch * mg,
-             tau >= t_d1 + s_.settle, f_n >= (1.0 + overshoot) * t.r_ref],
+             tau >= t_d1 + s_.settle, hold >= s_.grope_hold - 1e-9],
             False,
         )
         lost = (f_peak > s_.collapse_min_peak * mg) & (f_n < s_.collapse_fraction * f_peak) & ((ph == D1) | (ph == D2))
@@ -311,7 +322,7 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         # of the walk (position control of an over-constrained four-leg stance)
         toe_cmd = s.toe_cmd.at[g].set(jnp.where(grope_done, target, toe_g))
         next_g = order[jnp.minimum(k, 3)]
-        grope_force = jnp.where(grope_done, s.grope_force.at[g].set(f_n), s.grope_force)
+        grope_force = jnp.where(grope_done, s.grope_force.at[g].set(f_peak), s.grope_force)
         grope_time = jnp.where(grope_done, s.grope_time.at[g].set(obs["time"]), s.grope_time)
         new = GropeState(
             k=k,
@@ -324,6 +335,7 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
             toe_from=jnp.where(changed, toe_cmd[next_g], s.toe_from),
             toe_cmd=toe_cmd,
             f_peak=jnp.where(changed, 0.0, f_peak),
+            hold=jnp.where(changed, -1.0, hold),
             collapses=s.collapses + collapsed.astype(s.collapses.dtype),
             status=status,
             grope_force=grope_force,

@@ -91,14 +91,17 @@ def collapse_score(
     of (the groped foothold inside the step-D region, the grope's COG inside the triangle
     of the other three legs) for x = (stance (8), lateral (4)), with the "collapse_safe"
     COG rule: the worst-case triangle margin of the cycle subject to every grope reaching
-    R_ref (both >= the score). Penalized like `footstep_score`."""
-    w = replace(walk, stance=x[:8].reshape(4, 2), lateral=x[8:])
+    R_ref (both >= the score). The sideways shifts are x[8:] minus their mean, so that
+    the body has no net sideways drift over the cycle (it walks along the heading).
+    Penalized like `footstep_score`."""
+    lateral = x[8:] - jnp.mean(x[8:])
+    w = replace(walk, stance=x[:8].reshape(4, 2), lateral=lateral)
     config = replace(config, cog_rule="collapse_safe")
     slopes = jnp.asarray(slopes, x.dtype)
     plans = jax.vmap(lambda tp: gait.plan_cycle(params, w, gait.simple_slope(tp[0], tp[1]), config))(slopes)
     margin = jnp.min(jnp.minimum(plans.grope_margin, plans.triangle_margin))
     reach = jnp.min(plans.reach_margin)
-    over = jnp.sum(jnp.maximum(jnp.abs(x[8:]) - max_lateral, 0.0))
+    over = jnp.sum(jnp.maximum(jnp.abs(lateral) - max_lateral, 0.0))
     return margin - 2.0 * jnp.maximum(min_reach - reach, 0.0) - 2.0 * over
 
 
@@ -142,7 +145,8 @@ def search_footsteps(
             best, best_score = pop[top[0]].copy(), float(s[top[0]])
         mean = pop[top].mean(axis=0)
         std = np.maximum(pop[top].std(axis=0), 1e-3)
-    return best[:8].reshape(4, 2), best[8:], best_score
+    lateral = best[8:] - best[8:].mean() if objective == "collapse" else best[8:]
+    return best[:8].reshape(4, 2), lateral, best_score
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -26,6 +26,10 @@ import numpy as np
 
 G = 9.81  # gravitational acceleration [m/s^2]
 
+# names of the physical legs 0..3 (left front, right front, right rear, left rear) in the
+# MJCF and the kinematics: the literal reading of the paper's numbering. In the mirrored
+# reading (`gait.DESIGNS["mirrored"]`, the simulated walk's default) the paper's L2 is
+# physical leg 3 and its L4 physical leg 1.
 LEG_NAMES = ("L1", "L2", "L3", "L4")
 
 

@@ -180,7 +180,7 @@ def make_scenario(
             "cog": data.subtree_com[torso],
             "phase": c.phase,
             "grope": c.k,
-            "leg": jnp.asarray(design.order)[jnp.minimum(c.k, 3)],
+            "leg": label[jnp.asarray(design.order)[jnp.minimum(c.k, 3)]],  # paper label 0..3 = L1..L4
             "collapsed": jnp.sum(e["collapsed"]),
             "r_ref": t.r_ref,
         }
@@ -215,8 +215,7 @@ def make_scenario(
         load_over_probe = jnp.where(jnp.any(probed), jnp.max(jnp.where(probed, per_probe, -jnp.inf)), jnp.nan)
         t_end = sm.first_time(r["phase"] >= control.DONE, jnp.arange(r["phase"].shape[0]) * (
             record_every * settings.control_dt))
-        collapsed_phys, collapse_tilt = _first_collapse(r, round(COLLAPSE_WINDOW / (record_every * settings.control_dt)))
-        collapsed_leg = jnp.where(collapsed_phys >= 0, label[jnp.maximum(collapsed_phys, 0)], -1)
+        collapsed_leg, collapse_tilt = _first_collapse(r, round(COLLAPSE_WINDOW / (record_every * settings.control_dt)))
         late, weak_accepted = _probe_outcomes(c, e)
         return {
             "success": done & ~fell & (c.status == 0),
@@ -338,7 +337,7 @@ def standing_scenario(horizon: int = 10, substeps: int = 5, record_every: int = 
 
 
 def _first_collapse(r, window: int) -> tuple[jax.Array, jax.Array]:
-    """The physical leg (0..3) that was groping when a foothold first collapsed (-1: none)
+    """The leg (0..3 = the paper's L1..L4) that was groping when a foothold first collapsed (-1: none)
     and the attitude change [rad] from the record before that collapse to `window` records
     after it (the paper's Fig. 13: about 2 deg for L1; nan without a collapse)."""
     hit = r["collapsed"] >= 1
