@@ -5,31 +5,33 @@ For each groping leg g in the order L2, L1, L3, L4 (phases as `PHASES`):
   A'    move the body (four legs) so that the COG is `safe_blend` of the way from the
         grope's COG target towards the centroid of the other three footholds: deeper
         inside the support triangle for the swing (Fig. 10). (The centroid itself is out
-        of the legs' reach for this sprawled footstep design: blend 1 drags the toes.)
+        of the legs' reach for these sprawled footstep designs: blend 1 drags the toes.)
   B'    raise toe g along its foothold normal until its measured normal force is ~0;
   C     swing it (minimum jerk, lifted by `swing_height`) to above the target foothold,
   C*    then lower it along the normal until it touches (normal force > f_touch);
   D'-1  move the body to the COG position for the grope (from `gait.plan_cycle`): the
         groping leg's normal force grows as the COG approaches;
-  D'-2  push toe g down along the normal until its normal force exceeds R_ref (the
-        push pauses while another leg is unloaded), while the body creeps (`v_creep`)
-        towards the groped foothold, at most `grope_blend` of the way from the COG
-        target to it. Why the creep: the legs are stiff servos
-        and the body is rigid, so pushing one toe of a four-leg stance loads it and its
-        diagonal and unloads the other two (a twist); once one of them lifts off, more
-        push only tilts the body. From the plan's COG (margin -1.7 mm: the paper's
-        regions leave no room at R_ref = M g / 2) the groping leg stalls near
-        0.9 R_ref in simulation; moving the COG all the way at D'-1 instead puts it
-        outside the triangle of the other three legs, so that a collapse tips the
-        robot over. Creeping only while pushing moves the COG no farther than needed,
-        and pausing the push keeps the stance from twisting off a leg.
+  D'-2  push toe g down along the normal until its normal force is over (1 +
+        `grope_overshoot`) R_ref (the push pauses while another leg is unloaded), while
+        the body creeps (`v_creep`) towards the groped foothold, at most `grope_blend` of
+        the way from the COG target to it; then hold still for `grope_hold` and accept
+        the foothold. Why the creep: the legs are stiff servos and the body is rigid, so
+        pushing one toe of a four-leg stance loads it and its diagonal and unloads the
+        other two (a twist); once one of them lifts off, more push only tilts the body.
+        Creeping only while pushing moves the COG no farther than needed, and pausing
+        the push keeps the stance from twisting off a leg. With the literal design's COG
+        (region margin -1.7 mm) the L1 grope stalls near 0.95 R_ref; the mirrored
+        design's COG targets have 11 mm of grope-region margin (`gait.GaitDesign`).
+The leg numbering, footsteps, COG rule, fallback directions and grope overshoot come from
+a `gait.GaitDesign` (default: the mirrored reading's forward crawl along x_R).
 If the normal force of the groping leg collapses during C*/D'-1/D'-2 (it falls below
 `collapse_fraction` of its peak, or the toe finds nothing within `probe_depth`), the
-foothold is taken as collapsed: the robot stays on its three other legs, moves its body
-back to the A' position and gropes a fallback foothold `fallback_distance` from the
-target (`FALLBACK_DIRECTIONS`) (one retry; a second collapse stops the walk, status
-"no_foothold"). COG targets of every primary/fallback combination are planned at init
-(16 plans), so the step function has fixed shapes and no search.
+foothold is taken as collapsed: the robot stays on its three other legs. With `regrope`
+= 0 the walk stops there (status "stopped_on_collapse", the paper's experiment);
+otherwise it moves its body back to the A' position and gropes a fallback foothold
+`fallback_distance` from the target (`GaitDesign.fallback`) (one retry; a second collapse
+stops the walk, status "no_foothold"). COG targets of every primary/fallback combination
+are planned at init (16 plans), so the step function has fixed shapes and no search.
 
 The controller knows what the real robot knows: its joint angles, toe force sensors,
 IMU, the slope map (foothold positions and normals) and the plan; the body pose it
@@ -159,7 +161,8 @@ def robot_params(p: dict) -> LegGropeParams:
 def walk_targets(p: dict, key: Array, design: gait.GaitDesign = gait.DESIGNS["mirrored"]) -> WalkTargets:
     """Plan the cycle for one simulation's parameters `p` (theta, psi, stride,
     swing_height, facet_spread, fallback_distance, safe_blend, grope_blend, r_ref_factor,
-    mu), terrain key and leg numbering / footstep design."""
+    mu), terrain key and leg numbering / footstep design. The step function also reads
+    p["regrope"]."""
     robot = robot_params(p)
     walk = design.walk(stride=p["stride"], swing_height=p["swing_height"])
     config = design.config()
@@ -238,7 +241,8 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         z = jnp.zeros((), dtype)
         i0 = jnp.zeros((), jnp.int32)
         return GropeState(k=i0, phase=i0, tau=z, cand=i0, bits=i0, body_from=t.body0, body_cmd=t.body0,
-                          toe_from=toes[design.order[0]], toe_cmd=toes, f_peak=z, hold=-jnp.ones((), dtype), collapses=i0, status=i0,
+                          toe_from=toes[design.order[0]], toe_cmd=toes, f_peak=z, hold=-jnp.ones((), dtype),
+                          collapses=i0, status=i0,
                           grope_force=jnp.zeros(4, dtype), grope_time=jnp.full(4, jnp.inf, dtype),
                           force=jnp.asarray(obs["foot_force"], dtype), targets=t)
 

@@ -160,7 +160,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--stride", type=float, default=float(gait.WalkParams().stride))
     ap.add_argument("--iterations", type=int, default=30)
     ap.add_argument("--max-lateral", type=float, default=0.08)
-    ap.add_argument("--r-ref-factor", type=float, default=None, help="R_ref / (M g cos theta) (default: the paper's 1/2)")
+    ap.add_argument("--r-ref-factor", type=float, default=None,
+                    help="R_ref / (M g cos theta) (default: the paper's 1/2)")
     args = ap.parse_args(argv)
     jax.config.update("jax_enable_x64", True)
     design = gait.gait_design(args.numbering)
