@@ -3,30 +3,34 @@ sideways shift of each leg's step.
 
 With h_ref = 1/2 the admissible regions are tight (see `gait` module docstring): the
 plan's margins depend strongly on where the four feet start and where they land.
-`search_footsteps` maximizes the smallest planner margin of the cycle over the 8
-stance coordinates and the 4 sideways shifts by a cross-entropy search (batched
-planner calls), subject to a reach margin for every leg. The shipped defaults
-(`gait.DEFAULT_STANCE`, `gait.DEFAULT_LATERAL`) came from
+`search_footsteps` maximizes the worst `design_score` of the cycle over the 8 stance
+coordinates and the 4 sideways shifts by a cross-entropy search (batched planner calls),
+subject to a reach margin for every leg. The plan's barycentric geometry is invariant
+under the slope's affine foreshortening, but the swinging leg's mass is not (on a slope
+the body sits uphill of the footprint, which changes the leg configurations), hence a
+worst case over slopes.
 
-    python -m jaxloco.robots.leggrope.design --seed 0
+* The literal numbering's footsteps (`gait.DEFAULT_STANCE`, `gait.DEFAULT_LATERAL`), for
+  the paper's A-D cycle, came from
 
-which maximizes the worst margin over `DESIGN_SLOPES` (|theta| <= 0.5, four walking
-directions): -1.7 mm.
+      python -m jaxloco.robots.leggrope.design --seed 0
 
-The mirrored numbering's experimental walk (`gait.DESIGNS["mirrored"]`) is designed for
-surviving a collapse (issue 18): `collapse_score` maximizes the worst-case triangle margin
-of the cycle (the grope's COG inside the other three legs' triangle) subject to every
-grope reaching R_ref (the groped foothold inside its step-D region), both at least the
-score, with the planner's "collapse_safe" COG rule. Step B's COG is then the walk's A'
-position, not the grope's (the paper's steps A', D'-1 move the COG between them). From
+  (objective "plan": the worst region margin over `DESIGN_SLOPES`, |theta| <= 0.5 and
+  four walking directions): -1.7 mm.
+* The mirrored numbering's experimental walk (`gait.DESIGNS["mirrored"]`) is designed for
+  surviving a collapse (issue 18), objective "collapse": the worst-case triangle margin of
+  the cycle (the grope's COG inside the other three legs' triangle) subject to every grope
+  reaching R_ref (the groped foothold inside its step-D region), both at least the score,
+  with the planner's "collapse_safe" COG rule. Step B's COG is then the walk's A'
+  position, not the grope's (the paper's steps A', D'-1 move the COG between them). From
 
-    python -m jaxloco.robots.leggrope.design --numbering mirrored
+      python -m jaxloco.robots.leggrope.design --numbering mirrored --iterations 200 --seed 3
 
-(`COLLAPSE_SLOPES`: theta 0 and pi/12, psi 0; stride 0.06 m) the design reaches
-`gait.MIRRORED_DESIGN_MARGIN`. A user redesigns for another body (`LegGropeParams`),
-R_ref (`--r-ref-factor`) or stride by the same call. The plan's barycentric geometry is invariant under the slope's
-affine foreshortening, but the swinging leg's mass is not (on a slope the body sits
-uphill of the footprint, which changes the leg configurations), hence the worst case.
+  (`COLLAPSE_SLOPES`: theta 0 and pi/12, psi 0; stride 0.06 m; 1 min on 2 cores) the
+  design reaches `gait.MIRRORED_DESIGN_MARGIN` (11.0 mm).
+
+A user redesigns for another body (`LegGropeParams`), R_ref (`--r-ref-factor`) or stride
+(`--stride`) by the same call.
 """
 
 from __future__ import annotations
@@ -50,35 +54,13 @@ DESIGN_SLOPES = np.array(
 )
 
 
-def footstep_score(
-    params: LegGropeParams,
-    walk: gait.WalkParams,
-    config: gait.WalkConfig,
-    x: jax.Array,
-    min_reach: float,
-    max_lateral: float,
-    slopes: np.ndarray,
-) -> jax.Array:
-    """Smallest plan margin [m] over the (theta, psi) pairs `slopes` for x = (stance (8),
-    lateral (4)), penalized when a leg's reach margin falls below `min_reach` or a sideways step
-    exceeds `max_lateral` (long sideways steps swing a foot past its hip, where the yaw
-    joint whips round and the leg's inertia upsets the force balance)."""
-    w = replace(walk, stance=x[:8].reshape(4, 2), lateral=x[8:])
-    slopes = jnp.asarray(slopes, x.dtype)
-    plans = jax.vmap(lambda tp: gait.plan_cycle(params, w, gait.simple_slope(tp[0], tp[1]), config))(slopes)
-    margin = jnp.min(jax.vmap(lambda pl: pl.margin)(plans))
-    reach = jnp.min(plans.reach_margin)
-    over = jnp.sum(jnp.maximum(jnp.abs(x[8:]) - max_lateral, 0.0))
-    return margin - 2.0 * jnp.maximum(min_reach - reach, 0.0) - 2.0 * over
-
-
 # The experimental walk's collapse-safe design is made for the paper's experiments: the
 # pi/12 slope walked straight up (and level ground).
 COLLAPSE_SLOPES = np.array([(0.0, 0.0), (np.pi / 12, 0.0)])
 OBJECTIVES = ("plan", "collapse")
 
 
-def collapse_score(
+def design_score(
     params: LegGropeParams,
     walk: gait.WalkParams,
     config: gait.WalkConfig,
@@ -86,20 +68,26 @@ def collapse_score(
     min_reach: float,
     max_lateral: float,
     slopes: np.ndarray,
+    objective: str = "plan",
 ) -> jax.Array:
-    """Smallest margin [m] over the (theta, psi) pairs `slopes` and the cycle's four gropes
-    of (the groped foothold inside the step-D region, the grope's COG inside the triangle
-    of the other three legs) for x = (stance (8), lateral (4)), with the "collapse_safe"
-    COG rule: the worst-case triangle margin of the cycle subject to every grope reaching
-    R_ref (both >= the score). The sideways shifts are x[8:] minus their mean, so that
-    the body has no net sideways drift over the cycle (it walks along the heading).
-    Penalized like `footstep_score`."""
-    lateral = x[8:] - jnp.mean(x[8:])
+    """Worst margin [m] of the footsteps x = (stance (8), lateral (4)) over the (theta, psi)
+    pairs `slopes`, penalized when a leg's reach margin falls below `min_reach` or a
+    sideways step exceeds `max_lateral` (long sideways steps swing a foot past its hip,
+    where the yaw joint whips round and the leg's inertia upsets the force balance).
+
+    objective "plan": the plan margin (`CyclePlan.margin`, "balanced" COG rule: the
+    paper's A-D cycle). "collapse": with the "collapse_safe" COG rule, the smaller of (the
+    groped foothold inside the step-D region, the grope's COG inside the triangle of the
+    other three legs) over the cycle's four gropes: the worst-case triangle margin subject
+    to every grope reaching R_ref (both >= the score). Its sideways shifts are x[8:] minus
+    their mean, so that the body does not drift sideways over the cycle."""
+    rule = "balanced" if objective == "plan" else "collapse_safe"
+    lateral = x[8:] if objective == "plan" else x[8:] - jnp.mean(x[8:])
     w = replace(walk, stance=x[:8].reshape(4, 2), lateral=lateral)
-    config = replace(config, cog_rule="collapse_safe")
+    config = replace(config, cog_rule=rule)
     slopes = jnp.asarray(slopes, x.dtype)
     plans = jax.vmap(lambda tp: gait.plan_cycle(params, w, gait.simple_slope(tp[0], tp[1]), config))(slopes)
-    margin = jnp.min(jnp.minimum(plans.grope_margin, plans.triangle_margin))
+    margin = jnp.min(jax.vmap(lambda pl: pl.rule_margin(rule))(plans))
     reach = jnp.min(plans.reach_margin)
     over = jnp.sum(jnp.maximum(jnp.abs(lateral) - max_lateral, 0.0))
     return margin - 2.0 * jnp.maximum(min_reach - reach, 0.0) - 2.0 * over
@@ -120,18 +108,18 @@ def search_footsteps(
     slopes: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Cross-entropy search from `walk`'s footsteps; returns (stance (4, 2), lateral (4,),
-    score [m]). objective "plan": `footstep_score` (the paper's A-D cycle, region margins,
-    over `DESIGN_SLOPES` by default); "collapse": `collapse_score` (the experimental walk
-    surviving a collapse, over `COLLAPSE_SLOPES` by default)."""
+    score [m]). objective "plan": the paper's A-D cycle, region margins, over
+    `DESIGN_SLOPES` by default; "collapse": the experimental walk surviving a collapse,
+    over `COLLAPSE_SLOPES` by default; see `design_score`."""
     if objective not in OBJECTIVES:
         raise ValueError(f"unknown objective {objective!r}; expected one of {OBJECTIVES}")
     params = params or default_params()
     walk = walk or gait.WalkParams()
     config = config or gait.WalkConfig()
-    fn = footstep_score if objective == "plan" else collapse_score
     if slopes is None:
         slopes = DESIGN_SLOPES if objective == "plan" else COLLAPSE_SLOPES
-    score = jax.jit(jax.vmap(lambda x: fn(params, walk, config, x, min_reach, max_lateral, slopes)))
+    score = jax.jit(jax.vmap(lambda x: design_score(params, walk, config, x, min_reach, max_lateral, slopes,
+                                                    objective)))
     rng = np.random.default_rng(seed)
     mean = np.concatenate([np.asarray(walk.stance, float).reshape(-1), np.asarray(walk.lateral, float)])
     std = np.full(12, 0.03)
