@@ -1,20 +1,19 @@
-"""The leg-grope walk along x_R (the mirrored leg numbering) beside the shipped walk along
-y_R (the literal numbering): a footstep design for each, then the force-distribution QP
-over one cycle on several slopes.
+"""The leg-grope A-D cycle along x_R (the mirrored leg numbering) beside the one along y_R
+(the literal numbering): the force-distribution QP over one cycle on several slopes, for
+the shipped footsteps of each (`gait.CYCLE_DESIGNS`).
 
-    python benchmarks/leggrope_forward_crawl.py [--iterations 30] [--seed 0]
+    python benchmarks/leggrope_forward_crawl.py
 
 Readings (see `docs/leggrope.md`). Physical legs 0..3 are left front, right front, right
 rear, left rear (`params.hips`).
   * literal: L1..L4 clockwise from the left front seen from above. The groping order
     L2, L1, L3, L4 is legs (1, 0, 2, 3), and the walk goes along +y_R (heading pi/2).
   * mirrored: L1 left front, L2 left rear, L3 right rear, L4 right front. The same order
-    is legs (3, 0, 2, 1), the classical crawl along +x_R (heading 0).
-The mirrored design starts from the literal design's footholds in the body frame and
-runs the same cross-entropy search (`design.search_footsteps`, worst plan margin over
-`design.DESIGN_SLOPES`). The QP table then shows, per slope, the plan margin, how many
-15 ms steps have no slip-free force distribution (and in which grope and phase the
-first one is), and the smallest static margin of the cycle.
+    is legs (3, 0, 2, 1), the classical crawl along +x_R.
+The table shows, per slope, the plan margin, how many 15 ms steps have no slip-free
+force distribution (and in which grope and phase the first one is), and the smallest
+static margin of the cycle. (`python -m jaxloco.robots.leggrope.design --numbering
+mirrored --objective static` searches the mirrored footsteps again.)
 """
 
 from __future__ import annotations
@@ -31,10 +30,9 @@ runtime.configure(x64=True, cache_dir=True)
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
-from jaxloco.robots.leggrope import design, forces, gait  # noqa: E402
+from jaxloco.robots.leggrope import forces, gait  # noqa: E402
 from jaxloco.robots.leggrope.params import default_params  # noqa: E402
 
-MIRRORED_ORDER = (3, 0, 2, 1)  # L2, L1, L3, L4 in the mirrored numbering, as physical legs
 SLOPES = [(t, s) for t in (0.0, np.pi / 12, 0.3, -0.3) for s in (0.0, 0.5 * np.pi)]
 PHASES = "ABCD"
 PHYSICAL = ("left front", "right front", "right rear", "left rear")  # legs 0..3
@@ -69,27 +67,16 @@ def qp_table(walk: gait.WalkParams, config: gait.WalkConfig) -> list[str]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--iterations", type=int, default=30)
-    ap.add_argument("--seed", type=int, default=0)
-    args = ap.parse_args()
-    literal = (gait.WalkParams(), gait.WalkConfig())
-    start = gait.WalkParams(heading=0.0, stance=mirrored_start(), lateral=np.zeros(4))
-    config = gait.WalkConfig(order=MIRRORED_ORDER)
-    t0 = time.perf_counter()
-    stance, lateral, score = design.search_footsteps(walk=start, config=config, seed=args.seed,
-                                                     iterations=args.iterations)
-    print(f"mirrored design ({args.iterations} iterations, {time.perf_counter() - t0:.0f} s): worst plan margin "
-          f"{score * 1e3:+.2f} mm")
-    print("  stance (u, v) [m] =", np.round(stance, 4).tolist())
-    print("  lateral [m] =", np.round(lateral, 4).tolist())
-    mirrored = (gait.WalkParams(heading=0.0, stance=stance, lateral=lateral), config)
-    for name, (walk, cfg) in (("literal, along +y_R (shipped)", literal), ("mirrored, along +x_R", mirrored)):
-        print(f"\n{name}: one cycle, QP at every 15 ms step")
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()
+    for name, what in (("literal", "along +y_R"), ("mirrored", "along +x_R")):
+        d = gait.gait_design(name, cycle=True)
+        t0 = time.perf_counter()
+        lines = qp_table(d.walk(), d.config())
+        print(f"\n{name}, {what}: one cycle, QP at every 15 ms step ({time.perf_counter() - t0:.0f} s)")
         print("| theta [rad] | psi [deg] | plan margin [mm] | steps without a slip-free QP | where | "
               "min static margin [mm] |")
         print("| --- | --- | --- | --- | --- | --- |")
-        print("\n".join(qp_table(walk, cfg)))
+        print("\n".join(lines))
 
 
 if __name__ == "__main__":

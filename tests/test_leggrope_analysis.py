@@ -53,6 +53,23 @@ def test_metrics_are_consistent(small_sweep):
     assert t["max_friction_use"][1] > t["max_friction_use"][0]
 
 
+def test_forward_crawl_cycle_is_slip_free_on_the_paper_slope(tmp_path):
+    """numbering = "mirrored" (the paper's forward crawl along x_R, its A-D footsteps
+    `gait.MIRRORED_CYCLE_STANCE`): slip-free on the pi/12 slope straight up, with a few
+    per cent of R_ref relaxed (as the literal walk), and no distribution beyond atan mu."""
+    spec = {
+        "sweep": {"analysis": "leggrope.slope_cycle", "name": "t", "chunk_size": 2},
+        "fixed": {"psi": 0.0, "numbering": "mirrored"},
+        "params": {"theta": [math.pi / 12, 0.46]},
+    }
+    t = run(spec_from_dict(spec), output=tmp_path / "m", progress=False).table.to_pydict()
+    assert t["status"][0] == "ok" and t["slip_free"][0]
+    assert 0.0 < t["max_relaxation"][0] < 0.06 and t["plan_margin"][0] > -2.5e-3
+    assert t["status"][1].startswith("failed: slip")
+    with pytest.raises(SpecError, match="numbering"):
+        run(spec_from_dict({**spec, "fixed": {"numbering": "diagonal"}}), output=tmp_path / "x", progress=False)
+
+
 def test_spec_errors_name_the_parameter():
     with pytest.raises(SpecError, match="theta"):
         spec_from_dict({"sweep": {"analysis": "leggrope.slope_cycle"}, "params": {"theta": [0.1, 1.7]}})

@@ -274,7 +274,7 @@ def leggrope_cycle(values: Mapping[str, Any], key: np.ndarray):
     v = {p.name: jnp.asarray(values[p.name], F64) for p in A.PARAMS if p.sweepable}
     params = default_params().with_(mu=v["mu"], r_ref_factor=v["r_ref_factor"], a_max=v["a_max"],
                                     v_max=v["v_max"], h_s=v["h_s"], h_tau=v["h_tau"], h_c=v["h_c"], dt=dt)
-    walk = gait.WalkParams(stride=v["stride"], swing_height=v["swing_height"])
+    walk = A._design(values).walk(stride=v["stride"], swing_height=v["swing_height"])
 
     @jax.jit
     def run(key):

@@ -44,6 +44,9 @@ PARAMS = (
           lo=0.0, hi=HALF_PI),
     Param("normal_tol", 0.10, "tolerated normal-force excess over R_ref / grope shortfall, fraction of R_ref", "",
           lo=0.0, hi=1.0),
+    Param("numbering", "mirrored", "leg numbering and footsteps (gait.CYCLE_DESIGNS): 'mirrored' walks along x_R "
+          "(the paper's forward direction), 'literal' along y_R", kind="str", choices=("literal", "mirrored"),
+          sweepable=False),
     Param("dt", 0.015, "QP time step", "s", lo=0.001, hi=0.1, sweepable=False),
     Param("n_move", 100, "steps of phase A (body move)", "", kind="int", lo=10, hi=1000, sweepable=False),
     Param("n_unload", 20, "steps of phase B (unload the groping leg)", "", kind="int", lo=2, hi=1000, sweepable=False),
@@ -86,8 +89,13 @@ STATUSES = (
 )
 
 
+def _design(fixed: Mapping[str, Any]) -> gait.GaitDesign:
+    """The row's leg numbering and footsteps for the A-D cycle (`gait.CYCLE_DESIGNS`)."""
+    return gait.gait_design(str(fixed["numbering"]), cycle=True)
+
+
 def _config(fixed: Mapping[str, Any]) -> tuple[gait.WalkConfig, forces.QPSettings]:
-    config = gait.WalkConfig(
+    config = _design(fixed).config(
         n_move=fixed["n_move"], n_unload=fixed["n_unload"], n_swing=fixed["n_swing"], n_load=fixed["n_load"]
     )
     settings = forces.QPSettings(iterations=fixed["qp_iterations"], capacity=fixed["capacity"])
@@ -95,13 +103,14 @@ def _config(fixed: Mapping[str, Any]) -> tuple[gait.WalkConfig, forces.QPSetting
 
 
 def run_one(values: Mapping[str, jax.Array], key: jax.Array, config: gait.WalkConfig,
-            settings: forces.QPSettings, dt: float) -> dict[str, jax.Array]:
-    """Metrics and status code of one cycle for scalar parameter `values`."""
+            settings: forces.QPSettings, dt: float, design: gait.GaitDesign) -> dict[str, jax.Array]:
+    """Metrics and status code of one cycle for scalar parameter `values` and the footstep
+    design `design`."""
     params = default_params().with_(
         mu=values["mu"], r_ref_factor=values["r_ref_factor"], a_max=values["a_max"], v_max=values["v_max"],
         h_s=values["h_s"], h_tau=values["h_tau"], h_c=values["h_c"], dt=dt,
     )
-    walk = gait.WalkParams(stride=values["stride"], swing_height=values["swing_height"])
+    walk = design.walk(stride=values["stride"], swing_height=values["swing_height"])
     terrain = gait.irregular_slope(values["theta"], values["psi"], values["facet_spread"], key)
     plan, sm, _ = forces.simulate_cycle(params, walk, terrain, config, settings)
     weight = params.total_mass * G
@@ -144,6 +153,7 @@ def run_one(values: Mapping[str, jax.Array], key: jax.Array, config: gait.WalkCo
 
 def make_batch_fn(fixed: Mapping[str, Any]):
     config, settings = _config(fixed)
+    design = _design(fixed)
     dt = float(fixed["dt"])
     sweepable = [p.name for p in PARAMS if p.sweepable]
 
@@ -154,7 +164,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
             name: jnp.asarray(swept[name], dtype) if name in swept else jnp.full(n, fixed[name], dtype)
             for name in sweepable
         }
-        return jax.vmap(lambda v, k: run_one(v, k, config, settings, dt))(values, keys)
+        return jax.vmap(lambda v, k: run_one(v, k, config, settings, dt, design))(values, keys)
 
     return batch
 

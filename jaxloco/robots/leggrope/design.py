@@ -57,7 +57,7 @@ DESIGN_SLOPES = np.array(
 # The experimental walk's collapse-safe design is made for the paper's experiments: the
 # pi/12 slope walked straight up (and level ground).
 COLLAPSE_SLOPES = np.array([(0.0, 0.0), (np.pi / 12, 0.0)])
-OBJECTIVES = ("plan", "collapse")
+OBJECTIVES = ("plan", "collapse", "static")
 
 
 def design_score(
@@ -81,7 +81,7 @@ def design_score(
     other three legs) over the cycle's four gropes: the worst-case triangle margin subject
     to every grope reaching R_ref (both >= the score). Its sideways shifts are x[8:] minus
     their mean, so that the body does not drift sideways over the cycle."""
-    rule = "balanced" if objective == "plan" else "collapse_safe"
+    rule = {"plan": "balanced", "collapse": "collapse_safe", "static": "static_safe"}[objective]
     lateral = x[8:] if objective == "plan" else x[8:] - jnp.mean(x[8:])
     w = replace(walk, stance=x[:8].reshape(4, 2), lateral=lateral)
     config = replace(config, cog_rule=rule)
@@ -142,8 +142,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--numbering", choices=tuple(gait.DESIGNS), default="literal",
                     help="leg numbering; the search starts from its shipped footsteps")
     ap.add_argument("--objective", choices=OBJECTIVES, default=None,
-                    help="plan: region margins of the A-D cycle over DESIGN_SLOPES; collapse: worst triangle/grope "
-                         "margin over COLLAPSE_SLOPES (default: the numbering's COG rule)")
+                    help="plan: region margins of the A-D cycle over DESIGN_SLOPES; static: the same and the "
+                         "triangle margin (zero-mean sideways shifts); collapse: worst triangle/grope margin over "
+                         "COLLAPSE_SLOPES (default: collapse for the mirrored numbering, plan for the literal)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--stride", type=float, default=float(gait.WalkParams().stride))
     ap.add_argument("--iterations", type=int, default=30)

@@ -10,8 +10,11 @@ direction makes the angle psi with the gradient (paper Fig. 5); the walking fram
 `body_height` along z_S ("the designed movement keeps the robot body parallel to the
 surface").
 
-Why the robot walks toward +y_R by default (`heading = pi/2`): with the paper's
-numbering (L1..L4 clockwise from the left front) and its groping order L2, L1, L3, L4,
+Leg numbering (`GaitDesign`, `DESIGNS`, `CYCLE_DESIGNS`): the analyses walk the mirrored
+reading's forward crawl along x_R by default. `WalkParams()` and `WalkConfig()` on their
+own are the literal reading's walk. Why that one walks toward +y_R (`heading = pi/2`):
+with the paper's numbering read literally (L1..L4 clockwise from the left front seen from
+above) and its groping order L2, L1, L3, L4,
 every groped foot must land in pi_grp,all of the other three, which for h_ref = 1/2 is
 the triangle whose medial triangle the three stance feet form. Its sides pass through
 each stance foot parallel to the opposite side, so when L2 and then L1 are groped while
@@ -46,7 +49,7 @@ the step-D region), planned in slope-plane coordinates (see `plan_cycle`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import jax
 import jax.numpy as jnp
@@ -181,11 +184,32 @@ DESIGNS = {
 }
 
 
-def gait_design(name: str) -> GaitDesign:
-    """The named `GaitDesign` ("literal" or "mirrored"); ValueError otherwise."""
+# The mirrored reading's footsteps for the paper's A-D force-distribution cycle
+# (`forces.simulate_cycle`, `leggrope.slope_cycle`), where the COG stays still from step B
+# to D: from `design.search_footsteps(objective="static")` (the region margins and the
+# triangle margin together, over theta 0, +-0.25, +-0.4 and psi 0, pi/2; 60 iterations,
+# seed 1, from the collapse-safe design): worst -1.1 mm, against the literal design's
+# -1.7 mm. (Searching on, with psi +-pi/4 too, gave -1.4 mm over those 20 slopes, but its
+# slip limit climbing at psi = -45 deg fell from 0.31 to 0.26 rad: the plan margin does
+# not predict slip.) The collapse-safe footsteps above do not serve this cycle (their step-B COG
+# is 19 mm outside pi_g), nor these the experimental walk (see docs/leggrope.md).
+MIRRORED_CYCLE_STANCE = ((0.3107, 0.1449), (0.3025, -0.107), (-0.287, -0.165), (-0.2746, 0.1258))
+MIRRORED_CYCLE_LATERAL = (-0.0438, 0.0622, 0.0272, -0.067)
+
+CYCLE_DESIGNS = {
+    "literal": DESIGNS["literal"],
+    "mirrored": replace(DESIGNS["mirrored"], stance=MIRRORED_CYCLE_STANCE, lateral=MIRRORED_CYCLE_LATERAL,
+                        cog_rule="balanced"),
+}
+
+
+def gait_design(name: str, cycle: bool = False) -> GaitDesign:
+    """The named `GaitDesign` ("literal" or "mirrored") of the experimental walk
+    (`control.py`), or with `cycle` of the paper's A-D force-distribution cycle
+    (`forces.simulate_cycle`); ValueError for another name."""
     if name not in DESIGNS:
         raise ValueError(f"unknown leg numbering {name!r}; expected one of {tuple(DESIGNS)}")
-    return DESIGNS[name]
+    return (CYCLE_DESIGNS if cycle else DESIGNS)[name]
 
 
 @dataclass(frozen=True)
@@ -325,6 +349,8 @@ class CyclePlan:
         margins (step B's COG is then the experimental walk's A' position, elsewhere)."""
         if rule == "collapse_safe":
             return jnp.minimum(jnp.min(self.grope_margin), jnp.min(self.triangle_margin))
+        if rule == "static_safe":
+            return jnp.minimum(self.margin, jnp.min(self.triangle_margin))
         return self.margin
 
 
@@ -345,7 +371,7 @@ def _signed_distance_any_orientation(q: Array, vertices: Array, valid: Array) ->
     return jnp.where(inside, d, -d)
 
 
-COG_RULES = ("balanced", "collapse_safe")
+COG_RULES = ("balanced", "collapse_safe", "static_safe")
 
 
 def _search_cog(stance, h_stance, h_grp, target, lattice, swing_shift, rule="balanced"):
@@ -374,7 +400,8 @@ def _search_cog(stance, h_stance, h_grp, target, lattice, swing_shift, rule="bal
         return m_cog, m_grp, m_tri
 
     m_cog, m_grp, m_tri = jax.vmap(margins)(cand)
-    score = jnp.minimum(m_cog, m_grp) if rule == "balanced" else jnp.minimum(m_grp, m_tri)
+    score = {"balanced": jnp.minimum(m_cog, m_grp), "collapse_safe": jnp.minimum(m_grp, m_tri),
+             "static_safe": jnp.minimum(jnp.minimum(m_cog, m_grp), m_tri)}[rule]
     # quantize to 10 nm so that near-ties resolve the same way in every compiled variant
     # (batched or not, any device count): argmax then takes the first of equal scores
     best = jnp.argmax(jnp.round(score * 1e8))
@@ -612,5 +639,6 @@ __all__ = [
     "body_rotation",
     "GaitDesign",
     "DESIGNS",
+    "CYCLE_DESIGNS",
     "gait_design",
 ]

@@ -235,13 +235,14 @@ def _shade_phases(ax, segments) -> None:
         ax.axvspan(t0, t1, color=PHASE_COLORS[ph % 4], lw=0, zorder=0)
 
 
-def _label_gropes(ax, segments, legs: Mapping[int, int]) -> None:
-    """The groping leg's name above each grope (x in data, y in axes coordinates)."""
+def _label_gropes(ax, segments, legs: Mapping[int, int], numbering: Sequence[int]) -> None:
+    """The groping leg's name above each grope (x in data, y in axes coordinates);
+    numbering[i] is the physical leg the paper calls L(i+1)."""
     trans = ax.get_xaxis_transform()
     for g in sorted({s[2] for s in segments}):
         t0 = min(s[0] for s in segments if s[2] == g)
         t1 = max(s[1] for s in segments if s[2] == g)
-        name = LEGS[legs[g]] if 0 <= legs.get(g, -1) < 4 else f"#{g}"
+        name = LEGS[list(numbering).index(legs[g])] if 0 <= legs.get(g, -1) < 4 else f"#{g}"
         ax.text(0.5 * (t0 + t1), 1.01, f"grope {name}", transform=trans, ha="center", va="bottom",
                 fontsize="x-small")
 
@@ -266,21 +267,22 @@ def _new_figure(fig, nrows: int, figsize):
 
 
 def plot_cycle_forces(trace: Mapping[str, Any], *, fig=None, order: Sequence[int] = GROPE_ORDER,
-                      figsize=(8.0, 9.0)):
+                      numbering: Sequence[int] = (0, 1, 2, 3), figsize=(8.0, 9.0)):
     """Ground reactions on each leg over one cycle (the paper's Fig. 7): a panel per leg
     L1..L4 with F_x (along the slope gradient), F_y and F_z (normal) in the leg's contact
     frame [N] vs time [s], R_ref [N] dashed, phases A-D shaded and the leg's own grope
     (unload, swing, load) hatched and named above the panel.
 
     trace: `forces.simulate_cycle(..., record=True)`'s dict (time, grope, phase, forces
-    (n, 4, 3), r_ref; free is used to find the groping leg, else `order`).
+    (n, 4, 3), r_ref; free is used to find the groping leg, else `order`). numbering: the
+    physical leg of the paper's L1..L4 (`gait.GaitDesign.legs`; the panels follow it).
     """
     time, grope, phase, f, r_ref = _trace(trace, "time", "grope", "phase", "forces", "r_ref")
     r_ref = np.broadcast_to(r_ref, time.shape)
     segments = _segments(time, grope, phase)
     legs = _groping_legs(trace, order)
     fig, axes = _new_figure(fig, 4, figsize)
-    for n, ax in enumerate(axes):
+    for label, (n, ax) in enumerate(zip(numbering, axes)):
         _shade_phases(ax, segments)
         for c, (name, color) in enumerate(zip(("F_x", "F_y", "F_z"), ("C0", "C1", "C2"))):
             ax.plot(time, f[:, n, c], color=color, lw=1.3, label=f"${name[0]}_{name[2]}$")
@@ -289,9 +291,9 @@ def plot_cycle_forces(trace: Mapping[str, Any], *, fig=None, order: Sequence[int
         if own:
             t0, t1 = min(s[0] for s in own), max(s[1] for s in own)
             ax.axvspan(t0, t1, fill=False, hatch="///", edgecolor="0.6", lw=0, zorder=0.5)
-            ax.text(0.5 * (t0 + t1), 1.01, f"{LEGS[n]} gropes", transform=ax.get_xaxis_transform(),
+            ax.text(0.5 * (t0 + t1), 1.01, f"{LEGS[label]} gropes", transform=ax.get_xaxis_transform(),
                     ha="center", va="bottom", fontsize="small", fontweight="bold")
-        ax.set_ylabel(f"{LEGS[n]}  force [N]")
+        ax.set_ylabel(f"{LEGS[label]}  force [N]")
         ax.grid(alpha=0.3)
         ax.margins(x=0)
     axes[0].legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="small")
@@ -302,11 +304,12 @@ def plot_cycle_forces(trace: Mapping[str, Any], *, fig=None, order: Sequence[int
 
 
 def plot_cycle_margin(trace: Mapping[str, Any], *, ax=None, order: Sequence[int] = GROPE_ORDER,
-                      figsize=(8.0, 3.2)):
+                      numbering: Sequence[int] = (0, 1, 2, 3), figsize=(8.0, 3.2)):
     """Friction safety margin s [N] of the force-distribution QP vs time [s] over one
     cycle (the paper's Fig. 8): s >= 0 means every stance leg stays inside its friction
     pyramid with margin s. Zero line in black, phases A-D shaded, the groping leg named
     above each grope, steps whose QP failed (trace `ok` False) marked with a red x.
+    numbering: as `plot_cycle_forces`.
     """
     time, grope, phase, s = _trace(trace, "time", "grope", "phase", "s")
     segments = _segments(time, grope, phase)
@@ -318,7 +321,7 @@ def plot_cycle_margin(trace: Mapping[str, Any], *, ax=None, order: Sequence[int]
         bad = ~np.asarray(trace["ok"], bool)
         if np.any(bad):
             ax.scatter(time[bad], s[bad], marker="x", color="red", s=16, zorder=3, label="QP failed")
-    _label_gropes(ax, segments, _groping_legs(trace, order))
+    _label_gropes(ax, segments, _groping_legs(trace, order), numbering)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("safety margin s [N]")
     ax.grid(alpha=0.3)
@@ -328,23 +331,24 @@ def plot_cycle_margin(trace: Mapping[str, Any], *, ax=None, order: Sequence[int]
 
 
 def plot_cycle_torques(trace: Mapping[str, Any], *, fig=None, order: Sequence[int] = GROPE_ORDER,
-                       figsize=(8.0, 8.0)):
+                       numbering: Sequence[int] = (0, 1, 2, 3), figsize=(8.0, 8.0)):
     """Joint torques [N m] vs time [s] over one cycle (the paper's Fig. 9): a panel per
     leg L1..L4 with its yaw joint tau_i1 and pitch joints tau_i2, tau_i3 (trace `tau`
     is (n, 12), leg-major), phases A-D shaded, the groping leg named above each grope.
+    numbering: as `plot_cycle_forces`.
     """
     time, grope, phase, tau = _trace(trace, "time", "grope", "phase", "tau")
     segments = _segments(time, grope, phase)
     legs = _groping_legs(trace, order)
     fig, axes = _new_figure(fig, 4, figsize)
-    for n, ax in enumerate(axes):
+    for label, (n, ax) in enumerate(zip(numbering, axes)):
         _shade_phases(ax, segments)
         for j in range(3):
             ax.plot(time, tau[:, 3 * n + j], color=f"C{j}", lw=1.3, label=f"$\\tau_{{i{j + 1}}}$")
-        ax.set_ylabel(f"{LEGS[n]}  torque [N m]")
+        ax.set_ylabel(f"{LEGS[label]}  torque [N m]")
         ax.grid(alpha=0.3)
         ax.margins(x=0)
-    _label_gropes(axes[0], segments, legs)
+    _label_gropes(axes[0], segments, legs, numbering)
     axes[0].legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="small")
     fig.suptitle("joint torques (i1: yaw, i2, i3: pitch)", fontsize="medium")
     axes[-1].set_xlabel("time [s]")
