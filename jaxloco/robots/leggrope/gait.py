@@ -108,8 +108,8 @@ DEFAULT_LATERAL = (0.0631, 0.0618, -0.0521, -0.0571)
 # cycle: like the literal design it is one cycle, as the paper's experiments (a periodic
 # crawl with no sideways shifts reaches only -3 mm). Of the designs from seeds 1-3 (10.2,
 # 11.0, 11.0 mm) this one walks most robustly in MuJoCo (4 of 4 perturbed walks at both
-# safe_blend 0.25 and 0.4; seed 2's fell 3 times in 4 at 0.4). Physical legs (left front, right front, right rear, left
-# rear), walking frame (u forward = x_R, v left = y_R) [m].
+# safe_blend 0.25 and 0.4; seed 2's fell 3 times in 4 at 0.4). Physical legs (left front,
+# right front, right rear, left rear), walking frame (u forward = x_R, v left = y_R) [m].
 MIRRORED_STANCE = ((0.2899, 0.1354), (0.2857, -0.1083), (-0.2648, -0.1561), (-0.2694, 0.1207))
 MIRRORED_LATERAL = (-0.0788, 0.0696, 0.0716, -0.0623)
 MIRRORED_DESIGN_MARGIN = 11.01e-3
@@ -191,8 +191,9 @@ DESIGNS = {
 # seed 1, from the collapse-safe design): worst -1.1 mm, against the literal design's
 # -1.7 mm. (Searching on, with psi +-pi/4 too, gave -1.4 mm over those 20 slopes, but its
 # slip limit climbing at psi = -45 deg fell from 0.31 to 0.26 rad: the plan margin does
-# not predict slip.) The collapse-safe footsteps above do not serve this cycle (their step-B COG
-# is 19 mm outside pi_g), nor these the experimental walk (see docs/leggrope.md).
+# not predict slip.) The collapse-safe footsteps above do not serve this cycle (region
+# margin -11 to -13.5 mm, QP steps without a slip-free distribution), nor these the
+# experimental walk (see docs/leggrope.md).
 MIRRORED_CYCLE_STANCE = ((0.3107, 0.1449), (0.3025, -0.107), (-0.287, -0.165), (-0.2746, 0.1258))
 MIRRORED_CYCLE_LATERAL = (-0.0438, 0.0622, 0.0272, -0.067)
 
@@ -222,11 +223,12 @@ class WalkConfig:
     n_swing: int = 40  # steps of phase C (0.6 s)
     n_load: int = 20  # steps of phase D (0.3 s)
     lattice: int = 32  # barycentric lattice resolution of the COG search
-    # how each grope's COG target is chosen (`_search_cog`): "balanced" maximizes the
-    # smaller region margin (step-B COG in pi_g, groped foothold in the step-D region);
-    # "collapse_safe" maximizes the triangle margin (the COG inside the other three legs'
-    # triangle, what survives a collapse) among targets whose region margins are >= 0,
-    # falling back to "balanced" where none is
+    # how each grope's COG target is chosen (`_search_cog`, `COG_RULES`): "balanced"
+    # maximizes the smaller region margin (step-B COG in pi_g, groped foothold in the
+    # step-D region), the paper's A-D cycle; "collapse_safe" the smaller of the groped
+    # foothold's region margin and the triangle margin (the COG inside the other three
+    # legs' triangle, what survives a collapse), the experimental walk, whose step-B COG
+    # is its A' position; "static_safe" the smallest of all three
     cog_rule: str = "balanced"
     fixed_point_iters: int = 5  # Newton iterations placing the body under a COG target
 
@@ -346,7 +348,8 @@ class CyclePlan:
     def rule_margin(self, rule: str) -> Array:
         """The smallest margin that the COG rule `rule` maximizes (`WalkConfig.cog_rule`):
         "balanced", region margins (`margin`); "collapse_safe", grope-region and triangle
-        margins (step B's COG is then the experimental walk's A' position, elsewhere)."""
+        margins (step B's COG is then the experimental walk's A' position, elsewhere);
+        "static_safe", all three."""
         if rule == "collapse_safe":
             return jnp.minimum(jnp.min(self.grope_margin), jnp.min(self.triangle_margin))
         if rule == "static_safe":
