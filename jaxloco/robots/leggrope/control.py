@@ -307,10 +307,10 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
 
         # transitions
         grope_done = (ph == D2) & finished & ~rejected
-        retry = rejected & (s.cand == 0) & ~(collapsed & (p["regrope"] < 0.5))
         # regrope 0: stop at the first collapse, as in the paper's collapse experiment
         # ("The robot stops walking after the detection of the foothold collapse")
         stop = collapsed & (p["regrope"] < 0.5)
+        retry = rejected & (s.cand == 0) & ~stop
         give_up = rejected & ((s.cand == 1) | stop)
         nxt = jnp.where(grope_done, A, jnp.where(finished, ph + 1, ph))
         k = jnp.where(grope_done, s.k + 1, s.k)
