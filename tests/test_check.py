@@ -340,8 +340,10 @@ def test_tune_probe(workdir):
     assert not (workdir / "results").exists()
 
 
-def test_bundled_sweep_without_probe():
-    result = invoke("check", "leggrope_slope")
+def test_bundled_sweep_without_probe(tmp_path):
+    # an empty output directory: a results/leggrope_slope left by README command 1 in the
+    # working directory would make the estimate "nothing left to run"
+    result = invoke("check", "leggrope_slope", "--out", str(tmp_path / "out"))
     assert result.exit_code == 0, result.output
     assert field(result.stdout, "rows") == "505 = 101 theta x 5 psi x 1 seed"
     assert field(result.stdout, "estimate") == f"{specs.header('leggrope_slope').time} (from the spec's header)"
