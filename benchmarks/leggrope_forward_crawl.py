@@ -38,12 +38,6 @@ PHASES = "ABCD"
 PHYSICAL = ("left front", "right front", "right rear", "left rear")  # legs 0..3
 
 
-def mirrored_start() -> np.ndarray:
-    """The literal design's footholds in the body frame, as (u, v) for heading 0."""
-    old = np.asarray(gait.DEFAULT_STANCE)
-    return np.stack([-old[:, 1], old[:, 0]], axis=1)
-
-
 def qp_table(walk: gait.WalkParams, config: gait.WalkConfig) -> list[str]:
     params = default_params()
 

@@ -57,19 +57,6 @@ Array = jax.Array
 PHASES = ("A'", "B'", "C", "C*", "D'-1", "D'-2", "done", "stopped")
 A, B, C, TOUCH, D1, D2, DONE, STOPPED = range(8)
 STATUSES = ("ok", "no_foothold", "timeout", "stopped_on_collapse")
-ORDER = gait.DESIGNS["literal"].order  # L2, L1, L3, L4 of the literal numbering (physical legs)
-# Where each leg gropes next when its target foothold fails: `fallback_distance` from the
-# target in the design's directions (`gait.GaitDesign.fallback`, walking frame u forward,
-# v left). A fixed-pattern crawl is sensitive to this: a fallback that merely shortens
-# the stride (what we tried first) leaves the *next* gropes infeasible (plan margins -28
-# to -30 mm for L4 after L1 falls back, L1 after L2), because the later COG targets are
-# planned from the footholds actually taken. For the literal walk a search over offsets
-# of 40 mm (pads must not overlap) at theta 0, pi/12, 0.35 and psi 0, pi/2
-# (`benchmarks/leggrope_fallbacks.py`) gives these directions: worst plan margin with
-# one leg on its fallback -7.5 mm (L1), -9.3 mm (L2), -3.5 mm (L3) and the primary
-# plan's -1.7 mm (L4, nothing after it); with two or three fallbacks in one cycle down
-# to -19.8 mm. The mirrored walk uses them mirrored (`gait.DESIGNS`).
-FALLBACK_DIRECTIONS = gait.DESIGNS["literal"].fallback
 
 
 @dataclass(frozen=True)

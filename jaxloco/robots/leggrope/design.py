@@ -79,8 +79,10 @@ def design_score(
     paper's A-D cycle). "collapse": with the "collapse_safe" COG rule, the smaller of (the
     groped foothold inside the step-D region, the grope's COG inside the triangle of the
     other three legs) over the cycle's four gropes: the worst-case triangle margin subject
-    to every grope reaching R_ref (both >= the score). Its sideways shifts are x[8:] minus
-    their mean, so that the body does not drift sideways over the cycle."""
+    to every grope reaching R_ref (both >= the score). "static": with the "static_safe"
+    rule, the region margins and the triangle margin together (the A-D cycle, whose COG
+    stays still from step B to D). For "collapse" and "static" the sideways shifts are x[8:]
+    minus their mean, so that the body does not drift sideways over the cycle."""
     rule = {"plan": "balanced", "collapse": "collapse_safe", "static": "static_safe"}[objective]
     lateral = x[8:] if objective == "plan" else x[8:] - jnp.mean(x[8:])
     w = replace(walk, stance=x[:8].reshape(4, 2), lateral=lateral)
@@ -108,7 +110,7 @@ def search_footsteps(
     slopes: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Cross-entropy search from `walk`'s footsteps; returns (stance (4, 2), lateral (4,),
-    score [m]). objective "plan": the paper's A-D cycle, region margins, over
+    score [m]). objective "plan" (and "static"): the paper's A-D cycle, over
     `DESIGN_SLOPES` by default; "collapse": the experimental walk surviving a collapse,
     over `COLLAPSE_SLOPES` by default; see `design_score`."""
     if objective not in OBJECTIVES:
@@ -133,7 +135,7 @@ def search_footsteps(
             best, best_score = pop[top[0]].copy(), float(s[top[0]])
         mean = pop[top].mean(axis=0)
         std = np.maximum(pop[top].std(axis=0), 1e-3)
-    lateral = best[8:] - best[8:].mean() if objective == "collapse" else best[8:]
+    lateral = best[8:] if objective == "plan" else best[8:] - best[8:].mean()  # as `design_score` scored it
     return best[:8].reshape(4, 2), lateral, best_score
 
 

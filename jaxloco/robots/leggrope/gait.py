@@ -156,10 +156,19 @@ class GaitDesign:
         return WalkConfig(order=self.order, cog_rule=self.cog_rule, **overrides)
 
 
-# Fallback directions of the literal walk, per physical leg (searched by
-# `benchmarks/leggrope_fallbacks.py`, see `control.py`); the mirrored crawl is the literal
-# one mirrored in walking terms (v -> -v), so each position in the groping order takes the
-# literal direction of that position with v negated.
+# Where each leg gropes next when its target foothold fails (`control.py`):
+# `fallback_distance` from the target in these directions (walking frame, u forward, v
+# left), per physical leg. A fixed-pattern crawl is sensitive to this: a fallback that
+# merely shortens the stride (what we tried first) leaves the *next* gropes infeasible
+# (plan margins -28 to -30 mm for L4 after L1 falls back, L1 after L2), because the later
+# COG targets are planned from the footholds actually taken. For the literal walk a
+# search over offsets of 40 mm (pads must not overlap) at theta 0, pi/12, 0.35 and psi
+# 0, pi/2 (`benchmarks/leggrope_fallbacks.py`) gives these directions: worst plan margin
+# with one leg on its fallback -7.5 mm (L1), -9.3 mm (L2), -3.5 mm (L3) and the primary
+# plan's -1.7 mm (L4, nothing after it); with two or three fallbacks in one cycle down to
+# -19.8 mm. The mirrored crawl is the literal one mirrored in walking terms (v -> -v), so
+# each position in the groping order takes the literal direction of that position with v
+# negated (docs/leggrope.md: what that costs, and why the searched ones are not shipped).
 _LITERAL_FALLBACK = ((0.0, 1.0), (0.0, -1.0), (0.7071067811865476, 0.7071067811865476), (-1.0, 0.0))
 
 
@@ -187,15 +196,15 @@ DESIGNS = {
 # The mirrored reading's footsteps for the paper's A-D force-distribution cycle
 # (`forces.simulate_cycle`, `leggrope.slope_cycle`), where the COG stays still from step B
 # to D: from `design.search_footsteps(objective="static")` (the region margins and the
-# triangle margin together, over theta 0, +-0.25, +-0.4 and psi 0, pi/2; 60 iterations,
-# seed 1, from the collapse-safe design): worst -1.1 mm, against the literal design's
-# -1.7 mm. (Searching on, with psi +-pi/4 too, gave -1.4 mm over those 20 slopes, but its
-# slip limit climbing at psi = -45 deg fell from 0.31 to 0.26 rad: the plan margin does
+# triangle margin together, zero-mean sideways shifts, over theta 0, +-0.25, +-0.4 and psi
+# 0, pi/2; 60 iterations, seed 1, from the collapse-safe design): worst -1.07 mm, against
+# the literal design's -1.7 mm. (Searching on, with psi +-pi/4 too, gave -1.4 mm over
+# those 20 slopes, but a lower slip limit climbing at psi = -45 deg: the plan margin does
 # not predict slip.) The collapse-safe footsteps above do not serve this cycle (region
 # margin -11 to -13.5 mm, QP steps without a slip-free distribution), nor these the
 # experimental walk (see docs/leggrope.md).
 MIRRORED_CYCLE_STANCE = ((0.3107, 0.1449), (0.3025, -0.107), (-0.287, -0.165), (-0.2746, 0.1258))
-MIRRORED_CYCLE_LATERAL = (-0.0438, 0.0622, 0.0272, -0.067)
+MIRRORED_CYCLE_LATERAL = (-0.0385, 0.0676, 0.0326, -0.0617)
 
 CYCLE_DESIGNS = {
     "literal": DESIGNS["literal"],

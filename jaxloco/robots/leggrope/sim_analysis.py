@@ -33,7 +33,7 @@ PARAMS = (
     Param("swing_height", 0.03, "toe lift during the swing", "m", lo=0.005, hi=0.08),
     Param("facet_spread", 0.0, "irregular slope: facet gradient directions spread +- this (uses the seed)", "rad",
           lo=0.0, hi=1.0),
-    Param("fallback_distance", 0.04, "the fallback foothold is this far from the target (control.FALLBACK_DIRECTIONS)",
+    Param("fallback_distance", 0.04, "the fallback foothold is this far from the target (gait.GaitDesign.fallback)",
           "m", lo=0.037, hi=0.08),
     Param("safe_blend", 0.4, "A' COG: this fraction from the grope COG towards the stance centroid (the literal "
           "numbering's walk was tuned at 0.25)", "", lo=0.0, hi=0.6),
