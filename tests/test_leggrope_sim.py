@@ -97,10 +97,17 @@ def test_grope_breaks_a_foothold_just_under_r_ref_and_the_walk_stops(walk):
 def test_load_over_probe_compares_later_loads_with_the_probed_force(walk):
     """max_load_over_probe, recomputed record by record: a leg whose grope is done (its
     place in the order L2, L1, L3, L4 before the grope counter) takes later normal
-    forces against the force its D'-2 ended with (the controller's grope_force)."""
+    forces against the force its grope probed it with: the larger of the controller's
+    (the filtered peak, grope_force) and the raw load recorded while it groped (C* to
+    D'-2)."""
     _, r = walk
-    probed_with = np.asarray(r.final.ctrl_state.grope_force)[0]
-    grope, fn = r.records["grope"][0], r.records["normal_force"][0]
+    grope, fn, phase = r.records["grope"][0], r.records["normal_force"][0], r.records["phase"][0]
+    order = gait.DESIGNS["mirrored"].order
+    probed_with = np.asarray(r.final.ctrl_state.grope_force)[0].copy()
+    for i in range(len(grope)):
+        if control.TOUCH <= phase[i] <= control.D2:
+            leg = order[grope[i]]
+            probed_with[leg] = max(probed_with[leg], fn[i, leg])
     ratios = [fn[i, leg] / probed_with[leg] for i in range(len(grope))
               for rank, leg in enumerate(gait.DESIGNS["mirrored"].order) if rank < grope[i]]
     assert len(ratios) > 10  # at least one grope finished well before the end

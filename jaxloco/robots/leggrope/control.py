@@ -47,7 +47,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.robots.leggrope import gait
+from jaxloco import geometry as geo
+from jaxloco.robots.leggrope import gait, regions
 from jaxloco.robots.leggrope import kinematics as kin
 from jaxloco.robots.leggrope.model import TOE_RADIUS
 from jaxloco.robots.leggrope.params import G, LegGropeParams, default_params
@@ -162,18 +163,16 @@ def walk_targets(p: dict, key: Array, design: gait.GaitDesign = gait.DESIGNS["mi
     plans = jax.vmap(lambda s: gait.plan_cycle(robot, walk, terrain, config, steps=s))(steps)
 
     def blended_bodies(plan):
-        """Body origins (4, 3) for A' (COG towards the centroid of the three stance feet)
-        and D'-1 (COG towards the groped foothold) of each grope."""
+        """Body origins (4, 3) for A' (COG towards the centroid of the three stance feet,
+        inside their pi_g: `swing_cog`) and D'-1 (COG towards the groped foothold) of
+        each grope."""
 
         def one(k):
             g = jnp.asarray(design.order)[k]
-            feet = plan.feet[k]
-            others = jnp.where((jnp.arange(4) == g)[:, None], 0.0, feet)
-            centroid = jnp.sum(others, axis=0)[:2] / 3.0
             cog = plan.cog_target[k + 1]
-            safe = cog + p["safe_blend"] * (centroid - cog)
+            safe = swing_cog(robot, terrain, plan, design.order, k, p["safe_blend"], p["swing_margin"])
             reach = cog + p["grope_blend"] * (plan.feet[k + 1, g, :2] - cog)
-            return (gait.place_body(robot, terrain, plan.R_GR, feet, safe, 5),
+            return (gait.place_body(robot, terrain, plan.R_GR, plan.feet[k], safe, 5),
                     gait.place_body(robot, terrain, plan.R_GR, plan.feet[k + 1], reach, 5))
 
         return jax.vmap(one)(jnp.arange(4))
@@ -196,6 +195,50 @@ def walk_targets(p: dict, key: Array, design: gait.GaitDesign = gait.DESIGNS["mi
         r_ref=robot.r_ref_factor * robot.total_mass * G * jnp.cos(p["theta"]),
         margin=jax.tree.map(lambda x: x[0], plans).rule_margin(design.cog_rule),
     )
+
+
+SWING_BLENDS = 17  # candidate A' blends between safe_blend and 1 (`swing_cog`)
+
+
+def swing_cog(robot: LegGropeParams, terrain: gait.SlopeTerrain, plan: gait.CyclePlan, order: tuple[int, ...],
+              k: Array, safe_blend: Array, swing_margin: Array) -> Array:
+    """The A' COG (world xy) for grope k of `plan`: the paper's step A' "moves the COG
+    inside of the admissible region of the COG" pi_g of the three legs that stay down
+    (Fig. 10, Eqs. 2-6: every stance leg's normal force <= R_ref while g swings).
+
+    From the grope's COG target c towards the centroid of the three stance footholds,
+    the smallest blend b >= `safe_blend` (of SWING_BLENDS candidates up to 1) that puts
+    the COG at least `swing_margin` [m, slope plane] inside pi_g both before the swing
+    and after it (the swinging leg's mass moves the COG); if no candidate does, the
+    one with the largest margin. At R_ref = M g cos(theta) / 2, pi_g is the medial
+    triangle and `safe_blend` alone usually suffices; at smaller R_ref pi_g shrinks
+    towards the centroid (`leggrope_fragile` at 0.4: loads of 1.23 R_ref in the swing
+    without this rule)."""
+    order_arr = jnp.asarray(order)
+    g = order_arr[k]
+    feet = plan.feet[k]
+    moved = jnp.argsort(order_arr) < k
+    h = jnp.where(moved, plan.h_ref[1], plan.h_ref[0])
+    stance = jnp.asarray([[n for n in range(4) if n != leg] for leg in range(4)])[g]
+    to_uv = jax.vmap(lambda xy: gait.world_xy_to_uv(terrain, xy))
+    feet_uv = to_uv(feet[stance, :2])
+    region, ok = regions.cog_region(feet_uv[0], feet_uv[1], feet_uv[2], h[stance[0]], h[stance[1]], h[stance[2]])
+    body = plan.body[k + 1]
+    shift = (gait.whole_body_cog(robot, plan.R_GR, body, plan.feet[k + 1])
+             - gait.whole_body_cog(robot, plan.R_GR, body, feet))[:2]
+    cog = plan.cog_target[k + 1]
+    centroid = jnp.mean(feet[stance, :2], axis=0)
+    blends = safe_blend + (1.0 - safe_blend) * jnp.linspace(0.0, 1.0, SWING_BLENDS)
+    cand = cog[None] + blends[:, None] * (centroid - cog)[None]
+
+    def margin(c):
+        inside = lambda q: geo.polygon_signed_distance(gait.world_xy_to_uv(terrain, q), region, ok)
+        return jnp.minimum(inside(c), inside(c + shift))
+
+    m = jax.vmap(margin)(cand)
+    good = m >= swing_margin
+    best = jnp.where(jnp.any(good), jnp.argmax(good), jnp.argmax(m))
+    return cand[best]
 
 
 def terrain_of(p: dict, key: Array) -> gait.SlopeTerrain:
@@ -310,8 +353,15 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         status = jnp.where(stop, 3, jnp.where(give_up, 1, jnp.where(timeout, 2, s.status)))
         # once probed, the groping toe's command goes back to the foothold surface: a
         # command left pushed into the ground would keep loading that leg for the rest
-        # of the walk (position control of an over-constrained four-leg stance)
+        # of the walk (position control of an over-constrained four-leg stance; leaving
+        # it to the twist relief instead was worse: load/probe up to 1.01 at R_ref =
+        # M g cos(theta) / 2, where the reset gives 0.94)
         toe_cmd = s.toe_cmd.at[g].set(jnp.where(grope_done, target, toe_g))
+        # A', D'-1 and after the cycle the robot stands on four legs: relax the stance's
+        # twist (`twist_relief`)
+        four_legs = (ph == A) | (ph == D1) | (ph == DONE)
+        relief = twist_relief(force[:, 2], s.toe_cmd[:, :2], p["twist_relief"] * dt / mg)
+        toe_cmd = toe_cmd + jnp.where(four_legs, relief, 0.0)[:, None] * jnp.array([0.0, 0.0, 1.0], toe_cmd.dtype)
         next_g = order[jnp.minimum(k, 3)]
         grope_force = jnp.where(grope_done, s.grope_force.at[g].set(f_peak), s.grope_force)
         grope_time = jnp.where(grope_done, s.grope_time.at[g].set(obs["time"]), s.grope_time)
@@ -337,6 +387,33 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         return new, joint_targets(robot, t.R_GR, body, toe_cmd)
 
     return init, step
+
+
+def twist_mode(xy: Array) -> Array:
+    """Unit twist mode (4,) of a four-leg stance with toes at horizontal positions xy
+    (4, 2): the vertical loads n that change neither the total force nor the moments
+    about the horizontal axes (the null space of [1; x; y], signs alternating around
+    the stance). A rigid body on four stiff position-controlled legs can carry any
+    amount of it: it is set by millimetre errors in the toe heights."""
+    A = jnp.concatenate([jnp.ones((1, 4), xy.dtype), xy.T], axis=0)  # (3, 4)
+    cof = jnp.stack([(-1.0) ** i * jnp.linalg.det(jnp.delete(A, i, axis=1, assume_unique_indices=True))
+                     for i in range(4)])
+    return cof / jnp.maximum(jnp.linalg.norm(cof), 1e-12)
+
+
+def twist_relief(f_z: Array, xy: Array, gain: Array) -> Array:
+    """Vertical toe offsets (4,) [m] for one control period that relax the measured
+    twist of a four-leg stance: toes carrying the excess rise, the others lower, by
+    `gain` [m/N] times the twist load (n . f_z) along the twist mode. Sum of the
+    offsets over the mode is zero to first order, so the body's height is unchanged.
+
+    Not in the paper: its robot's legs are flexible ("back-lash of joints, flexibility
+    of joints induced by PD controller"), which spreads a four-leg stance's load by
+    itself. Our stiff servos (`model.KP`) do not: without this, a leg carried up to
+    1.14 R_ref in A' at R_ref = 0.4 M g cos theta, more than its grope had verified.
+    It uses the toe force sensors the robot has; `twist_relief` = 0 turns it off."""
+    n = twist_mode(xy)
+    return gain * jnp.dot(n, f_z) * n
 
 
 def _move(start: Array, end: Array, tau: Array, a_max: Array, v_max: Array) -> tuple[Array, Array]:

@@ -58,6 +58,8 @@ PARAM_DEFAULTS: dict[str, float] = {
     "facet_spread": 0.0,
     "fallback_distance": 0.04,
     "safe_blend": 0.4,
+    "swing_margin": 0.005,
+    "twist_relief": 0.02,
     "grope_blend": 0.1,
     "p_weak": 0.0,
     "r_break_lo": 0.35,
@@ -211,7 +213,8 @@ def make_scenario(
         # the load a probed foothold takes later, against the force its grope verified:
         # > 1 means the walk put more on it than it was probed with (at the records' rate)
         probed = _moved_legs(r["grope"][:, None], design.order)  # (n_rec, 4): the leg's grope is done
-        per_probe = fn / jnp.where(c.grope_force > 0, c.grope_force, jnp.inf)[None, :]
+        probe = _probe_forces(r, fn, c.grope_force, design.order)
+        per_probe = fn / jnp.where(probe > 0, probe, jnp.inf)[None, :]
         load_over_probe = jnp.where(jnp.any(probed), jnp.max(jnp.where(probed, per_probe, -jnp.inf)), jnp.nan)
         t_end = sm.first_time(r["phase"] >= control.DONE, jnp.arange(r["phase"].shape[0]) * (
             record_every * settings.control_dt))
@@ -348,6 +351,18 @@ def _first_collapse(r, window: int) -> tuple[jax.Array, jax.Array]:
     after = r["quat"][jnp.minimum(k + window, n - 1)]
     tilt = sm.tilt_change(after[None], before)[0]
     return jnp.where(any_hit, r["leg"][k], -1), jnp.where(any_hit, tilt, jnp.nan)
+
+
+def _probe_forces(r, fn: jax.Array, grope_force: jax.Array, order) -> jax.Array:
+    """The normal force [N] each leg's foothold bore during its grope (4,): the larger of
+    the controller's (the filtered force's peak, `GropeState.grope_force`) and the raw
+    load recorded while that leg groped (C* to D'-2, at the records' rate, the rate the
+    later loads are compared at). The filter lags the raw load by a few per cent, and
+    the foothold bore the raw load."""
+    rank = jnp.argsort(jnp.asarray(order))
+    ph = r["phase"][:, None]
+    groping = (r["grope"][:, None] == rank[None, :]) & (ph >= control.TOUCH) & (ph <= control.D2)
+    return jnp.maximum(grope_force, jnp.max(jnp.where(groping, fn, 0.0), axis=0))
 
 
 def _probe_outcomes(c: control.GropeState, e) -> tuple[jax.Array, jax.Array]:

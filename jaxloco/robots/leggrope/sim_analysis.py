@@ -37,6 +37,11 @@ PARAMS = (
           "m", lo=0.037, hi=0.08),
     Param("safe_blend", 0.4, "A' COG: this fraction from the grope COG towards the stance centroid (the literal "
           "numbering's walk was tuned at 0.25)", "", lo=0.0, hi=0.6),
+    Param("swing_margin", 0.005, "A' COG: at least this far inside pi_g, before and after the swing (paper Fig. 10: "
+          "inside the COG's admissible region; control.swing_cog), default (ours)", "m", lo=-0.05, hi=0.05),
+    Param("twist_relief", 0.02, "A', D'-1 (four legs): toe height correction rate per M g of measured stance twist "
+          "(control.twist_relief; the paper's flexible legs do this by themselves; 0: off), default (ours)", "m/s",
+          lo=0.0, hi=0.5),
     Param("grope_blend", 0.1, "D'-2: the body creeps at most this fraction from the grope COG towards the foothold",
           "", lo=0.0, hi=0.5),
     Param("regrope", 1, "after a foothold collapses: 1 regropes a fallback foothold (the method, step D), 0 stops "

@@ -1,0 +1,98 @@
+"""The leg-grope controller's pure parts: the A' COG inside pi_g (`control.swing_cog`) and
+the four-leg twist relief (`control.twist_mode`, `control.twist_relief`), checked
+against closed forms (barycentric statics, a rigid plate on four springs)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxloco.robots.leggrope import control, gait
+from jaxloco.robots.leggrope.params import default_params
+
+jax.config.update("jax_enable_x64", True)
+
+RECT = np.array([[0.15, 0.1], [0.15, -0.1], [-0.15, -0.1], [-0.15, 0.1]])
+
+
+def test_twist_mode_is_a_unit_null_load_with_alternating_signs():
+    xy = RECT + np.random.default_rng(0).normal(0, 0.01, (4, 2))
+    n = np.asarray(control.twist_mode(jnp.asarray(xy)))
+    A = np.vstack([np.ones(4), xy.T])
+    assert np.allclose(A @ n, 0.0, atol=1e-12)  # no net force, no moment about x or y
+    assert np.linalg.norm(n) == pytest.approx(1.0)
+    assert np.all(np.sign(n) == np.sign(n[0]) * np.array([1, -1, 1, -1]))  # diagonals share a sign
+
+
+def _plate_loads(xy: np.ndarray, offsets: np.ndarray, cog: np.ndarray, weight: float, k: float) -> np.ndarray:
+    """Vertical loads of a rigid plate (heave z, slopes a, b) on four legs of vertical
+    stiffness k whose toes are commanded `offsets` [m] up from an even stance: a raised
+    toe shortens its leg, f_i = -k (z + a x_i + b y_i + offsets_i) (all legs loaded), in
+    equilibrium with `weight` at `cog`."""
+    B = np.column_stack([np.ones(4), xy])  # f = -k (B s + offsets), s = (z, a, b)
+    A = np.vstack([np.ones(4), xy.T])  # A f = (W, W x_c, W y_c)
+    s = -np.linalg.solve(A @ B, np.array([weight, weight * cog[0], weight * cog[1]]) / k + A @ offsets)
+    return -k * (B @ s + offsets)
+
+
+def test_twist_relief_drives_a_twisted_stance_to_the_least_squares_loads():
+    """A plate on four stiff springs with one foot 3 mm too low carries a twist; the relief,
+    applied period after period, raises the overloaded diagonal until the loads are the
+    twist-free (minimum-norm) distribution, with the same resultant throughout."""
+    k, weight, cog = 7500.0, 70.0, np.array([0.02, 0.01])
+    offsets = np.array([-0.003, 0.0, 0.0, 0.0])  # foot 0 pushed 3 mm into the ground
+    f0 = _plate_loads(RECT, offsets, cog, weight, k)
+    A = np.vstack([np.ones(4), RECT.T])
+    least_squares = np.linalg.pinv(A) @ np.array([weight, weight * cog[0], weight * cog[1]])
+    assert np.max(np.abs(f0 - least_squares)) > 5.0  # a real twist to start from
+    gain = 0.02 * 0.02 / weight  # the walk's default: 0.02 m/s per M g, 20 ms periods
+    for _ in range(300):
+        f = _plate_loads(RECT, offsets, cog, weight, k)
+        offsets = offsets + np.asarray(control.twist_relief(jnp.asarray(f), jnp.asarray(RECT), gain))
+    assert np.allclose(A @ f, A @ f0)
+    assert np.max(np.abs(f - least_squares)) < 0.01 * weight
+
+
+def test_twist_relief_raises_the_toes_that_carry_the_twist():
+    """Sign convention: the offsets are toe height changes (up positive) that unload the
+    diagonal carrying the excess."""
+    n = np.asarray(control.twist_mode(jnp.asarray(RECT)))
+    f = 20.0 + 5.0 * n  # a positive twist on top of an even stance
+    dz = np.asarray(control.twist_relief(jnp.asarray(f), jnp.asarray(RECT), 1e-4))
+    assert np.all(np.sign(dz) == np.sign(n))
+
+
+def _barycentric(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    T = np.column_stack([tri[0] - tri[2], tri[1] - tri[2]])
+    w = np.linalg.solve(T, p - tri[2])
+    return np.array([w[0], w[1], 1.0 - w.sum()])
+
+
+@pytest.mark.parametrize("factor", [0.4, 0.5])
+def test_swing_cog_keeps_every_stance_load_within_r_ref(factor):
+    """Paper, step A' (Fig. 10): the COG moves inside pi_g of the three legs that stay
+    down, so that each carries at most R_ref when the groping leg lifts. Checked by
+    statics: the COG's barycentric weights in the stance triangle (the vertical loads
+    / M g) are at most h_ref = R_ref / (M g cos theta_n) for every grope of the forward
+    crawl at pi/12. At 1/2 the design's safe_blend already suffices."""
+    design = gait.DESIGNS["mirrored"]
+    robot = default_params().with_(r_ref_factor=factor)
+    terrain = gait.simple_slope(jnp.float64(np.pi / 12), jnp.float64(0.0))
+    plan = jax.jit(gait.plan_cycle, static_argnums=3)(robot, design.walk(), terrain, design.config())
+    swing_cog = jax.jit(control.swing_cog, static_argnums=3)
+    overloaded = False
+    for k in range(4):
+        g = design.order[k]
+        cog = np.asarray(swing_cog(robot, terrain, plan, design.order, k, 0.4, 0.005))
+        stance = [n for n in range(4) if n != g]
+        w = _barycentric(cog, np.asarray(plan.feet[k, stance, :2]))
+        assert np.all(w > 0) and np.all(w <= factor + 1e-9), (k, w)
+        blended = np.asarray(plan.cog_target[k + 1]) + 0.4 * (
+            np.asarray(plan.feet[k, stance, :2]).mean(0) - np.asarray(plan.cog_target[k + 1]))
+        if factor == 0.5:
+            assert np.allclose(cog, blended)
+        else:  # the rule is needed: the blend alone overloads a stance leg in some grope
+            overloaded = overloaded or np.max(_barycentric(blended, np.asarray(plan.feet[k, stance, :2]))) > factor
+    assert factor == 0.5 or overloaded
