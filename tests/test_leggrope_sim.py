@@ -112,9 +112,19 @@ def test_load_over_probe_compares_later_loads_with_the_probed_force(walk):
               for rank, leg in enumerate(gait.DESIGNS["mirrored"].order) if rank < grope[i]]
     assert len(ratios) > 10  # at least one grope finished well before the end
     assert r.metrics["max_load_over_probe"][0] == pytest.approx(max(ratios), rel=1e-12)
+    # no collapse in this walk: the steady version is the same figure
+    assert r.metrics["max_load_over_probe_steady"][0] == r.metrics["max_load_over_probe"][0]
     # a probed foothold carries no more than it was probed with (issue 18): the grope
     # ends at 1.01 R_ref and the walk's other steps stay below R_ref
     assert 0.5 < r.metrics["max_load_over_probe"][0] <= 1.0
+
+
+def test_after_collapse_marks_the_window_after_each_rise_of_the_collapse_count():
+    """`max_load_over_probe_steady` leaves out the records within COLLAPSE_WINDOW (here 2
+    records) after a foothold collapsed: the record where the count rose and the 2 after."""
+    counts = np.array([0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 2])
+    marked = np.asarray(scenarios._after_collapse(counts, 2))
+    assert marked.tolist() == [False, False, True, True, True, False, True, True, True, False, False]
 
 
 def test_standing_toes_do_not_creep_on_the_slope():
@@ -200,6 +210,10 @@ def test_summary_reports_load_over_probe_of_the_successful_runs():
     s = sim_analysis.summarize(table)
     col = s.columns.index("load / probe")
     assert s.rows[0][col] == "1.12 (1.20)" and s.rows[1][col] == "-"
+    assert s.rows[0][col + 1] == "-"  # an older table without max_load_over_probe_steady
+    steady = sim_analysis.summarize(table.append_column("max_load_over_probe_steady", pa.array([0.9, 1.0, 2.0, 0.95,
+                                                                                               0.8, 0.7])))
+    assert steady.rows[0][col + 1] == "0.95 (1.00)" and steady.rows[1][col + 1] == "-"
     assert s.columns[-1] == "late / weak accepted"
     assert s.rows[0][-1] == "3 / 2" and s.rows[1][-1] == "0 / 0"  # every row of the group, failed ones too
 

@@ -68,12 +68,6 @@ PARAM_DEFAULTS: dict[str, float] = {
     "regrope": 1,
 }
 
-METRIC_NAMES = (
-    "success", "completed_gropes", "max_attitude_change", "max_abs_roll", "max_abs_pitch", "max_normal_ratio",
-    "grope_ratio_min", "min_margin", "collapses_met", "collapses_survived", "unexpected_collapses", "fell",
-    "cycle_time", "plan_margin", "collapsed_leg", "collapse_tilt", "late_collapses", "weak_accepted", "status",
-)
-
 
 def build_model(robot_xml: str | Path | None = None) -> tuple[mujoco.MjModel, tr.Terrain]:
     """The robot (`models/leggrope.xml` unless given) on the slope-and-pads terrain."""
@@ -213,12 +207,17 @@ def make_scenario(
         # the load a probed foothold takes later, against the force its grope verified:
         # > 1 means the walk put more on it than it was probed with (at the records' rate)
         probed = _moved_legs(r["grope"][:, None], design.order)  # (n_rec, 4): the leg's grope is done
+        window = round(COLLAPSE_WINDOW / (record_every * settings.control_dt))
         probe = _probe_forces(r, fn, c.grope_force, design.order)
         per_probe = fn / jnp.where(probe > 0, probe, jnp.inf)[None, :]
         load_over_probe = jnp.where(jnp.any(probed), jnp.max(jnp.where(probed, per_probe, -jnp.inf)), jnp.nan)
+        # the same without the impulse of a collapse (the paper's Fig. 14: "less than R_ref
+        # ... except for the impulse"): records within COLLAPSE_WINDOW after any collapse
+        steady = probed & ~_after_collapse(r["collapsed"], window)[:, None]
+        load_over_probe_steady = jnp.where(jnp.any(steady), jnp.max(jnp.where(steady, per_probe, -jnp.inf)), jnp.nan)
         t_end = sm.first_time(r["phase"] >= control.DONE, jnp.arange(r["phase"].shape[0]) * (
             record_every * settings.control_dt))
-        collapsed_leg, collapse_tilt = _first_collapse(r, round(COLLAPSE_WINDOW / (record_every * settings.control_dt)))
+        collapsed_leg, collapse_tilt = _first_collapse(r, window)
         late, weak_accepted = _probe_outcomes(c, e)
         return {
             "success": done & ~fell & (c.status == 0),
@@ -229,6 +228,7 @@ def make_scenario(
             "max_normal_ratio": sm.force_ratio(fn, t.r_ref, outside),
             "grope_ratio_min": jnp.min(jnp.where(jnp.arange(4) < 4, c.grope_force / t.r_ref, jnp.inf)),
             "max_load_over_probe": load_over_probe,
+            "max_load_over_probe_steady": load_over_probe_steady,
             "min_margin": jnp.where(jnp.any(margin_ok), sm.masked_min(margins, margin_ok), jnp.nan),
             "collapses_met": c.collapses,
             "collapses_survived": survived,
@@ -351,6 +351,15 @@ def _first_collapse(r, window: int) -> tuple[jax.Array, jax.Array]:
     after = r["quat"][jnp.minimum(k + window, n - 1)]
     tilt = sm.tilt_change(after[None], before)[0]
     return jnp.where(any_hit, r["leg"][k], -1), jnp.where(any_hit, tilt, jnp.nan)
+
+
+def _after_collapse(collapsed: jax.Array, window: int) -> jax.Array:
+    """Records (n_rec,) within `window` records after a foothold collapsed (the count of
+    collapsed pads rose in this record or in one of the `window` before it)."""
+    rose = jnp.diff(collapsed, prepend=collapsed[:1]) > 0
+    count = jnp.cumsum(rose)
+    before = jnp.concatenate([jnp.zeros(window + 1, count.dtype), count])[: count.shape[0]]
+    return count - before > 0
 
 
 def _probe_forces(r, fn: jax.Array, grope_force: jax.Array, order) -> jax.Array:

@@ -72,6 +72,8 @@ METRICS = (
     Metric("grope_ratio_min", "smallest normal force / R_ref reached at the end of a grope (0 if not groped)"),
     Metric("max_load_over_probe", "largest normal force on a groped foothold after its grope / the force the "
            "grope probed it with (> 1: loaded beyond what was verified; nan before the first grope ends)"),
+    Metric("max_load_over_probe_steady", "max_load_over_probe without the 0.2 s after each foothold collapse (the "
+           "paper's Fig. 14: normal forces below R_ref 'except for the impulse' of a collapse)"),
     Metric("min_margin", "smallest static stability margin over the actual toe contacts (>= 3 loaded)", "m"),
     Metric("collapses_met", "footholds that collapsed under the groping leg", kind="int"),
     Metric("collapses_survived", "collapses met without falling", kind="int"),
@@ -154,19 +156,21 @@ def summarize(table) -> Summary:
             f"{int(np.sum(cols['collapses_met'][sel]))}/{int(np.sum(cols['collapses_survived'][sel]))}",
             f"{np.nanmin(cols['min_margin'][sel]) * 1000:.0f}",
             _load_over_probe(cols, sel),
+            _load_over_probe(cols, sel, "max_load_over_probe_steady"),
             _sum_pair(cols, "late_collapses", "weak_accepted", sel),
         ))
     return Summary(
         title="leg-grope walk over fragile footholds (native MuJoCo)",
         columns=("R_ref/Mg cos", "p_weak", "weak leg", "runs", "success", "max tilt change [deg]",
                  "collapse tilt [deg]", "max N/R_ref outside D'", "collapses met/survived", "min margin [mm]",
-                 "load / probe", "late / weak accepted"),
+                 "load / probe", "load / probe, no impulse", "late / weak accepted"),
         rows=tuple(rows),
         notes=("other swept parameters are pooled; paper: attitude change ~2 deg when L1's foothold collapses",
                "collapse tilt: the attitude change over the 0.2 s after the first collapse, mean (worst) over the "
                "runs with a collapse",
                "load / probe: a groped foothold's largest later normal force / the force its grope ended with, "
-               "mean (worst) over the successful runs; > 1: loaded beyond what the grope verified",
+               "mean (worst) over the successful runs; > 1: loaded beyond what the grope verified; 'no impulse': "
+               "without the 0.2 s after each collapse (paper Fig. 14: below R_ref 'except for the impulse')",
                "late / weak accepted: groped footholds that collapsed after their grope accepted them / weaker than "
                "R_ref and accepted, summed over the runs (the method's premise: 0 / 0)"),
     )
@@ -185,9 +189,10 @@ def _mean_worst(cols: dict, name: str, sel: np.ndarray, scale: float = 1.0, digi
     return mean_worst(cols[name][sel].astype(float) * scale, "max", digits) if name in cols else "-"
 
 
-def _load_over_probe(cols: dict, sel: np.ndarray) -> str:
-    """'mean (worst)' of max_load_over_probe over the successful rows of `sel`."""
-    return _mean_worst(cols, "max_load_over_probe", sel & cols["success"].astype(bool))
+def _load_over_probe(cols: dict, sel: np.ndarray, name: str = "max_load_over_probe") -> str:
+    """'mean (worst)' of column `name` (a load / probe metric) over the successful rows of
+    `sel` ('-' for an older table without the column)."""
+    return _mean_worst(cols, name, sel & cols["success"].astype(bool))
 
 
 FRAGILE_WALK = Analysis(
