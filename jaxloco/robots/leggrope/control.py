@@ -2,10 +2,13 @@
 a pure-JAX position controller, for the simulated robot of `model.py`.
 
 For each groping leg g in the order L2, L1, L3, L4 (phases as `PHASES`):
-  A'    move the body (four legs) so that the COG is `safe_blend` of the way from the
-        grope's COG target towards the centroid of the other three footholds: deeper
-        inside the support triangle for the swing (Fig. 10). (The centroid itself is out
-        of the legs' reach for these sprawled footstep designs: blend 1 drags the toes.)
+  A'    move the body (four legs) so that the COG is `safe_blend` of the way (or more)
+        from the grope's COG target towards the centroid of the other three footholds,
+        inside their admissible COG region pi_g by `swing_margin` (`swing_cog`; Fig. 10:
+        "moves the COG inside of the admissible region of the COG"): deeper inside the
+        support triangle for the swing, no stance leg over R_ref. (The centroid itself
+        is out of the legs' reach for these sprawled footstep designs at R_ref = M g
+        cos(theta) / 2: blend 1 drags the toes.)
   B'    raise toe g along its foothold normal until its measured normal force is ~0;
   C     swing it (minimum jerk, lifted by `swing_height`) to above the target foothold,
   C*    then lower it along the normal until it touches (normal force > f_touch);
@@ -22,6 +25,9 @@ For each groping leg g in the order L2, L1, L3, L4 (phases as `PHASES`):
         the push keeps the stance from twisting off a leg. With the literal design's COG
         (region margin -1.7 mm) the L1 grope stalls near 0.95 R_ref; the mirrored
         design's COG targets have 11 mm of grope-region margin (`gait.GaitDesign`).
+In A', D'-1 and after the cycle (four legs down) the controller relaxes the stance's
+twist with the toe force sensors (`twist_relief`, ours: the paper's flexible legs do this
+by themselves, our stiff servos do not).
 The leg numbering, footsteps, COG rule, fallback directions and grope overshoot come from
 a `gait.GaitDesign` (default: the mirrored reading's forward crawl along x_R).
 If the normal force of the groping leg collapses during C*/D'-1/D'-2 (it falls below
@@ -404,8 +410,8 @@ def twist_mode(xy: Array) -> Array:
 def twist_relief(f_z: Array, xy: Array, gain: Array) -> Array:
     """Vertical toe offsets (4,) [m] for one control period that relax the measured
     twist of a four-leg stance: toes carrying the excess rise, the others lower, by
-    `gain` [m/N] times the twist load (n . f_z) along the twist mode. Sum of the
-    offsets over the mode is zero to first order, so the body's height is unchanged.
+    `gain` [m/N] times the twist load (n . f_z) along the twist mode. The offsets sum to
+    zero (the mode's entries do), so the stance's mean toe height is unchanged.
 
     Not in the paper: its robot's legs are flexible ("back-lash of joints, flexibility
     of joints induced by PD controller"), which spreads a four-leg stance's load by

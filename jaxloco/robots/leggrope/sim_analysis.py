@@ -71,7 +71,8 @@ METRICS = (
     Metric("max_normal_ratio", "largest toe normal force / R_ref outside the leg-grope step D'"),
     Metric("grope_ratio_min", "smallest normal force / R_ref reached at the end of a grope (0 if not groped)"),
     Metric("max_load_over_probe", "largest normal force on a groped foothold after its grope / the force the "
-           "grope probed it with (> 1: loaded beyond what was verified; nan before the first grope ends)"),
+           "grope probed it with, the larger of the filtered peak and the raw load recorded in the grope (> 1: "
+           "loaded beyond what was verified; nan before the first grope ends)"),
     Metric("max_load_over_probe_steady", "max_load_over_probe without the 0.2 s after each foothold collapse (the "
            "paper's Fig. 14: normal forces below R_ref 'except for the impulse' of a collapse)"),
     Metric("min_margin", "smallest static stability margin over the actual toe contacts (>= 3 loaded)", "m"),
@@ -168,7 +169,7 @@ def summarize(table) -> Summary:
         notes=("other swept parameters are pooled; paper: attitude change ~2 deg when L1's foothold collapses",
                "collapse tilt: the attitude change over the 0.2 s after the first collapse, mean (worst) over the "
                "runs with a collapse",
-               "load / probe: a groped foothold's largest later normal force / the force its grope ended with, "
+               "load / probe: a groped foothold's largest later normal force / the force its grope probed it with, "
                "mean (worst) over the successful runs; > 1: loaded beyond what the grope verified; 'no impulse': "
                "without the 0.2 s after each collapse (paper Fig. 14: below R_ref 'except for the impulse')",
                "late / weak accepted: groped footholds that collapsed after their grope accepted them / weaker than "
