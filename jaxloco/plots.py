@@ -238,7 +238,7 @@ def plot_tuning(curve: Any, comparison: Any, params: Sequence[str], *, units: Ma
 def plot_validation(comparison: Any, metrics: Sequence[str], *, labels: Mapping[str, str] | None = None,
                     title: str = "", ranges: bool = False, panel: tuple[float, float] = (2.6, 2.8)):
     """A validation comparison (`jaxloco.tune.handoff.compare`): one panel per metric, one
-    bar per compared set (initial, tuned, paper; merged sets such as "initial=paper" once).
+    bar per compared set (initial, tuned, references; merged sets such as "initial=paper" once).
     A metric `m` is drawn from the column `m_mean` (ranges: with a line from `m_min` to
     `m_max` over the set's rows); "ok_fraction" and `*_fraction` columns as they are."""
     import matplotlib.pyplot as plt

@@ -54,7 +54,7 @@ def test_objective_loads_from_the_registry_with_the_analysis_names():
         A.TERRAIN_CLASSIFICATION.param(t.name).check(t.hi)
     assert dict(objective.references["default (ours)"]) == pytest.approx(dict(zip(SIGMA_NAMES, SIGMA.tolist())))
     analysis_defaults = {p.name: p.default for p in A.PARAMS}
-    assert {k: analysis_defaults[k] for k in SIGMA_NAMES} == pytest.approx(T.PAPER)
+    assert {k: analysis_defaults[k] for k in SIGMA_NAMES} == pytest.approx(T.DEFAULT_SIGMA)
 
 
 def test_bank_is_the_analysis_sampling(bank):
@@ -149,7 +149,7 @@ def test_three_steps_lower_the_error_without_losing_hard_accuracy(tmp_path):
     assert best["loss"] < initial["loss"]
     assert best["accuracy"] >= initial["accuracy"]
     assert initial["loss"] == pytest.approx(1.0 - initial["soft_accuracy"], rel=1e-12)
-    assert result.values("initial") == pytest.approx(T.PAPER)
+    assert result.values("initial") == pytest.approx(T.DEFAULT_SIGMA)
     assert paper["loss"] == pytest.approx(initial["loss"], rel=1e-12)
     assert result.values("tuned") != result.values("initial")
 
@@ -190,7 +190,7 @@ def test_bad_settings_are_one_line_spec_errors(tmp_path, settings, init, message
 def test_committed_spec_loads():
     spec = jaxloco.tune.load_spec(SWEEPS / "octopus_sigma_tune.toml")
     assert spec.objective is T.SIGMA_TUNE and spec.name == "octopus_sigma_tune"
-    assert spec.params == SIGMA_NAMES and dict(spec.init) == pytest.approx(T.PAPER)
+    assert spec.params == SIGMA_NAMES and dict(spec.init) == pytest.approx(T.DEFAULT_SIGMA)
     assert spec.settings["samples"] == 4096 and spec.settings["danger_weight"] == 4.0
     validation = jaxloco.sweep.load_spec(SWEEPS / "octopus_sigma.toml")
     assert set(SIGMA_NAMES) <= set(validation.swept)  # where the tuned values go for validation

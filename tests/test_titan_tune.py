@@ -65,7 +65,7 @@ def test_registry_names_bounds_and_settings():
     for t in obj.tunables:  # the sweep's names and ranges: tuned values go back into a sweep
         p = params[t.name]
         assert p.check(t.lo) == t.lo and p.check(t.hi) == t.hi and t.lo < t.default < t.hi
-    assert obj.references["paper"] == {"l_std": P.L_STD, "w_std": P.W_STD}
+    assert obj.references["default (ours)"] == {"l_std": P.L_STD, "w_std": P.W_STD}
     assert {p.name for p in obj.settings} == (set(params) - {"l_std", "w_std"}) | {"w_margin", "n_offsets"}
     np.testing.assert_allclose(TT.offsets(3), [(0.0, 0.0), (1 / 3, TT.PHI), (2 / 3, 2 * TT.PHI - 1)], rtol=1e-15)
 
@@ -94,7 +94,7 @@ def test_bad_settings_are_one_line_spec_errors(settings, init, match, tmp_path):
 def test_committed_spec_loads():
     spec = jaxloco.tune.load_spec(SWEEPS / "titan_stride_tune.toml")
     assert spec.objective is TT.STRIDE_TUNE and spec.name == "titan_stride_tune"
-    assert set(spec.params) == {"l_std", "w_std"} and dict(spec.init) == pytest.approx(TT.PAPER)
+    assert set(spec.params) == {"l_std", "w_std"} and dict(spec.init) == pytest.approx(TT.DEFAULT_STRIDE)
     assert spec.settings["slope"] == pytest.approx(math.radians(30.0))  # Sec. 8.4
     assert spec.settings["tether"] == 0.75 and spec.settings["frame_size"] == 0.0
     TT.check_settings(spec.settings)
@@ -157,8 +157,8 @@ def test_three_adam_steps_lower_the_loss(tmp_path, analysis_rows):
     res = jaxloco.tune.run(spec, progress=False, out=tmp_path / "out", configure_jax=False)
     curve = res.curve.to_pydict()
     assert curve["step"] == [0, 1, 2, 3]
-    initial, best, paper = res.row("initial"), res.row("tuned"), res.row("paper")
-    assert res.values("initial") == pytest.approx(TT.PAPER) and paper["loss"] == pytest.approx(initial["loss"])
+    initial, best, paper = res.row("initial"), res.row("tuned"), res.row("default (ours)")
+    assert res.values("initial") == pytest.approx(TT.DEFAULT_STRIDE) and paper["loss"] == pytest.approx(initial["loss"])
     assert initial["loss"] == pytest.approx(_loss(P.L_STD, P.W_STD), rel=1e-12)
     assert initial["min_nesm"] == pytest.approx(float(analysis_rows["min_nesm"][-1]), rel=1e-12)
     assert best["loss"] == min(curve["loss"]) < initial["loss"] - 0.1

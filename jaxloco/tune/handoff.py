@@ -11,8 +11,8 @@ rows, the fraction with status "ok" and the mean, min and max of every metric.
 Mapping tunable -> sweep parameter: by default every tunable whose name is a parameter
 of the sweep's analysis (the robots' objectives use the analyses' names on purpose);
 give `mapping` to rename, e.g. {"gain_k": "gain_k"}. Sets whose mapped values are
-equal (e.g. the initial values are the paper's) are run once and labelled together
-("initial=paper"). The tuned values must lie in the sweep parameter's range, else
+equal (e.g. the initial values are a reference's) are run once and labelled together
+("initial=default (ours)"). The tuned values must lie in the sweep parameter's range, else
 SpecError says which one. Importing this module does not import JAX.
 """
 

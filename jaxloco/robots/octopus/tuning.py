@@ -58,13 +58,13 @@ from jaxloco.robots.octopus.params import SIGMA
 from jaxloco.tune.objective import Objective, Tunable
 
 CLASSES = A.CLASSES  # 0 undetectable, 1 flat, 2 up, 3 down (kinematics.CASE_* order)
-PAPER = {"sigma1": float(SIGMA[0]), "sigma2": float(SIGMA[1]), "sigma3": float(SIGMA[2])}
+DEFAULT_SIGMA = {"sigma1": float(SIGMA[0]), "sigma2": float(SIGMA[1]), "sigma3": float(SIGMA[2])}
 
 TUNABLES = (
-    Tunable("sigma1", PAPER["sigma1"], "sigma_1: |z1 - z4|, |z2 - z3| below it is flat (Case 1)", "m",
+    Tunable("sigma1", DEFAULT_SIGMA["sigma1"], "sigma_1: |z1 - z4|, |z2 - z3| below it is flat (Case 1)", "m",
             lo=0.005, hi=0.2),
-    Tunable("sigma2", PAPER["sigma2"], "sigma_2: upper bound of an upward step (Case 2)", "m", lo=0.1, hi=0.8),
-    Tunable("sigma3", PAPER["sigma3"], "sigma_3: upper bound of a downward step (Case 3)", "m", lo=0.1, hi=0.8),
+    Tunable("sigma2", DEFAULT_SIGMA["sigma2"], "sigma_2: upper bound of an upward step (Case 2)", "m", lo=0.1, hi=0.8),
+    Tunable("sigma3", DEFAULT_SIGMA["sigma3"], "sigma_3: upper bound of a downward step (Case 3)", "m", lo=0.1, hi=0.8),
 )
 
 # settings shared with the analysis (same names, defaults and ranges)
@@ -251,6 +251,6 @@ SIGMA_TUNE = Objective(
     tunables=TUNABLES,
     settings=SETTINGS,
     make_loss=make_loss,
-    references={"default (ours)": PAPER},
+    references={"default (ours)": DEFAULT_SIGMA},
     x64=True,
 )

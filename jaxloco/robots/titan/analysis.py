@@ -242,8 +242,8 @@ def summarize(table) -> Summary:
          "distance per cycle (ties within 1 mm: largest min NESM - S_NE^c)"),
         (f"{', '.join(map(str, n_cycles))} cycles per row from the standard start; slope in deg, direction in rad "
          "(map frame); objective = dist * sigmoid((softmin NESM - S_NE^c) / tau)"),
-        (f"paper strides: L_std = {P.L_STD:g} m, W_std = {P.W_STD:g} m, S_NE^c = {P.S_NE_C:g} m "
-         "(params.py; 1 m per cycle on flat ground)"),
+        (f"default strides (ours; the paper gives no values): L_std = {P.L_STD:g} m, W_std = {P.W_STD:g} m, "
+         f"S_NE^c = {P.S_NE_C:g} m (params.py; 1 m per cycle on flat ground)"),
     )
     columns = ("frame [m]", "interval [m]", "slope", "dir", *(("tether",) if tether_varies else ()), "ok",
                "L_std", "W_std", "S_NE^c", "dist/cycle", "min NESM", "mods", "deviation", "objective")

@@ -48,7 +48,7 @@ def plot_stride_maps(table: Any, paper: Mapping[str, float] | None = None, *, wh
     """Per terrain case (columns): the ok fraction (every step NESM >= S_NE^c and no
     failed foothold search) and the mean distance per cycle [m] over the stride (L_std,
     W_std) [m], each cell pooled over the other swept parameters (S_NE^c, direction).
-    Outlined: `paper`'s l_std, w_std (e.g. `tuning.PAPER`)."""
+    Outlined: `paper`'s l_std, w_std (e.g. `tuning.DEFAULT_STRIDE`)."""
     import matplotlib.pyplot as plt
 
     cases = terrain_cases(table)

@@ -15,8 +15,8 @@ Loss (one plan; map frame, SI units):
     loss = -d / D_REF + w_margin * softplus((S_NE^c - s) / tau)
 
   * d: distance per cycle [m] (`GaitPlan.distance_per_cycle`: mean COG progress along
-    L_G, 0 for a held cycle); D_REF = 2 L_std = 1.0 m, the paper stride's progress per
-    cycle, so -1 is "as fast as the paper's standard gait".
+    L_G, 0 for a held cycle); D_REF = 2 L_std = 1.0 m, the default stride's progress per
+    cycle, so -1 is "as fast as the default standard gait".
   * s: the analysis' soft-min NESM, -tau log sum_k exp(-nesm_k / tau) over the 6 n_cycles
     planned steps (`analysis.softmin`, tau = `softmin_tau`), a smooth lower bound of the
     hard min (s >= S_NE^c implies min NESM >= S_NE^c), except that the six steps of a
@@ -38,13 +38,13 @@ of the planned margin to the legs' mass, `walk.py`).
 Default case: the Sec. 8.4 test slope (30 deg), walking straight up the fall line for 4
 cycles, with the tethers cancelling only 75 % of the slope-parallel gravity (Sec. 8.1
 assumes all of it; the remaining downhill pull tilts the effective gravity by ~8 deg)
-and no frames. There the paper stride keeps min NESM 0.038 m, 8 mm above S_NE^c = 0.03 m,
+and no frames. There the default stride keeps min NESM 0.038 m, 8 mm above S_NE^c = 0.03 m,
 and the tuning finds a stride that is faster and keeps more margin. With the full tether
 (flat-ground margins) the NESM of the standard gait grows with L_std up to the fans' reach
 and the tuning just runs to the reach limit (L_std 0.98 m, W_std 0.43 m, next to its
 lower bound); with less tether the optimum moves to shorter, wider strides (best of 80
-Adam steps, learning rate 0.1, from the paper stride: tether 0.8 -> (0.82, 0.81) m, 0.75
--> (0.76, 0.97) m, 0.7 -> (0.66, 1.19) m; at 0.6 the paper stride's start is already
+Adam steps, learning rate 0.1, from the default stride: tether 0.8 -> (0.82, 0.81) m, 0.75
+-> (0.76, 0.97) m, 0.7 -> (0.66, 1.19) m; at 0.6 the default stride's start is already
 below S_NE^c, every cycle is held and the gradient is zero).
 
 Differentiability: the foothold candidates are fixed offsets of the initial search
@@ -73,14 +73,15 @@ piece says nothing about the average. `n_offsets` > 1 averages the loss over fra
 shifted by phases (k / K, frac(k phi)) of the interval in map (x, y) (phi = golden ratio
 - 1, k = 0..K-1; k = 0 is the sweep row), the expected loss over where the robot meets
 the frames. Even so, on the Sec. 8.4 frame slope (tether 1, 4 phases) 40 Adam steps from
-the paper stride drifted to (0.91, 1.63) m with held cycles, the loss rising from 0.21 to
+the default stride drifted to (0.91, 1.63) m with held cycles, the loss rising from 0.21 to
 1.25 (best step -0.02), while the grid point (0.95, 1.10) m of the same loss is at -0.82
 (same with tether 0.75: best 0.15 below the start): the pieces' slopes do not point to
 the better strides. Use the titan.stride sweep on frame maps.
 
 Settings: every other titan.stride parameter (S_NE^c, terrain, direction, tether,
 softmin_tau, n_cycles, map shape and cell) plus `w_margin` and `n_offsets`. Reference:
-the paper's stride (params.py: L_std = 0.5 m, W_std = 1.0 m) as "paper".
+the default stride (params.py: L_std = 0.5 m, W_std = 1.0 m) as "default (ours)": the paper
+gives no values for L_std, W_std and S_NE^c (its figures are missing).
 """
 
 from __future__ import annotations
@@ -100,7 +101,7 @@ from jaxloco.robots.titan import maps as M
 from jaxloco.robots.titan import params as P
 from jaxloco.tune.objective import Objective, Tunable
 
-D_REF = 2.0 * P.L_STD  # [m] progress per cycle of the paper's standard gait on flat ground
+D_REF = 2.0 * P.L_STD  # [m] progress per cycle of the default standard gait on flat ground
 PHI = 0.5 * (math.sqrt(5.0) - 1.0)  # y phase step of the frame-grid offsets
 L_LO, L_HI = 0.1, 1.0  # [m] bounds of l_std (hi: the sweep's upper bound, ~ the fans' reach)
 W_LO, W_HI = 0.4, 1.8  # [m] bounds of w_std (flat ground: at 0.4 the standard gait keeps only
@@ -115,7 +116,7 @@ TUNABLES = (
     Tunable("w_std", P.W_STD, "W_std: standard COG lateral shift per half cycle (zigzag +-W_std / 2)", "m",
             lo=W_LO, hi=W_HI),
 )
-PAPER = {"l_std": P.L_STD, "w_std": P.W_STD}
+DEFAULT_STRIDE = {"l_std": P.L_STD, "w_std": P.W_STD}  # default (ours): not in the paper
 
 # default case (module doc): the Sec. 8.4 slope angle, 75 % tether, no frames (frame_interval:
 # the Sec. 8.4 grid, used when frame_size > 0)
@@ -265,6 +266,6 @@ STRIDE_TUNE = Objective(
     tunables=TUNABLES,
     settings=SETTINGS,
     make_loss=make_loss,
-    references={"paper": PAPER},
+    references={"default (ours)": DEFAULT_STRIDE},
     x64=True,
 )
