@@ -114,7 +114,7 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
     from jaxloco.robots.titan import kinematics as K
     from jaxloco.robots.titan import model as titan_model
     from jaxloco.robots.titan import params as P
-    from jaxloco.robots.titan import scenarios as TS
+    from jaxloco.robots.titan import control as TC
     from jaxloco.sim import terrain as tr
 
     values = row.values
@@ -136,7 +136,7 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
     c, s = math.cos(slope), math.sin(slope)
     rot = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])  # maps.map_to_world: rot_y(-slope)
     normal = rot[:, 2]
-    body_quat = np.asarray(TS.body_quat(slope, 0.0, 0.0), float)
+    body_quat = np.asarray(TC.body_quat(slope, 0.0, 0.0), float)
 
     model, terrain = _titan_model(frame_size, interval)
     model = model_copy(model)

@@ -25,30 +25,13 @@ higher of that and its own `swing_height` rule). The body attitude is fixed
 for the whole plan: the slope plane's (z_b along its normal) turned by `heading` about
 it. `Plan.params()` gives the params entries; `params_batch(n, plan, **scalars)` a batch.
 
-The executor (pure JAX, `Controller`): after `settle_time`, step k runs from
-settle_time + k step_time for `step_time` seconds.
-  * body shift (swing -1): the body target moves along the straight line from the
-    previous body position to body[k] (smoothstep in time), all four feet held at their
-    world positions;
-  * swing of leg u (Sec. 6.4.1, rectangular trajectory, body still): the foot centre
-    rises along the body z axis (the virtual contact plane's normal) to `swing_height`
-    above the higher of its start and target, moves parallel to the plane above the
-    target, then descends to the target and PRESS below it; as soon as its touch sensor
-    reads more than `contact_force` (fraction of M g) in the descent, the foot target
-    stops there ("lower until contact", the unevenness-absorbing gait of Fig. 6);
-  * the swing target is offset by the mean in-plane deviation of the supporting feet
-    from their targets (slip, the body correction below), so that the foot lands at
-    its planned world position;
-  * joint targets: `kinematics.legs_inverse_kinematics` of the foot targets in the
-    commanded body frame, with the body placed at its target plus a correction `corr`
-    that integrates the error of the whole-robot centre of mass (in the plane) and of
-    the body origin (along the normal) against the planned body position (gain
-    `body_gain` [1/s], at most MAX_CORR per axis): the plan's body position is the
-    planner's COG, the legs (450 kg each) move the centre of mass off the trunk's by up
-    to ~7 cm, and the servos sag under the 7 t load; likewise the commanded attitude is
-    turned by a small rotation `corr_rot` integrating the body attitude error (same
-    gain, at most MAX_CORR_ROT per axis): without it the body pitched 0.03 rad down
-    the 30 deg slope over four cycles.
+The executor (`control.py`, pure JAX): after `settle_time`, step k runs from
+settle_time + k step_time for `step_time` seconds; body shifts move the body along a
+straight line, swings follow the rectangular trajectory of Sec. 6.4.1 and stop at
+touchdown, and an integral correction drives the whole-robot centre of mass and the
+body attitude onto the plan (see there). This module holds the model, the plans and the
+scenario's signals (`Layout`, `observe`, `record`, `summarize`), each a module-level
+function of the model's `Layout`.
 
 Records (every control period): body position and quaternion, rpy, COG (whole-robot
 centre of mass), foot centres and their targets, touch forces and contacts, NESM
@@ -62,8 +45,8 @@ Metrics (`summarize`): min_nesm (during the plan, over the planned support: ever
 but the swinging one, at the measured foot positions and whole-robot COG; a resting
 foot counts even while a touchdown transient briefly unloads it; min_nesm_swing the
 same during swings only, i.e. on the three-leg support), nesm_ok
-(min_nesm >= s_ne_c - nesm_tol: the servos' compliance costs a few mm), max_touchdown_error (foot centre vs target at the end of each
-swing), swing_collision (the swinging leg touched a frame: clearance < 0 while
+(min_nesm >= s_ne_c - nesm_tol: the servos' compliance costs a few mm),
+max_touchdown_error (foot centre vs target at the end of each swing), swing_collision (the swinging leg touched a frame: clearance < 0 while
 swinging), min_swing_clearance, forbidden_landing (a foot in contact touching a frame),
 max_cycle_error (whole-robot COG vs the planned body position at the ends of cycles, in
 the plane), max_path_deviation (that COG off the cycle's path line, in the plane), final_progress (body
@@ -79,32 +62,30 @@ target or diverged), success, status (0 ok, 1 failed).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco import geometry as geo
 from jaxloco import stability
+from jaxloco.robots.titan import control
 from jaxloco.robots.titan import kinematics as K
 from jaxloco.robots.titan import model as titan_model
 from jaxloco.robots.titan import params as P
 from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.data import SimData, sensor_slice
-from jaxloco.sim.scenario import Controller, InitialState, Scenario, friction_field
+from jaxloco.sim.scenario import InitialState, Scenario, friction_field
 from jaxloco.sim.scenario import params_batch as sim_params_batch
 
 N_BEAMS = 6  # beams each way
 MAX_SPACING = 3.0  # [m]
 MAX_BEAM_HEIGHT = 0.3  # [m]
 HALF_EXTENT = 12.0  # [m] half size of the ground plane
-CONTROL_DT = 0.04  # [s]
-PRESS = 0.03  # [m] the descent goes this far below the target if no contact comes first
 N_SAMPLES = 16  # points per leg link for the clearance
-MAX_CORR = 0.2  # [m] largest body position correction per axis
-MAX_CORR_ROT = 0.1  # [rad] largest body attitude correction per axis
 FELL_TILT = 0.3  # [rad]
 FELL_DROP = 0.5  # [m]
 STATUSES = ("ok", "failed")
@@ -264,6 +245,9 @@ def demo_crawl_plan(
     )
 
 
+CONTROL_DT = control.CONTROL_DT  # [s] the executor's control period
+
+
 # ----------------------------------------------------------------------------- model
 def build_model(
     beam_width: float = float(P.FRAME_SMALL),
@@ -283,17 +267,6 @@ def build_model(
     return spec.compile(), terrain
 
 
-def body_quat(theta, direction, heading):
-    """Commanded body attitude: z_b along the plane normal, yawed by `heading`."""
-    n = tr.slope_normal(theta, direction)
-    return tr.quat_mul(tr.quat_tilt(n), tr.quat_z(heading))
-
-
-def _smooth(s):
-    s = jnp.clip(s, 0.0, 1.0)
-    return s * s * (3.0 - 2.0 * s)
-
-
 def _box_distance(points, centres, rots, halves):
     """Signed distance (n_points, n_boxes) from points (n, 3) to oriented boxes."""
     local = jnp.einsum("bji,pbj->pbi", rots, points[:, None, :] - centres[None])
@@ -301,6 +274,190 @@ def _box_distance(points, centres, rots, halves):
     outside = jnp.linalg.norm(jnp.maximum(q, 0.0) + 1e-12, axis=-1)
     inside = jnp.minimum(jnp.max(q, axis=-1), 0.0)
     return outside + inside
+
+
+class Layout(NamedTuple):
+    """Where the scenario's signals are in the compiled model (static, NumPy / Python)."""
+
+    terrain: tr.Terrain
+    body_id: int
+    foot_sites: np.ndarray  # (4,) site ids
+    hips: np.ndarray  # (4,) body ids
+    knees: np.ndarray  # (4,) body ids (shanks)
+    touch: tuple  # 4 sensor slices
+    quat: slice  # IMU quaternion sensor slice
+    frame_rows: np.ndarray  # mocap rows of the frame beams
+    frame_halves: np.ndarray  # (n_beams, 3) beam half sizes
+    weight: float  # M g [N]
+    n_steps: int
+
+
+def model_layout(m: mujoco.MjModel, terrain: tr.Terrain, n_steps: int) -> Layout:
+    """The `Layout` of the compiled model `m` with `terrain`, for plans of n_steps."""
+    body_id = m.body("body").id
+    return Layout(
+        terrain=terrain,
+        body_id=body_id,
+        foot_sites=np.array([m.site(f"{leg}_foot").id for leg in K.LEG_NAMES]),
+        hips=np.array([m.body(f"{leg}_hip").id for leg in K.LEG_NAMES]),
+        knees=np.array([m.body(f"{leg}_shank").id for leg in K.LEG_NAMES]),
+        touch=tuple(sensor_slice(m, f"{leg}_touch") for leg in K.LEG_NAMES),
+        quat=sensor_slice(m, "imu_quat"),
+        frame_rows=tr.mocap_ids(m, terrain)[1:],
+        frame_halves=np.asarray([piece.half_size for piece in terrain.pieces[1:]]),
+        weight=float(m.body_subtreemass[body_id]) * float(P.G),
+        n_steps=n_steps,
+    )
+
+
+def _terrain_values(p) -> dict:
+    return {k: p[k] for k in ("theta", "direction", "spacing", "beam_height")}
+
+
+def initial_state(lay: Layout, nv: int, p, key) -> InitialState:
+    """Standing on the plan's start footholds, the terrain placed from params p."""
+    pos, quat = lay.terrain.place(_terrain_values(p), key)
+    n, _ = control.frames(p)
+    q = control.leg_targets(p, p["plan_feet0"] + K.FOOT_RADIUS * n, p["plan_body0"])
+    quat_b = control.body_quat(p["theta"], p["direction"], p["heading"])
+    qpos = jnp.concatenate([p["plan_body0"], quat_b, q])
+    ctrl = jnp.concatenate([q, control.tether_force(p, lay.weight)])
+    return InitialState(qpos=qpos, qvel=jnp.zeros(nv), ctrl=ctrl, mocap_pos=pos, mocap_quat=quat)
+
+
+def observe(lay: Layout, data: SimData) -> dict:
+    """What the executor senses: time, foot centres, foot touch forces, body position,
+    whole-robot centre of mass and the IMU quaternion."""
+    return {
+        "time": data.time,
+        "feet": data.site_xpos[lay.foot_sites],
+        "touch": jnp.stack([data.sensordata[s][0] for s in lay.touch]),
+        "body": data.qpos[:3],
+        "com": data.subtree_com[lay.body_id],
+        "quat": data.sensordata[lay.quat],
+    }
+
+
+def leg_frame_clearance(lay: Layout, p, data: SimData, feet: jax.Array) -> jax.Array:
+    """Clearance (4, 2 N_SAMPLES + 1) of each leg's thigh and shank samples and foot pad
+    to the frame beams [m] (< 0: penetration; inf on plain ground)."""
+    pts_a, pts_b = data.xpos[lay.hips], data.xpos[lay.knees]
+    s = jnp.linspace(0.0, 1.0, N_SAMPLES)
+    thigh = pts_a[:, None] + s[None, :, None] * (pts_b - pts_a)[:, None]
+    shank = pts_b[:, None] + s[None, :, None] * (feet - pts_b)[:, None]
+    pts = jnp.concatenate([thigh, shank, feet[:, None]], axis=1)  # (4, 2S+1, 3)
+    rots = tr.quat_to_matrix(data.mocap_quat[lay.frame_rows])
+    dist = _box_distance(pts.reshape(-1, 3), data.mocap_pos[lay.frame_rows], rots, jnp.asarray(lay.frame_halves))
+    radii = jnp.concatenate([jnp.full(N_SAMPLES, titan_model.THIGH_RADIUS),
+                             jnp.full(N_SAMPLES, titan_model.SHANK_RADIUS), jnp.full(1, float(P.FOOT_RADIUS))])
+    dist = jnp.min(dist, axis=1).reshape(4, -1) - radii[None]
+    return jnp.where(p["beam_height"] > 1e-6, dist, jnp.inf)  # flush beams: no frames
+
+
+def record(lay: Layout, p, data: SimData, obs, c: control.ExecutorState, e) -> dict:
+    """One record (module docstring, "Records")."""
+    n, _ = control.frames(p)
+    now, _ = control.step_targets(p, lay.n_steps, lay.weight, c, obs)
+    feet = obs["feet"]
+    cog = data.subtree_com[lay.body_id]
+    g_eff = jnp.array([0.0, 0.0, -lay.weight]) + control.tether_force(p, lay.weight)  # gravity + tethers
+    # the support: every leg but the one swinging (a foot resting on the ground is a
+    # support point even while touchdown transients briefly unload it)
+    support = jnp.arange(4) != now.swing
+    nesm = stability.ne_stability_margin(cog, feet - K.FOOT_RADIUS * n, support, up=-g_eff / jnp.linalg.norm(g_eff))
+    dist = leg_frame_clearance(lay, p, data, feet)
+    return {
+        "body_pos": obs["body"],
+        "body_quat": obs["quat"],
+        "rpy": sm.quat_to_rpy(obs["quat"]),
+        "cog": cog,
+        "feet": feet,
+        "feet_target": now.feet,
+        "body_target": now.body,
+        "touch": obs["touch"],
+        "contact": obs["touch"] > p["contact_force"] * lay.weight,
+        "nesm": nesm,
+        "step": now.k,
+        "swing": now.swing,
+        "descending": now.descending,
+        "leg_clearance": jnp.min(dist, axis=1),
+        "foot_clearance": dist[:, -1],
+    }
+
+
+def _cycle_end_errors(p, r, n, last, ce):
+    """Largest in-plane error of the whole-robot COG against the planned body position
+    and against the cycle's path line, at the cycle ends `ce`, and the path directions."""
+    body_end = r["cog"][last]  # the whole-robot centre of mass (what the body correction tracks)
+    cyc = body_end - p["plan_body"]
+    cyc_err = jnp.linalg.norm(cyc - (cyc @ n)[:, None] * n, axis=-1)
+    d = p["plan_path_dir"] / jnp.linalg.norm(p["plan_path_dir"], axis=-1, keepdims=True)  # (n_steps, 3)
+    rel = body_end - p["plan_path_origin"]
+    along = jnp.sum(rel * d, axis=-1)
+    off = rel - along[:, None] * d - (rel @ n)[:, None] * n
+    path_dev = jnp.linalg.norm(off, axis=-1)
+    return sm.masked_max(cyc_err, ce, 0.0), sm.masked_max(path_dev, ce, 0.0), d
+
+
+def summarize(lay: Layout, p, r, final) -> dict:
+    """The metrics (module docstring, "Metrics") of one simulation's records r."""
+    n, _ = control.frames(p)
+    steps = jnp.arange(lay.n_steps)
+    k, u = r["step"], r["swing"]
+    running = (k >= 0) & (k < lay.n_steps)
+    min_nesm = jnp.where(jnp.any(running), sm.masked_min(r["nesm"], running), jnp.nan)
+    on_three = running & (u >= 0)  # the planned three-leg support of the swings
+    min_nesm_swing = jnp.where(jnp.any(on_three), sm.masked_min(r["nesm"], on_three), jnp.nan)
+    # the last record of each step
+    idx = jnp.arange(k.shape[0])
+    last = jnp.max(jnp.where(k[None, :] == steps[:, None], idx[None, :], -1), axis=1)  # (n_steps,)
+    reached = last >= 0
+    lastc = jnp.maximum(last, 0)
+    sw = p["plan_swing"]
+    swc = jnp.maximum(sw, 0)
+    goal = p["plan_feet"][steps, swc] + K.FOOT_RADIUS * n
+    td_err = jnp.linalg.norm(r["feet"][lastc, swc] - goal, axis=-1)
+    max_td = sm.masked_max(td_err, reached & (sw >= 0), 0.0)
+    # the swinging leg's clearance to the frames
+    swinging = running & (u >= 0)
+    clear_sw = jnp.take_along_axis(r["leg_clearance"], jnp.maximum(u, 0)[:, None], axis=1)[:, 0]
+    min_clear = sm.masked_min(clear_sw, swinging, jnp.inf)
+    collision = jnp.any(swinging & (clear_sw < 0.0))
+    forbidden = jnp.any(running[:, None] & r["contact"] & (r["foot_clearance"] < 0.0))
+    max_cyc, max_path, d = _cycle_end_errors(p, r, n, lastc, reached & p["plan_cycle_end"])
+    # progress along the first step's path direction
+    progress = (r["body_pos"][-1] - r["body_pos"][0]) @ d[0]
+    # supporting feet slipping: horizontal motion between consecutive records in contact
+    both = r["contact"][1:] & r["contact"][:-1]
+    dfeet = r["feet"][1:] - r["feet"][:-1]
+    dfeet = dfeet - (dfeet @ n)[..., None] * n
+    slip = jnp.sum(jnp.where(both, jnp.linalg.norm(dfeet, axis=-1), 0.0), axis=0)
+    tilt = sm.tilt_change(r["body_quat"], r["body_quat"][0])
+    sag = jnp.max((r["body_target"] - r["body_pos"]) @ n)
+    fell = (jnp.max(tilt) > FELL_TILT) | (sag > FELL_DROP) | ~final.alive
+    completed = jnp.all(reached)
+    nesm_ok = min_nesm >= p["s_ne_c"] - p["nesm_tol"]
+    success = (completed & ~fell & nesm_ok & ~collision & ~forbidden & (max_td < p["touchdown_tol"])
+               & (max_path < p["path_tol"]))
+    return {
+        "success": success,
+        "min_nesm": min_nesm,
+        "nesm_ok": nesm_ok,
+        "min_nesm_swing": min_nesm_swing,
+        "max_touchdown_error": max_td,
+        "swing_collision": collision,
+        "min_swing_clearance": min_clear,
+        "forbidden_landing": forbidden,
+        "max_cycle_error": max_cyc,
+        "max_path_deviation": max_path,
+        "final_progress": progress,
+        "foot_slip": jnp.max(slip),
+        "max_tilt": jnp.max(tilt),
+        "max_sag": sag,
+        "fell": fell,
+        "completed": completed,
+        "status": jnp.where(success, 0, 1),
+    }
 
 
 def make_scenario(
@@ -311,359 +468,26 @@ def make_scenario(
     step_time: float = PARAM_DEFAULTS["step_time"],
     settle_time: float = PARAM_DEFAULTS["settle_time"],
 ) -> Scenario:
-    """The footstep executor for plans of `n_steps` steps. horizon_s default: the plan
-    at (step_time, settle_time) plus 1 s (the params may change the timing, not the
-    horizon)."""
+    """The footstep executor (`control.py`) for plans of `n_steps` steps. horizon_s
+    default: the plan at (step_time, settle_time) plus 1 s (the params may change the
+    timing, not the horizon)."""
     m, terrain = build_model(beam_width)
-    substeps = round(CONTROL_DT / m.opt.timestep)
+    lay = model_layout(m, terrain, n_steps)
     if horizon_s is None:
         horizon_s = settle_time + n_steps * step_time + 1.0
     horizon = round(horizon_s / CONTROL_DT)
     horizon -= horizon % record_every
-    mocap = tr.mocap_ids(m, terrain)
-    frame_rows = mocap[1:]
-    frame_halves = jnp.asarray([p.half_size for p in terrain.pieces[1:]])
-    terrain_geoms = np.array([m.geom(n).id for n in terrain.body_names()])
-    body_id = m.body("body").id
-    foot_sites = np.array([m.site(f"{leg}_foot").id for leg in K.LEG_NAMES])
-    hips = np.array([m.body(f"{leg}_hip").id for leg in K.LEG_NAMES])
-    knees = np.array([m.body(f"{leg}_shank").id for leg in K.LEG_NAMES])
-    touch = [sensor_slice(m, f"{leg}_touch") for leg in K.LEG_NAMES]
-    quat_s = sensor_slice(m, "imu_quat")
-    mass = float(m.body_subtreemass[body_id])
-    weight = mass * float(P.G)
-    r_foot = K.FOOT_RADIUS
-    radii = jnp.concatenate(
-        [
-            jnp.full(N_SAMPLES, titan_model.THIGH_RADIUS),
-            jnp.full(N_SAMPLES, titan_model.SHANK_RADIUS),
-            jnp.full(1, float(P.FOOT_RADIUS)),  # the pad
-        ]
-    )
-    steps = jnp.arange(n_steps)
-    lag = jnp.asarray(
-        np.tile(np.asarray(titan_model.KV) / np.asarray(titan_model.KP), 4)
-    )  # [s]
-
-    def frames(p):
-        n = tr.slope_normal(p["theta"], p["direction"])
-        R = tr.quat_to_matrix(body_quat(p["theta"], p["direction"], p["heading"]))
-        return n, R
-
-    def tether_force(p):
-        uphill, _ = tr.slope_axes(p["theta"], p["direction"])
-        return p["tether"] * weight * jnp.sin(p["theta"]) * uphill
-
-    def terrain_values(p):
-        return {k: p[k] for k in ("theta", "direction", "spacing", "beam_height")}
-
-    def leg_targets(p, feet_c, body_c, rot=None):
-        """Joint targets (12,) for foot centres feet_c (4, 3), body position body_c and
-        the commanded attitude turned by the small world-frame rotation `rot` (3,)."""
-        _, R = frames(p)
-        if rot is not None:
-            R = geo.rpy_to_matrix(rot[0], rot[1], rot[2]) @ R
-        local = (feet_c - body_c[None]) @ R
-        q, _ = K.legs_inverse_kinematics(local)
-        return q.reshape(-1)
-
-    def initial_state(p, key):
-        pos, quat = terrain.place(terrain_values(p), key)
-        n, _ = frames(p)
-        feet_c = p["plan_feet0"] + r_foot * n
-        q = leg_targets(p, feet_c, p["plan_body0"])
-        quat_b = body_quat(p["theta"], p["direction"], p["heading"])
-        qpos = jnp.concatenate([p["plan_body0"], quat_b, q])
-        ctrl = jnp.concatenate([q, tether_force(p)])
-        return InitialState(
-            qpos=qpos, qvel=jnp.zeros(m.nv), ctrl=ctrl, mocap_pos=pos, mocap_quat=quat
-        )
-
-    def observe(data: SimData):
-        return {
-            "time": data.time,
-            "feet": data.site_xpos[foot_sites],
-            "touch": jnp.stack([data.sensordata[s][0] for s in touch]),
-            "body": data.qpos[:3],
-            "com": data.subtree_com[body_id],
-            "quat": data.sensordata[quat_s],
-        }
-
-    def targets(p, c, obs):
-        """Step index, swing leg, foot centre targets (4, 3), body target (3,), whether
-        the swing foot is descending, and the next controller state."""
-        n, _ = frames(p)
-        t = obs["time"] - p["settle_time"]
-        k_raw = jnp.floor(t / p["step_time"]).astype(jnp.int32)
-        k = jnp.clip(k_raw, -1, n_steps)
-        phase = jnp.where(
-            (k_raw >= 0) & (k_raw < n_steps), t / p["step_time"] - k_raw, 1.0
-        )
-        # a new step: bank the previous one (its final targets become the start)
-        new = k != c["k"]
-        feet_prev = jnp.where(new, c["feet_end"], c["feet"])
-        body_prev = jnp.where(new, c["body_end"], c["body"])
-        latched = jnp.where(new, False, c["latched"])
-        hold = jnp.where(new, c["hold"] * 0.0, c["hold"])
-        kk = jnp.clip(k, 0, n_steps - 1)
-        active = (k >= 0) & (k < n_steps)
-        u = jnp.where(active, p["plan_swing"][kk], -1)
-        body_goal = jnp.where(active & (u < 0), p["plan_body"][kk], body_prev)
-        body_t = body_prev + (body_goal - body_prev) * _smooth(phase)
-        # swing foot (rectangular trajectory along n)
-        uu = jnp.maximum(u, 0)
-        start = feet_prev[uu]
-        # where the supporting feet really are against their targets (in the plane):
-        # the offset of the commanded frame from the world (foot slip, the body
-        # correction); the swing foot aims off by the same so that it lands at its
-        # planned world position
-        support = (jnp.arange(4) != u)[:, None]
-        drift = jnp.sum(jnp.where(support, obs["feet"] - feet_prev, 0.0), axis=0)
-        drift = drift / jnp.sum(support)
-        drift = drift - (drift @ n) * n
-        goal = p["plan_feet"][kk, uu] + r_foot * n - drift
-        top = jnp.maximum(
-            jnp.maximum(start @ n, goal @ n) + p["swing_height"],
-            p["plan_swing_top"][kk] + r_foot,
-        )
-        start_top = start + (top - start @ n) * n
-        goal_top = goal + (top - goal @ n) * n
-        bottom = goal - PRESS * n
-        a = 0.25
-        up = start + (start_top - start) * _smooth(phase / a)
-        across = start_top + (goal_top - start_top) * _smooth((phase - a) / (1 - 2 * a))
-        down = goal_top + (bottom - goal_top) * _smooth((phase - (1 - a)) / a)
-        descending = (u >= 0) & (phase >= 1 - a)
-        foot = jnp.where(phase < a, up, jnp.where(phase < 1 - a, across, down))
-        touched = obs["touch"][uu] > p["contact_force"] * weight
-        first = descending & touched & ~latched
-        hold = jnp.where(first, foot, hold)
-        latched = latched | first
-        foot = jnp.where(latched, hold, foot)
-        feet_t = jnp.where((jnp.arange(4) == u)[:, None], foot[None], feet_prev)
-        # where this step ends
-        feet_end = jnp.where(
-            (jnp.arange(4) == u)[:, None],
-            jnp.where(latched, hold, bottom)[None],
-            feet_prev,
-        )
-        state = {
-            "k": k,
-            "feet": feet_prev,
-            "body": body_prev,
-            "feet_end": feet_end,
-            "body_end": body_goal,
-            "latched": latched,
-            "hold": hold,
-        }
-        return k, u, feet_t, body_t, descending, state
-
-    def end_time(p):
-        return p["settle_time"] + n_steps * p["step_time"]
-
-    def init(p, obs):
-        n, _ = frames(p)
-        feet = p["plan_feet0"] + r_foot * n
-        body = p["plan_body0"]
-        return {
-            "k": jnp.asarray(-1, jnp.int32),
-            "feet": feet,
-            "body": body,
-            "feet_end": feet,
-            "body_end": body,
-            "latched": jnp.asarray(False),
-            "hold": jnp.zeros(3, feet.dtype),
-            "corr": jnp.zeros(3, feet.dtype),
-            "corr_rot": jnp.zeros(3, feet.dtype),
-        }
-
-    def step(p, c, obs):
-        # the servos' damping acts on the joint speed (MuJoCo position actuators have no
-        # speed input): feed the planned speed forward through the position target,
-        # ctrl = q(t + dt/2) + (kv / kp) dq/dt, so that kp (ctrl - q) - kv dq = kp (q_d - q)
-        # + kv (dq_d - dq); without it the legs lag by (kv / kp) dq (6 cm in a swing) and
-        # the lags of the four supporting legs differ, pushing the feet to slip
-        _, _, feet_t, body_t, _, state = targets(p, c, obs)
-        # integral action (the legs' servo sag under load and the touchdown latches
-        # would otherwise add up over the plan; the legs' mass moves the centre of mass
-        # off the trunk's): the legs are commanded as if the body were at the target +
-        # corr, which drives the whole-robot centre of mass onto the planned COG in the
-        # plane and the body origin to its planned height along the normal
-        n, _ = frames(p)
-        err = body_t - obs["com"]
-        err = err + ((obs["com"] - obs["body"]) @ n) * n
-        running = (obs["time"] > p["settle_time"]) & (obs["time"] < end_time(p))
-        corr = c["corr"] + jnp.where(running, p["body_gain"] * CONTROL_DT * err, 0.0)
-        corr = jnp.clip(corr, -MAX_CORR, MAX_CORR)
-        # and on the attitude: the small rotation (world frame) from the measured body
-        # attitude to the commanded one
-        _, R_plan = frames(p)
-        M_err = R_plan @ tr.quat_to_matrix(obs["quat"]).T
-        e_rot = 0.5 * jnp.array(
-            [
-                M_err[2, 1] - M_err[1, 2],
-                M_err[0, 2] - M_err[2, 0],
-                M_err[1, 0] - M_err[0, 1],
-            ]
-        )
-        rot = c["corr_rot"] + jnp.where(
-            running, p["body_gain"] * CONTROL_DT * e_rot, 0.0
-        )
-        rot = jnp.clip(rot, -MAX_CORR_ROT, MAX_CORR_ROT)
-        state = {**state, "corr": corr, "corr_rot": rot}
-        q0 = leg_targets(p, feet_t, body_t + corr, rot)
-        later = {**obs, "time": obs["time"] + CONTROL_DT}
-        _, _, feet_1, body_1, _, _ = targets(p, c, later)
-        q1 = leg_targets(p, feet_1, body_1 + corr, rot)
-        q = 0.5 * (q0 + q1) + lag * (q1 - q0) / CONTROL_DT
-        return state, jnp.concatenate([q, tether_force(p)])
-
-    def record(p, data: SimData, obs, c, e):
-        n, _ = frames(p)
-        k, u, feet_t, body_t, descending, _ = targets(p, c, obs)
-        feet = obs["feet"]
-        contact = obs["touch"] > p["contact_force"] * weight
-        cog = data.subtree_com[body_id]
-        g_eff = jnp.array([0.0, 0.0, -weight]) + tether_force(p)  # gravity + tethers
-        up = -g_eff / jnp.linalg.norm(g_eff)
-        # the support: every leg but the one swinging (a foot resting on the ground is a
-        # support point even while touchdown transients briefly unload it)
-        support = jnp.arange(4) != u
-        nesm = stability.ne_stability_margin(cog, feet - r_foot * n, support, up=up)
-        # clearance of each leg to the frame beams
-        pts_a, pts_b = data.xpos[hips], data.xpos[knees]
-        s = jnp.linspace(0.0, 1.0, N_SAMPLES)
-        thigh = pts_a[:, None] + s[None, :, None] * (pts_b - pts_a)[:, None]
-        shank = pts_b[:, None] + s[None, :, None] * (feet - pts_b)[:, None]
-        pts = jnp.concatenate([thigh, shank, feet[:, None]], axis=1)  # (4, 2S+1, 3)
-        rots = tr.quat_to_matrix(data.mocap_quat[frame_rows])
-        dist = _box_distance(
-            pts.reshape(-1, 3), data.mocap_pos[frame_rows], rots, frame_halves
-        )
-        dist = jnp.min(dist, axis=1).reshape(4, -1) - radii[None]
-        dist = jnp.where(
-            p["beam_height"] > 1e-6, dist, jnp.inf
-        )  # flush beams: no frames
-        return {
-            "body_pos": obs["body"],
-            "body_quat": obs["quat"],
-            "rpy": sm.quat_to_rpy(obs["quat"]),
-            "cog": cog,
-            "feet": feet,
-            "feet_target": feet_t,
-            "body_target": body_t,
-            "touch": obs["touch"],
-            "contact": contact,
-            "nesm": nesm,
-            "step": k,
-            "swing": u,
-            "descending": descending,
-            "leg_clearance": jnp.min(dist, axis=1),
-            "foot_clearance": dist[:, -1],
-        }
-
-    def summarize(p, r, final):
-        n, _ = frames(p)
-        k, u = r["step"], r["swing"]
-        running = (k >= 0) & (k < n_steps)
-        alive = final.alive
-        margin_ok = running
-        min_nesm = jnp.where(
-            jnp.any(margin_ok), sm.masked_min(r["nesm"], margin_ok), jnp.nan
-        )
-        on_three = margin_ok & (u >= 0)  # the planned three-leg support of the swings
-        min_nesm_swing = jnp.where(
-            jnp.any(on_three), sm.masked_min(r["nesm"], on_three), jnp.nan
-        )
-        # the last record of each step
-        idx = jnp.arange(k.shape[0])
-        last = jnp.max(
-            jnp.where(k[None, :] == steps[:, None], idx[None, :], -1), axis=1
-        )  # (n_steps,)
-        reached = last >= 0
-        lastc = jnp.maximum(last, 0)
-        sw = p["plan_swing"]
-        swc = jnp.maximum(sw, 0)
-        goal = p["plan_feet"][steps, swc] + r_foot * n
-        td_err = jnp.linalg.norm(r["feet"][lastc, swc] - goal, axis=-1)
-        td_mask = reached & (sw >= 0)
-        max_td = sm.masked_max(td_err, td_mask, 0.0)
-        # the swinging leg's clearance to the frames
-        swinging = running & (u >= 0)
-        clear_sw = jnp.take_along_axis(
-            r["leg_clearance"], jnp.maximum(u, 0)[:, None], axis=1
-        )[:, 0]
-        min_clear = sm.masked_min(clear_sw, swinging, jnp.inf)
-        collision = jnp.any(swinging & (clear_sw < 0.0))
-        forbidden = jnp.any(
-            running[:, None] & r["contact"] & (r["foot_clearance"] < 0.0)
-        )
-        # cycle ends: body vs plan and vs the path line, in the plane
-        # the whole-robot centre of mass, in the plane (what the body correction tracks)
-        body_end = r["cog"][lastc]
-        ce = reached & p["plan_cycle_end"]
-        cyc = body_end - p["plan_body"]
-        cyc_err = jnp.linalg.norm(cyc - (cyc @ n)[:, None] * n, axis=-1)
-        d = p["plan_path_dir"] / jnp.linalg.norm(
-            p["plan_path_dir"], axis=-1, keepdims=True
-        )  # (n_steps, 3)
-        rel = body_end - p["plan_path_origin"]
-        along = jnp.sum(rel * d, axis=-1)
-        off = rel - along[:, None] * d - (rel @ n)[:, None] * n
-        path_dev = jnp.linalg.norm(off, axis=-1)
-        max_cyc = sm.masked_max(cyc_err, ce, 0.0)
-        max_path = sm.masked_max(path_dev, ce, 0.0)
-        # progress along the first step's path direction
-        progress = (r["body_pos"][-1] - r["body_pos"][0]) @ d[0]
-        # supporting feet slipping: horizontal motion between consecutive records in contact
-        both = r["contact"][1:] & r["contact"][:-1]
-        dfeet = r["feet"][1:] - r["feet"][:-1]
-        dfeet = dfeet - (dfeet @ n)[..., None] * n
-        slip = jnp.sum(jnp.where(both, jnp.linalg.norm(dfeet, axis=-1), 0.0), axis=0)
-        tilt = sm.tilt_change(r["body_quat"], r["body_quat"][0])
-        sag = jnp.max((r["body_target"] - r["body_pos"]) @ n)
-        fell = (jnp.max(tilt) > FELL_TILT) | (sag > FELL_DROP) | ~alive
-        completed = jnp.all(reached)
-        nesm_ok = min_nesm >= p["s_ne_c"] - p["nesm_tol"]
-        success = (
-            completed
-            & ~fell
-            & nesm_ok
-            & ~collision
-            & ~forbidden
-            & (max_td < p["touchdown_tol"])
-            & (max_path < p["path_tol"])
-        )
-        return {
-            "success": success,
-            "min_nesm": min_nesm,
-            "nesm_ok": nesm_ok,
-            "min_nesm_swing": min_nesm_swing,
-            "max_touchdown_error": max_td,
-            "swing_collision": collision,
-            "min_swing_clearance": min_clear,
-            "forbidden_landing": forbidden,
-            "max_cycle_error": max_cyc,
-            "max_path_deviation": max_path,
-            "final_progress": progress,
-            "foot_slip": jnp.max(slip),
-            "max_tilt": jnp.max(tilt),
-            "max_sag": sag,
-            "fell": fell,
-            "completed": completed,
-            "status": jnp.where(success, 0, 1),
-        }
-
+    terrain_geoms = np.array([m.geom(name).id for name in terrain.body_names()])
     return Scenario(
         name="titan.footsteps",
         model=m,
-        controller=Controller(init, step, name="quasi-static footstep executor"),
-        initial_state=initial_state,
-        observe=observe,
-        record=record,
-        summarize=summarize,
+        controller=control.make_controller(n_steps, lay.weight),
+        initial_state=partial(initial_state, lay, m.nv),
+        observe=partial(observe, lay),
+        record=partial(record, lay),
+        summarize=partial(summarize, lay),
         horizon=horizon,
-        substeps=substeps,
+        substeps=round(CONTROL_DT / m.opt.timestep),
         record_every=record_every,
         model_fields=(friction_field(terrain_geoms),),
         statuses=STATUSES,

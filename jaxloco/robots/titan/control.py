@@ -1,0 +1,224 @@
+"""TITAN XI's quasi-static footstep executor (Sections 6.4, 7, 8.3, 8.4): the controller of
+`scenarios.make_scenario`, pure JAX, one simulation, fixed shapes (the rollout vmaps it).
+
+A plan's step k runs from settle_time + k step_time for `step_time` seconds (the
+params entries of `scenarios.PARAM_DEFAULTS` and `scenarios.Plan.params`):
+  * body shift (swing -1): the body target moves along the straight line from the
+    previous body position to body[k] (smoothstep in time), all four feet held at their
+    world positions;
+  * swing of leg u (Sec. 6.4.1, rectangular trajectory, body still): the foot centre
+    rises along the body z axis (the virtual contact plane's normal) to `swing_height`
+    above the higher of its start and target, moves parallel to the plane above the
+    target, then descends to the target and PRESS below it; as soon as its touch sensor
+    reads more than `contact_force` (fraction of M g) in the descent, the foot target
+    stops there ("lower until contact", the unevenness-absorbing gait of Fig. 6);
+  * the swing target is offset by the mean in-plane deviation of the supporting feet
+    from their targets (slip, the body correction below), so that the foot lands at
+    its planned world position;
+  * joint targets: `kinematics.legs_inverse_kinematics` of the foot targets in the
+    commanded body frame, with the body placed at its target plus a correction `corr`
+    that integrates the error of the whole-robot centre of mass (in the plane) and of
+    the body origin (along the normal) against the planned body position (gain
+    `body_gain` [1/s], at most MAX_CORR per axis), and the commanded attitude turned by
+    a small rotation `corr_rot` integrating the body attitude error (same gain, at most
+    MAX_CORR_ROT per axis); see `executor_step`.
+
+Frames: world, z up; the body attitude is the slope plane's (z_b along its normal)
+turned by `heading` about it (`body_quat`). Units SI, radians.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxloco import geometry as geo
+from jaxloco.robots.titan import kinematics as K
+from jaxloco.robots.titan import model as titan_model
+from jaxloco.sim import terrain as tr
+from jaxloco.sim.scenario import Controller
+
+Array = jax.Array
+
+CONTROL_DT = 0.04  # [s]
+PRESS = 0.03  # [m] the descent goes this far below the target if no contact comes first
+MAX_CORR = 0.2  # [m] largest body position correction per axis
+MAX_CORR_ROT = 0.1  # [rad] largest body attitude correction per axis
+SWING_RISE = 0.25  # fraction of a swing spent rising (and descending); the rest moves across
+# servo lag kv / kp [s] per joint (12,): the planned speed is fed forward through it
+SERVO_LAG = np.tile(np.asarray(titan_model.KV) / np.asarray(titan_model.KP), 4)
+
+
+class ExecutorState(NamedTuple):
+    """The executor's state (world frame, metres, radians)."""
+
+    k: Array  # () int: the step running (-1 before the plan, n_steps after it)
+    feet: Array  # (4, 3) foot centre targets at the start of step k
+    body: Array  # (3,) body target at the start of step k
+    feet_end: Array  # (4, 3) foot centre targets where step k ends
+    body_end: Array  # (3,) body target where step k ends
+    latched: Array  # () bool: the swing foot touched down in this step
+    hold: Array  # (3,) where the swing foot touched down
+    corr: Array  # (3,) body position correction
+    corr_rot: Array  # (3,) body attitude correction (small world-frame rotation)
+
+
+class StepTargets(NamedTuple):
+    """What the executor commands at one instant (`step_targets`)."""
+
+    k: Array  # () step index
+    swing: Array  # () swing leg (-1: a body shift or no step)
+    feet: Array  # (4, 3) foot centre targets
+    body: Array  # (3,) body target
+    descending: Array  # () bool: the swing foot is in its descent
+
+
+def body_quat(theta: Array, direction: Array, heading: Array) -> Array:
+    """Commanded body attitude (w, x, y, z): z_b along the plane normal, yawed by `heading`."""
+    n = tr.slope_normal(theta, direction)
+    return tr.quat_mul(tr.quat_tilt(n), tr.quat_z(heading))
+
+
+def frames(p) -> tuple[Array, Array]:
+    """The slope normal (3,) and the commanded body rotation matrix (3, 3) of params p."""
+    n = tr.slope_normal(p["theta"], p["direction"])
+    return n, tr.quat_to_matrix(body_quat(p["theta"], p["direction"], p["heading"]))
+
+
+def tether_force(p, weight: float) -> Array:
+    """The tethers' force (3,) [N]: `tether` M g sin(theta) up the fall line."""
+    uphill, _ = tr.slope_axes(p["theta"], p["direction"])
+    return p["tether"] * weight * jnp.sin(p["theta"]) * uphill
+
+
+def leg_targets(p, feet_c: Array, body_c: Array, rot: Array | None = None) -> Array:
+    """Joint targets (12,) for foot centres feet_c (4, 3), body position body_c and the
+    commanded attitude turned by the small world-frame rotation `rot` (3,)."""
+    _, R = frames(p)
+    if rot is not None:
+        R = geo.rpy_to_matrix(rot[0], rot[1], rot[2]) @ R
+    q, _ = K.legs_inverse_kinematics((feet_c - body_c[None]) @ R)
+    return q.reshape(-1)
+
+
+def smooth(s: Array) -> Array:
+    """Smoothstep of s clipped to [0, 1]."""
+    s = jnp.clip(s, 0.0, 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+def end_time(p, n_steps: int) -> Array:
+    """When the plan's last step ends [s]."""
+    return p["settle_time"] + n_steps * p["step_time"]
+
+
+def executor_init(p, obs) -> ExecutorState:
+    """The state before the first step: the plan's start, no correction."""
+    n, _ = frames(p)
+    feet = p["plan_feet0"] + K.FOOT_RADIUS * n
+    body = p["plan_body0"]
+    zero = jnp.zeros(3, feet.dtype)
+    return ExecutorState(k=jnp.asarray(-1, jnp.int32), feet=feet, body=body, feet_end=feet, body_end=body,
+                         latched=jnp.asarray(False), hold=zero, corr=zero, corr_rot=zero)
+
+
+def step_targets(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tuple[StepTargets, ExecutorState]:
+    """The commanded step, swing leg, foot centre and body targets at obs["time"], and the
+    state with the step's bookkeeping updated (the corrections unchanged)."""
+    n, _ = frames(p)
+    t = obs["time"] - p["settle_time"]
+    k_raw = jnp.floor(t / p["step_time"]).astype(jnp.int32)
+    k = jnp.clip(k_raw, -1, n_steps)
+    phase = jnp.where((k_raw >= 0) & (k_raw < n_steps), t / p["step_time"] - k_raw, 1.0)
+    # a new step: bank the previous one (its final targets become the start)
+    new = k != c.k
+    feet_prev = jnp.where(new, c.feet_end, c.feet)
+    body_prev = jnp.where(new, c.body_end, c.body)
+    latched = jnp.where(new, False, c.latched)
+    hold = jnp.where(new, c.hold * 0.0, c.hold)
+    kk = jnp.clip(k, 0, n_steps - 1)
+    active = (k >= 0) & (k < n_steps)
+    u = jnp.where(active, p["plan_swing"][kk], -1)
+    body_goal = jnp.where(active & (u < 0), p["plan_body"][kk], body_prev)
+    body_t = body_prev + (body_goal - body_prev) * smooth(phase)
+    # swing foot (rectangular trajectory along n)
+    uu = jnp.maximum(u, 0)
+    start = feet_prev[uu]
+    # where the supporting feet really are against their targets (in the plane): the
+    # offset of the commanded frame from the world (foot slip, the body correction); the
+    # swing foot aims off by the same so that it lands at its planned world position
+    support = (jnp.arange(4) != u)[:, None]
+    drift = jnp.sum(jnp.where(support, obs["feet"] - feet_prev, 0.0), axis=0) / jnp.sum(support)
+    drift = drift - (drift @ n) * n
+    goal = p["plan_feet"][kk, uu] + K.FOOT_RADIUS * n - drift
+    top = jnp.maximum(jnp.maximum(start @ n, goal @ n) + p["swing_height"], p["plan_swing_top"][kk] + K.FOOT_RADIUS)
+    start_top = start + (top - start @ n) * n
+    goal_top = goal + (top - goal @ n) * n
+    bottom = goal - PRESS * n
+    a = SWING_RISE
+    up = start + (start_top - start) * smooth(phase / a)
+    across = start_top + (goal_top - start_top) * smooth((phase - a) / (1 - 2 * a))
+    down = goal_top + (bottom - goal_top) * smooth((phase - (1 - a)) / a)
+    descending = (u >= 0) & (phase >= 1 - a)
+    foot = jnp.where(phase < a, up, jnp.where(phase < 1 - a, across, down))
+    touched = obs["touch"][uu] > p["contact_force"] * weight
+    first = descending & touched & ~latched
+    hold = jnp.where(first, foot, hold)
+    latched = latched | first
+    foot = jnp.where(latched, hold, foot)
+    swinging = (jnp.arange(4) == u)[:, None]
+    feet_t = jnp.where(swinging, foot[None], feet_prev)
+    feet_end = jnp.where(swinging, jnp.where(latched, hold, bottom)[None], feet_prev)  # where this step ends
+    state = c._replace(k=k, feet=feet_prev, body=body_prev, feet_end=feet_end, body_end=body_goal, latched=latched,
+                       hold=hold)
+    return StepTargets(k, u, feet_t, body_t, descending), state
+
+
+def attitude_error(R_plan: Array, quat: Array) -> Array:
+    """The small world-frame rotation (3,) from the measured attitude `quat` to R_plan."""
+    M = R_plan @ tr.quat_to_matrix(quat).T
+    return 0.5 * jnp.array([M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1]])
+
+
+def executor_step(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tuple[ExecutorState, Array]:
+    """One control period: the next state and the action (12 joint targets [rad], then the
+    tether force (3,) [N]).
+
+    Integral action: the legs' servo sag under load and the touchdown latches would
+    otherwise add up over the plan, and the legs' mass (450 kg each) moves the centre of
+    mass off the trunk's by up to ~7 cm; so the legs are commanded as if the body were at
+    the target + corr, which drives the whole-robot centre of mass onto the planned COG
+    in the plane and the body origin to its planned height along the normal; likewise
+    the attitude (without it the body pitched 0.03 rad down the 30 deg slope over four
+    cycles). The servos' damping acts on the joint speed (MuJoCo position actuators have
+    no speed input): the planned speed is fed forward through the position target, ctrl
+    = q(t + dt/2) + (kv / kp) dq/dt, so that kp (ctrl - q) - kv dq = kp (q_d - q) + kv
+    (dq_d - dq); without it the legs lag by (kv / kp) dq (6 cm in a swing) and the lags of
+    the four supporting legs differ, pushing the feet to slip."""
+    now, state = step_targets(p, n_steps, weight, c, obs)
+    n, R_plan = frames(p)
+    err = now.body - obs["com"]
+    err = err + ((obs["com"] - obs["body"]) @ n) * n
+    running = (obs["time"] > p["settle_time"]) & (obs["time"] < end_time(p, n_steps))
+    gain = jnp.where(running, p["body_gain"] * CONTROL_DT, 0.0)
+    corr = jnp.clip(c.corr + gain * err, -MAX_CORR, MAX_CORR)
+    rot = jnp.clip(c.corr_rot + gain * attitude_error(R_plan, obs["quat"]), -MAX_CORR_ROT, MAX_CORR_ROT)
+    state = state._replace(corr=corr, corr_rot=rot)
+    q0 = leg_targets(p, now.feet, now.body + corr, rot)
+    later, _ = step_targets(p, n_steps, weight, c, {**obs, "time": obs["time"] + CONTROL_DT})
+    q1 = leg_targets(p, later.feet, later.body + corr, rot)
+    lag = jnp.asarray(SERVO_LAG, q0.dtype)
+    q = 0.5 * (q0 + q1) + lag * (q1 - q0) / CONTROL_DT
+    return state, jnp.concatenate([q, tether_force(p, weight)])
+
+
+def make_controller(n_steps: int, weight: float) -> Controller:
+    """The executor for plans of `n_steps` steps on a robot of `weight` [N]."""
+
+    def step(p, c, obs):
+        return executor_step(p, n_steps, weight, c, obs)
+
+    return Controller(executor_init, step, name="quasi-static footstep executor")
