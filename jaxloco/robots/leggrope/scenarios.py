@@ -211,11 +211,11 @@ def make_scenario(
         window = round(COLLAPSE_WINDOW / (record_every * settings.control_dt))
         probe = _probe_forces(r, fn, c.grope_force, design.order)
         per_probe = fn / jnp.where(probe > 0, probe, jnp.inf)[None, :]
-        load_over_probe = jnp.where(jnp.any(probed), jnp.max(jnp.where(probed, per_probe, -jnp.inf)), jnp.nan)
+        load_over_probe = _peak(per_probe, probed)
         # the same without the impulse of a collapse (the paper's Fig. 14: "less than R_ref
         # ... except for the impulse"): records within COLLAPSE_WINDOW after any collapse
         steady = probed & ~_after_collapse(r["collapsed"], window)[:, None]
-        load_over_probe_steady = jnp.where(jnp.any(steady), jnp.max(jnp.where(steady, per_probe, -jnp.inf)), jnp.nan)
+        load_over_probe_steady = _peak(per_probe, steady)
         t_end = sm.first_time(r["phase"] >= control.DONE, jnp.arange(r["phase"].shape[0]) * (
             record_every * settings.control_dt))
         collapsed_leg, collapse_tilt = _first_collapse(r, window)
@@ -352,6 +352,11 @@ def _first_collapse(r, window: int) -> tuple[jax.Array, jax.Array]:
     after = r["quat"][jnp.minimum(k + window, n - 1)]
     tilt = sm.tilt_change(after[None], before)[0]
     return jnp.where(any_hit, r["leg"][k], -1), jnp.where(any_hit, tilt, jnp.nan)
+
+
+def _peak(x: jax.Array, valid: jax.Array) -> jax.Array:
+    """The largest entry of x where `valid` (nan if none is)."""
+    return jnp.where(jnp.any(valid), sm.masked_max(x, valid), jnp.nan)
 
 
 def _after_collapse(collapsed: jax.Array, window: int) -> jax.Array:
