@@ -21,7 +21,7 @@ from jaxloco.sweep import SpecError, spec_from_dict
 FIXED = {**ta.STRIDE.defaults(), "n_cycles": 2, "map_nx": 100, "map_ny": 80}
 SHAPE = (FIXED["map_nx"], FIXED["map_ny"])
 SWEEPABLE = [p.name for p in ta.PARAMS if p.sweepable]
-PAD = 8  # every batch call has this many rows: one compilation
+PAD = 10  # every batch call has this many rows: one compilation
 H = 1e-4  # [m] central-difference step in l_std
 S_TIGHT = 0.08  # [m] S_NE^c just below the flat-ground standard NESM (0.085 m): the
 # objective's sigmoid is then in its sloped part, so its derivative sees the margins
@@ -35,6 +35,9 @@ ROWS = [
     {"frame_size": 0.0, "s_ne_c": 0.3},  # impossible margin
     {"frame_size": 0.0, "s_ne_c": S_TIGHT, "l_std": P.L_STD + H},
     {"frame_size": 0.0, "s_ne_c": S_TIGHT, "l_std": P.L_STD - H},
+    # a mixed field (4 m blocks of 0.2 m / 2 m and 0.3 m / 3 m frames), off a body axis
+    {"frame_size": 0.2, "frame_interval": 2.0, "mix_block": 4.0, "frame_size_b": 0.3, "frame_interval_b": 3.0,
+     "direction": 2.4, "start_x": 5.5},
 ]
 
 
@@ -78,14 +81,15 @@ def test_batch_equals_sweep_metrics_one_at_a_time(rows):
         par = P.default_params().astype(jnp.float64).with_(
             **{n: jnp.asarray(v[n], jnp.float64) for n in ta.TITAN_PARAMS}
         )
+        field = ta.field_values({n: jnp.float64(v[n]) for n in SWEEPABLE})
         ref = one(par, jnp.float64(v["frame_size"]), jnp.float64(v["frame_interval"]), jnp.float64(v["slope"]),
-                  jnp.float64(v["direction"]), FIXED["n_cycles"], SHAPE, FIXED["cell"])
+                  jnp.float64(v["direction"]), FIXED["n_cycles"], SHAPE, FIXED["cell"], **field)
         for k, x in ref.items():
             np.testing.assert_allclose(rows[k][i], np.asarray(x), rtol=1e-9, atol=1e-12, err_msg=f"row {i} {k}")
 
 
 def test_frame_rows_walk(rows):
-    for i in range(3):  # the Sec. 7 and 8.4 cases with the default margin: walking, safely
+    for i in (0, 1, 2, 8):  # the Sec. 7 and 8.4 cases with the default margin: walking, safely
         assert rows["n_failures"][i] == 0 and rows["nesm_ok"][i] and rows["status"][i] == 0
         assert rows["distance_per_cycle"][i] > 0.3
         assert rows["min_nesm"][i] >= P.S_NE_C
@@ -145,3 +149,28 @@ def test_summary_picks_the_fastest_safe_stride():
     assert best["ok"] == "3/4" and (best["L_std"], best["W_std"]) == ("0.5", "0.8")
     assert best["dist/cycle"] == "0.950" and best["min NESM"] == "0.060"
     assert s.rows[1][s.columns.index("ok")] == "0/1" and s.rows[1][-1] == "-"
+
+
+def test_direction_study_summary_counts_walks_per_field():
+    """One stride and many headings: one summary row per field (mixed fields named), the
+    ok walks, failed cycles, the worst min NESM with its heading, and the headings that
+    failed in a note."""
+    heads = np.radians(np.arange(0.0, 360.0, 90.0))
+    cols = {n: [] for n in (*ta.GROUP, *ta.STRIDE_COLS, "frame_size_b", "frame_interval_b", "mix_block",
+                            "n_cycles", "distance_per_cycle", "min_nesm", "nesm_ok", "n_failures")}
+    for size, interval, block in ((0.2, 2.0, 0.0), (0.2, 2.0, 6.0)):
+        for k, h in enumerate(heads):
+            bad = block > 0 and k == 1
+            row = dict(frame_size=size, frame_interval=interval, slope=0.0, direction=h, tether=1.0, l_std=0.5,
+                       w_std=1.0, s_ne_c=0.03, frame_size_b=0.3, frame_interval_b=3.0, mix_block=block, n_cycles=6,
+                       distance_per_cycle=0.2 if bad else 1.0 - 0.01 * k, min_nesm=0.04 - 0.001 * k,
+                       nesm_ok=not bad, n_failures=3 if bad else 0)
+            for n, x in row.items():
+                cols[n].append(x)
+    assert ta.is_direction_study({n: np.asarray(v) for n, v in cols.items()})
+    s = ta.summarize(pa.table(cols))
+    assert [r[0] for r in s.rows] == ["0.2 m / 2 m", "mixed 0.2 m / 2 m + 0.3 m / 3 m, 6 m blocks"]
+    assert s.rows[0][1:5] == ("4", "4/4", "0", "0.037 at 270")
+    assert s.rows[1][2:4] == ("3/4", "3")
+    assert s.rows[0][5] == f"{np.mean([1.0, 0.99, 0.98, 0.97]):.2f} (0.97)"
+    assert any(n.startswith("mixed") and n.endswith("not ok at 90 deg") for n in s.notes)

@@ -46,6 +46,12 @@ SCEN = [
     ("backwards", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (10.0, 6.5), (180, 180, 180)),
     ("right", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (6.5, 10.0), (270, 270, 270)),
     ("turning", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (3.0, 6.0), (0, 15, 0)),
+    # off the body axes (gait.directional_stride): the diagonals, where the square stance
+    # gets least from the lateral shift
+    ("diagonal, flat", 0.0, 2.0, 1.0, (3.5, 3.5), (45, 45, 45)),
+    ("diagonal, 0.2 m / 2.0 m", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (3.5, 3.5), (45, 45, 45)),
+    ("135 deg, 0.3 m / 3.0 m", P.FRAME_LARGE, P.GRID_LARGE, 1.5, (9.5, 3.5), (135, 135, 135)),
+    ("255 deg, 0.2 m / 2.0 m", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (8.0, 9.5), (255, 255, 255)),
 ]
 
 
@@ -488,3 +494,60 @@ def test_gait_converges_back_to_the_standard_gait_after_the_frames():
     np.testing.assert_allclose(np.asarray(plan.cycle_w)[last], P.W_STD, atol=1e-9)
     np.testing.assert_allclose(np.asarray(plan.cycle_l)[last], P.L_STD, atol=1e-9)
     assert (np.asarray(plan.cycle_trials)[last] == 0).all()
+
+
+# ------------------------------------------------------------------- every direction
+def test_directional_stride_lengthens_the_stride_off_the_body_axes():
+    for deg, m in ((0.0, 1.0), (90.0, 1.0), (180.0, 1.0), (45.0, math.sqrt(0.5)), (120.0, math.cos(math.radians(30)))):
+        d = G._unit(jnp.radians(deg))
+        assert float(G.directional_stride(PAR, d)) == pytest.approx(P.L_STD / m**P.STRIDE_EXPONENT, rel=1e-12)
+        assert float(G.directional_stride(PAR.with_(stride_exponent=0.0), d)) == pytest.approx(P.L_STD)
+
+
+def _start_lift_margin(exponent, deg):
+    """NESM of the first swing (leg r lifted) at the standard start for the heading."""
+    par = PAR.with_(stride_exponent=exponent)
+    g = M.flat_map((90, 90), ORIGIN)
+    d = jnp.radians(deg)
+    st = G.standard_start(par, g, jnp.array([4.5, 4.5]), d)
+    return float(stab.ne_stability_margin(st.cog, st.feet, jnp.arange(4) != st.rear))
+
+
+def test_the_diagonal_needs_the_longer_stride():
+    """Why `directional_stride`: at 45 deg the rear leg's swing is supported across the
+    diagonal normal to the path, so only the stride moves the COG off it. With the same
+    stride as along an axis (k = 0) or the same body-axis component (k = 1) the first
+    swing of the standard gait is below S_NE^c; with k = 1.5 it is above, and along an
+    axis nothing changes (the W_std zigzag carries the margin there)."""
+    assert _start_lift_margin(0.0, 45.0) < _start_lift_margin(1.0, 45.0) < P.S_NE_C
+    assert _start_lift_margin(P.STRIDE_EXPONENT, 45.0) >= P.S_NE_C
+    assert _start_lift_margin(0.0, 0.0) == pytest.approx(_start_lift_margin(P.STRIDE_EXPONENT, 0.0), rel=1e-12)
+
+
+def test_diagonal_walks_plan_every_cycle(scenarios):
+    """Off the body axes (Sec. 7: "walks in all directions"): the standard gait on flat
+    ground at 45 deg (no modification, 2 L_std(45 deg) per cycle, back on the path every
+    cycle) and the frame fields at 45, 135 and 255 deg, every step >= S_NE^c."""
+    _, _, _, plans = scenarios
+    names = [s[0] for s in SCEN]
+    flat = _take(plans, names.index("diagonal, flat"))
+    assert int(flat.n_failures) == 0 and int(flat.n_modifications) == 0
+    l45 = P.L_STD / math.sqrt(0.5) ** P.STRIDE_EXPONENT
+    # |L| = min(L_std(45 deg), the reach limit of Sec. 5.2.3): |L-bar| is 1.2 % shorter here
+    steps = np.asarray(flat.cycle_l)
+    assert (steps <= l45 + 1e-12).all() and steps.min() > 0.98 * l45
+    assert float(flat.distance_per_cycle) == pytest.approx(steps.sum(axis=1).mean(), rel=1e-9)
+    assert float(flat.path_deviation) == pytest.approx(0.0, abs=1e-9)
+    assert float(flat.min_nesm) >= P.S_NE_C
+    for name in ("diagonal, 0.2 m / 2.0 m", "135 deg, 0.3 m / 3.0 m", "255 deg, 0.2 m / 2.0 m"):
+        plan = _take(plans, names.index(name))
+        assert int(plan.n_failures) == 0, name
+        assert float(plan.min_nesm) >= P.S_NE_C - 1e-9, name
+        assert float(plan.distance_per_cycle) > 0.5, name
+
+
+def test_lateral_trials_widen_first_then_narrow():
+    w = [float(G.trial_lateral(PAR, i)) for i in range(P.N_W + P.N_W_DOWN)]
+    up = [P.W_STD + i * P.DW for i in range(P.N_W)]
+    down = [P.W_STD - k * P.DW for k in range(1, P.N_W_DOWN + 1)]
+    np.testing.assert_allclose(w, up + down, rtol=1e-12)

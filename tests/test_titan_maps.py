@@ -106,3 +106,30 @@ def test_frame_map_vmaps_over_frame_parameters():
         assert bool(jnp.all(gb.forbidden[k] == g.forbidden))
         np.testing.assert_allclose(gb.height[k], g.height)
     assert not bool(jnp.any(gb.forbidden[0]))  # no frames: flat ground everywhere free
+
+
+def test_mixed_field_alternates_the_two_frame_grids_in_blocks():
+    """`mixed_frame_map`: block 0 is `frame_grid_map` of field A exactly; with blocks, each
+    block carries its own field's frames (heights and forbidden cells), checkerboard."""
+    cell = jnp.asarray(P.CELL)
+    a = (P.FRAME_SMALL, P.GRID_SMALL, jnp.array([1.0, 1.0]))
+    b = (P.FRAME_LARGE, P.GRID_LARGE, jnp.array([1.5, 1.5]))
+    shape = (120, 120)
+    plain = M.frame_grid_map(shape, ORIGIN, cell, *a)
+    same = M.mixed_frame_map(shape, ORIGIN, cell, a, b, 0.0)
+    np.testing.assert_array_equal(same.height, plain.height)
+    np.testing.assert_array_equal(same.forbidden, plain.forbidden)
+    mixed = M.mixed_frame_map(shape, ORIGIN, cell, a, b, 6.0)
+    other = M.frame_grid_map(shape, ORIGIN, cell, *b)
+    c = np.asarray(M.cell_centres(shape, ORIGIN, cell))
+    k = np.floor(c / 6.0).astype(int)
+    in_b = (k[..., 0] + k[..., 1]) % 2 == 1
+    assert in_b.any() and (~in_b).any()
+    np.testing.assert_array_equal(np.asarray(mixed.height)[in_b], np.asarray(other.height)[in_b])
+    np.testing.assert_array_equal(np.asarray(mixed.height)[~in_b], np.asarray(plain.height)[~in_b])
+    assert set(np.unique(np.asarray(mixed.height)[in_b]).tolist()) == {0.0, P.FRAME_LARGE}
+    # forbidden cells: each block's own frames, away from the block edges
+    inner = np.all(np.abs(c / 6.0 - np.round(c / 6.0)) * 6.0 > 0.5, axis=-1)
+    np.testing.assert_array_equal(np.asarray(mixed.forbidden)[in_b & inner], np.asarray(other.forbidden)[in_b & inner])
+    np.testing.assert_array_equal(np.asarray(mixed.forbidden)[~in_b & inner],
+                                  np.asarray(plain.forbidden)[~in_b & inner])

@@ -33,6 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxloco.analysis import SpecError
 from jaxloco.render.replay import Replay, model_copy
 from jaxloco.render.rows import Row
 
@@ -90,7 +91,6 @@ def titan_plan(values: Mapping[str, Any]):
     and plan for the row's parameter values."""
     from jaxloco.robots.titan import analysis as A
     from jaxloco.robots.titan import gait as G
-    from jaxloco.robots.titan import maps as M
 
     sweepable = [p.name for p in A.PARAMS if p.sweepable]
     v = {name: jnp.asarray(values[name], F64) for name in sweepable}
@@ -98,10 +98,8 @@ def titan_plan(values: Mapping[str, Any]):
     shape = (int(values["map_nx"]), int(values["map_ny"]))
     cell = float(values["cell"])
     params = A.row_params(v, F64)
-    gmap = M.frame_grid_map(shape, jnp.zeros(2, F64), jnp.asarray(cell, F64), v["frame_size"],
-                            v["frame_interval"], jnp.array([0.5, 0.5], F64) * v["frame_interval"], v["slope"])
-    start_xy = jnp.array([G.SWEEP_START_X, 0.5 * shape[1] * cell], F64)
-    start = G.standard_start(params, gmap, start_xy, v["direction"])
+    gmap, start = G.sweep_setup(params, v["frame_size"], v["frame_interval"], v["slope"], v["direction"], shape,
+                                cell, **A.field_values(v))
     plan = jax.jit(G.plan_cycles, static_argnames="n_cycles")(params, gmap, start, n_cycles=n_cycles,
                                                                direction=v["direction"])
     metrics = A.plan_metrics(plan, params.s_ne_c, v["softmin_tau"])
@@ -138,6 +136,9 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
     normal = rot[:, 2]
     body_quat = np.asarray(TC.body_quat(slope, 0.0, 0.0), float)
 
+    if float(values.get("mix_block", 0.0)) > 0:
+        raise SpecError("titan.stride: rendering a mixed field (mix_block > 0) is not supported; "
+                        "plot the plan with jaxloco.robots.titan.plots instead")
     model, terrain = _titan_model(frame_size, interval)
     model = model_copy(model)
     place = {"theta": slope, "direction": 0.0}

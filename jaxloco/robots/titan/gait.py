@@ -233,6 +233,26 @@ def edge_energy_margin(cog: Array, a: Array, b: Array, ref: Array, up: Array) ->
 
 
 # ------------------------------------------------------------------- roles and strokes
+def directional_stride(params: P.TitanParams, d_b: Array) -> Array:
+    """Standard stride L_std(psi) [m] for the body-frame walking direction d_b (unit, (2,)):
+    L_std / m^k with m = max(|cos psi_b|, |sin psi_b|) and k = `stride_exponent` (added;
+    the paper gives no stride). L_std along a body axis, L_std / 0.707^k at 45 deg.
+
+    Why: with a square stance the swing of the rear leg at psi_b = 45 deg is supported
+    by the two side feet and the front one; their diagonal is normal to the path, so the
+    lateral shift W runs along it and only the stride moves the COG off it. With
+    L_std = 0.5 m the standard gait's NESM there is about 0.02 m < S_NE^c; k = 1.5 keeps it
+    >= 0.035 m on flat ground at every heading (k = 1, the same stride along the nearest
+    body axis, does not: `docs/titan.md`)."""
+    m = jnp.maximum(jnp.abs(d_b[0]), jnp.abs(d_b[1]))
+    return params.l_std / m**params.stride_exponent
+
+
+def directional_params(params: P.TitanParams, d_b: Array) -> P.TitanParams:
+    """`params` with l_std replaced by `directional_stride` for the direction d_b."""
+    return params.with_(l_std=directional_stride(params, d_b))
+
+
 def leg_roles(feet_b: Array, d_b: Array, prev: Array = -1) -> tuple[Array, Array]:
     """Legs (r, f, r-bar, f-bar) (4,) for the body-frame walking direction d_b and the
     body-frame feet (4, >=2) (Sec. 3, 5.1), and the unit lateral direction of W (2,)
@@ -409,6 +429,13 @@ def half_cycle(
     )
 
 
+def trial_lateral(params: P.TitanParams, i: Array) -> Array:
+    """|W| of lateral trial i: W_std + i dW for i < N_W (Sec. 5.2.3, modification (b)),
+    then (added) W_std - k dW for k = 1 .. N_W_DOWN."""
+    k = i - P.N_W + 1
+    return jnp.where(i < P.N_W, params.w_std + i * params.dw, params.w_std - k * params.dw)
+
+
 def max_longitudinal(params, feet_b, roles, d_b, n_r, w_len) -> Array:
     """|L| limit of Sec. 5.2.3 (Fig. 13): min over r-bar and f-bar of the distance each foot,
     after the -W motion, can move along -L_G within its reachable area; capped at L_std."""
@@ -446,6 +473,7 @@ def plan_cycle(
     up = effective_up(params, gmap.slope)
     R = _rot2(state.yaw)
     d_b = _unit(direction - state.yaw)
+    params = directional_params(params, d_b)
     feet = state.feet
     nrm, off = virtual_plane(feet)
     cog = state.cog.at[2].set(plane_height(nrm, off, state.cog[:2]) + params.h_g)
@@ -463,7 +491,7 @@ def plan_cycle(
     n_r = jnp.where(use_alt, n_alt, n_r)
     start_ok = up_ok(roles)
     roles2 = jnp.stack([roles[2], roles[3], roles[0], roles[1]])
-    n_w, n_l = P.N_W, P.N_L
+    n_w, n_l = P.N_W + P.N_W_DOWN, P.N_L
 
     zero = jnp.zeros((), dtype)
     no = jnp.asarray(False)
@@ -501,7 +529,7 @@ def plan_cycle(
     def attempt(c):
         t = c.t + 1
         j, i = t // n_w, t % n_w
-        w = params.w_std + i * params.dw
+        w = trial_lateral(params, i)
         lmax = max_longitudinal(params, feet_b, roles, d_b, n_r, w)
         l1 = lmax * (n_l - j) / n_l
         h1 = half_cycle(
@@ -553,8 +581,9 @@ def plan_cycle(
 
     ok_a, cog_a = transition(roles, n_r)
     ok_b, cog_b = transition(alt, n_alt)
-    trans = ~start_ok & (ok_a | ok_b)
     cog_t = jnp.where(ok_a, cog_a, cog_b)
+    moves = jnp.linalg.norm(cog_t[:2] - cog[:2]) > TRANSITION_MIN
+    trans = ~ok & (ok_a | ok_b) & moves
     roles = jnp.where(trans & ~ok_a, alt, roles)
     t_s = jnp.stack([cog, cog, cog_t, cog_t, cog_t, cog_t])
     t_before = jnp.stack([cog, cog, cog, cog_t, cog_t, cog_t])
@@ -591,6 +620,9 @@ def plan_cycle(
         "deviation": jnp.abs(geo.cross2(d_map, dxy)),
     }
     return new_state, rec
+
+
+TRANSITION_MIN = 0.05  # [m] a recovery shift shorter than this is no progress: the cycle fails
 
 
 def _step_margins(feet_before, cog0, cog1, leg, up, d_map):
@@ -654,6 +686,7 @@ def standard_start(
     direction = jnp.asarray(direction, dtype)
     yaw = jnp.asarray(yaw, dtype)
     d_b = _unit(direction - yaw)
+    params = directional_params(params, d_b)
     neutral = params.neutral_feet()[:, :2]
     roles, n_r = leg_roles(neutral, d_b)
     centres = stroke_centres(params, roles, n_r)
@@ -720,6 +753,41 @@ def plan_cycles(
 SWEEP_START_X = 3.0  # [m] map x of the start COG of a sweep point
 
 
+def sweep_setup(
+    params: P.TitanParams,
+    frame_size: Array,
+    frame_interval: Array,
+    slope: Array,
+    direction: Array,
+    shape: tuple[int, int] = (160, 100),
+    cell: float = P.CELL,
+    start_x: Array = SWEEP_START_X,
+    field_b: tuple[Array, Array] = (0.0, 1.0),
+    mix_block: Array = 0.0,
+    phase: Array = (0.0, 0.0),
+) -> tuple[M.GridMap, GaitState]:
+    """The map and the standard start of one sweep point: frames of `frame_size` every
+    `frame_interval`, centre lines at (k + 1/2) interval, map origin (0, 0), slope angle
+    `slope`; with `mix_block` > 0 a checkerboard of blocks of that side alternating with
+    the field `field_b` = (frame size, interval) (`maps.mixed_frame_map`); `phase` (2,)
+    shifts both grids by that fraction of their intervals. The start COG is at the map's
+    x = `start_x`, y = centre, for walking along `direction`."""
+    dtype = jnp.asarray(params.l_std).dtype
+    _nx, ny = shape
+    half = 0.5 + jnp.asarray(phase, dtype)
+    gmap = M.mixed_frame_map(
+        shape,
+        jnp.zeros(2, dtype),
+        jnp.asarray(cell, dtype),
+        (frame_size, frame_interval, half * frame_interval),
+        (field_b[0], field_b[1], half * field_b[1]),
+        jnp.asarray(mix_block, dtype),
+        slope,
+    )
+    start_xy = jnp.stack([jnp.asarray(start_x, dtype), jnp.asarray(0.5 * ny * cell, dtype)])
+    return gmap, standard_start(params, gmap, start_xy, direction)
+
+
 def sweep_plan(
     params: P.TitanParams,
     frame_size: Array,
@@ -729,25 +797,14 @@ def sweep_plan(
     n_cycles: int,
     shape: tuple[int, int] = (160, 100),
     cell: float = P.CELL,
+    **field,
 ) -> GaitPlan:
-    """The plan of one sweep point (issue 5, Sec. 4 sweeps): `n_cycles` on a frame grid map
-    (frames of `frame_size` every `frame_interval`, centre lines at (k + 1/2) interval,
-    map origin (0, 0), slope angle `slope`) from the standard start at the map's
-    x = SWEEP_START_X, y = centre, walking along `direction`. Every argument but
-    `n_cycles`, `shape`, `cell` may be traced (vmap over them)."""
-    dtype = jnp.asarray(params.l_std).dtype
-    _nx, ny = shape
-    gmap = M.frame_grid_map(
-        shape,
-        jnp.zeros(2, dtype),
-        jnp.asarray(cell, dtype),
-        frame_size,
-        frame_interval,
-        jnp.array([0.5, 0.5], dtype) * frame_interval,
-        slope,
+    """The plan of one sweep point (Sec. 4 sweeps): `n_cycles` along `direction` from
+    `sweep_setup`'s start on its map (`field`: its start_x, field_b, mix_block). Every
+    argument but `n_cycles`, `shape`, `cell` may be traced (vmap over them)."""
+    gmap, start = sweep_setup(
+        params, frame_size, frame_interval, slope, direction, shape, cell, **field
     )
-    start_xy = jnp.array([SWEEP_START_X, 0.5 * ny * cell], dtype)
-    start = standard_start(params, gmap, start_xy, direction)
     return plan_cycles(params, gmap, start, n_cycles, direction)
 
 
@@ -760,11 +817,12 @@ def sweep_metrics(
     n_cycles: int,
     shape: tuple[int, int] = (160, 100),
     cell: float = P.CELL,
+    **field,
 ) -> dict[str, Array]:
     """`sweep_plan`'s min NESM, distance per cycle, number of failed cycles and
-    modifications, path deviation."""
+    modifications, path deviation (`field`: sweep_plan's start_x, field_b, mix_block)."""
     plan = sweep_plan(
-        params, frame_size, frame_interval, slope, direction, n_cycles, shape, cell
+        params, frame_size, frame_interval, slope, direction, n_cycles, shape, cell, **field
     )
     return {
         "min_nesm": plan.min_nesm,

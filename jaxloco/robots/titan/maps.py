@@ -138,6 +138,32 @@ def _periodic_distance(x: Array, offset: Array, interval: Array) -> Array:
     return jnp.minimum(u, interval - u)
 
 
+def frame_distance(
+    c: Array, frame_size: Array, interval: Array, offset: Array
+) -> Array:
+    """Signed distance [m] from the points c (..., 2) to the nearest face of a square grid
+    of frames (section `frame_size`, centre lines x = ox + k interval, y = oy + k interval):
+    <= 0 on a frame, +inf when frame_size = 0 (no frames)."""
+    dx = _periodic_distance(c[..., 0], offset[0], interval)
+    dy = _periodic_distance(c[..., 1], offset[1], interval)
+    dist = jnp.minimum(dx, dy) - 0.5 * frame_size
+    # a cell centre on a frame's face (the usual case: 0.1 m cells, 0.2 / 0.3 m frames on
+    # whole-metre grids) is on the frame; snapping the rounding noise to 0 makes every
+    # compiled form of this function (vmapped, jitted, optimised or not) decide it alike
+    dist = jnp.where(jnp.abs(dist) <= FACE_TOLERANCE, 0.0, dist)
+    return jnp.where(frame_size > 0, dist, jnp.inf)
+
+
+def _frames_map(dist, size, cell, origin, slope, foot_radius, ground) -> GridMap:
+    dtype = dist.dtype
+    g = jnp.zeros(dist.shape, dtype) if ground is None else ground
+    height = g + jnp.where(dist <= 0, size, 0.0)
+    forb = forbidden_map(dist, g, cell, foot_radius)
+    return GridMap(
+        height, forb, origin, jnp.asarray(cell, dtype), jnp.asarray(slope, dtype)
+    )
+
+
 def frame_grid_map(
     shape: tuple[int, int],
     origin: Array,
@@ -156,26 +182,37 @@ def frame_grid_map(
     may be traced; `frame_size` = 0 gives flat ground without frames."""
     dtype = jnp.asarray(cell).dtype
     origin = jnp.asarray(origin, dtype)
-    off = (
-        jnp.zeros(2, dtype)
-        if frame_offset is None
-        else jnp.asarray(frame_offset, dtype)
-    )
+    off = jnp.zeros(2, dtype) if frame_offset is None else jnp.asarray(frame_offset, dtype)
+    dist = frame_distance(cell_centres(shape, origin, cell), frame_size, interval, off)
+    return _frames_map(dist, frame_size, cell, origin, slope, foot_radius, ground)
+
+
+def mixed_frame_map(
+    shape: tuple[int, int],
+    origin: Array,
+    cell: Array,
+    field_a: tuple[Array, Array, Array],
+    field_b: tuple[Array, Array, Array],
+    block: Array,
+    slope: Array = 0.0,
+    foot_radius: Array = P.FOOT_RADIUS,
+) -> GridMap:
+    """A field combining two frame grids (Sec. 7: "environments combining these
+    conditions"): a checkerboard of square blocks of side `block` [m] (edges at
+    k block from the map-frame origin), field A = (frame_size, interval, offset (2,)) in
+    the blocks with an even (i + j), field B in the others (`frame_grid_map`'s arguments).
+    `block` = 0 gives field A everywhere. The block layout is ours (the paper shows no
+    combined field)."""
+    dtype = jnp.asarray(cell).dtype
+    origin = jnp.asarray(origin, dtype)
     c = cell_centres(shape, origin, cell)
-    dx = _periodic_distance(c[..., 0], off[0], interval)
-    dy = _periodic_distance(c[..., 1], off[1], interval)
-    dist = jnp.minimum(dx, dy) - 0.5 * frame_size
-    # a cell centre on a frame's face (the usual case: 0.1 m cells, 0.2 / 0.3 m frames on
-    # whole-metre grids) is on the frame; snapping the rounding noise to 0 makes every
-    # compiled form of this function (vmapped, jitted, optimised or not) decide it alike
-    dist = jnp.where(jnp.abs(dist) <= FACE_TOLERANCE, 0.0, dist)
-    dist = jnp.where(frame_size > 0, dist, jnp.inf)
-    g = jnp.zeros(shape, dtype) if ground is None else ground
-    height = g + jnp.where(dist <= 0, frame_size, 0.0)
-    forb = forbidden_map(dist, g, cell, foot_radius)
-    return GridMap(
-        height, forb, origin, jnp.asarray(cell, dtype), jnp.asarray(slope, dtype)
-    )
+    dist_a = frame_distance(c, field_a[0], field_a[1], jnp.asarray(field_a[2], dtype))
+    dist_b = frame_distance(c, field_b[0], field_b[1], jnp.asarray(field_b[2], dtype))
+    k = jnp.floor(c / jnp.where(block > 0, block, 1.0)).astype(jnp.int32)
+    in_b = (block > 0) & ((k[..., 0] + k[..., 1]) % 2 == 1)
+    dist = jnp.where(in_b, dist_b, dist_a)
+    size = jnp.where(in_b, field_b[0], field_a[0])
+    return _frames_map(dist, size, cell, origin, slope, foot_radius, None)
 
 
 def flat_map(shape: tuple[int, int], origin: Array, cell: Array = P.CELL) -> GridMap:

@@ -90,13 +90,13 @@ PIVOT_HEIGHT = (
 # --- gait (Sections 5-6; chosen values)
 L_STD = 0.5  # [m] standard COG longitudinal shift per half cycle
 W_STD = 1.0  # [m] standard COG lateral shift per half cycle (|W_std|)
+STRIDE_EXPONENT = 1.5  # k of the directional stride L_std / max(|cos|, |sin|)^k (ours)
 S_NE_C = 0.03  # [m] critical NE stability margin S_NE^c (module docstring)
 H_G = 1.5  # [m] COG height above the virtual contact plane (Sec. 6.3)
 DW = 0.1  # [m] lateral increment of modifications (a), (b) and Sec. 5.5
 N_W = 5  # lateral trials: |W| = W_std + i DW, i < N_W ("a certain value", Sec. 5.2.3)
-N_L = (
-    4  # longitudinal trials: |L| = L_max (N_L - j) / N_L, j < N_L (modification (a)-2)
-)
+N_W_DOWN = 3  # (added) then narrower: |W| = W_std - k DW, k = 1 .. N_W_DOWN (gait.trial_lateral)
+N_L = 6  # longitudinal trials: |L| = L_max (N_L - j) / N_L, j < N_L (modification (a)-2)
 SWING_CLEARANCE = 0.15  # [m] above the highest point under the return path (Sec. 6.4.1)
 SWING_MIN_LIFT = 0.2  # [m] minimum lift above the virtual plane
 UNEVEN_MAX = (
@@ -140,6 +140,7 @@ class TitanParams:
     swing_clearance: jax.Array = SWING_CLEARANCE  # [m]
     swing_min_lift: jax.Array = SWING_MIN_LIFT  # [m]
     search_step: jax.Array = SEARCH_STEP  # [m]
+    stride_exponent: jax.Array = STRIDE_EXPONENT  # L_std(psi) = L_std / m^k (gait.directional_stride)
     tether: jax.Array = (
         1.0  # fraction of the slope-parallel gravity offset by the tethers
     )

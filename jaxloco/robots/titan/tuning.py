@@ -97,7 +97,6 @@ import jax.numpy as jnp
 from jaxloco.analysis import Param, SpecError
 from jaxloco.robots.titan import analysis as A
 from jaxloco.robots.titan import gait as G
-from jaxloco.robots.titan import maps as M
 from jaxloco.robots.titan import params as P
 from jaxloco.tune.objective import Objective, Tunable
 
@@ -153,11 +152,13 @@ def check_settings(settings: Mapping[str, Any]) -> None:
                         "(flat ground) has none: set n_offsets = 1")
     direction = float(settings["direction"])
     if abs(direction) >= MAX_DIRECTION:
-        raise SpecError(f"settings: direction = {direction:g} rad: the tuning needs |direction| < pi/4 (the "
-                        "standard start faces +x; the gait walks within about +-30 deg of it)")
+        raise SpecError(f"settings: direction = {direction:g} rad: the tuning needs |direction| < pi/4 (its "
+                        "map lies ahead of the start along +x)")
     n, cell = int(settings["n_cycles"]), float(settings["cell"])
-    travel = n * 2.0 * L_HI  # [m] longest walk: n cycles at the upper bound of l_std
-    need_x = G.SWEEP_START_X + travel * math.cos(direction) + FOOT_REACH
+    box = max(abs(math.cos(direction)), abs(math.sin(direction)))
+    # [m] longest walk: n cycles at the upper bound of l_std, lengthened off a body axis
+    travel = n * 2.0 * L_HI / box**P.STRIDE_EXPONENT
+    need_x = float(settings["start_x"]) + travel * math.cos(direction) + FOOT_REACH
     need_y = 2.0 * (travel * abs(math.sin(direction)) + FOOT_REACH + 0.5 * W_HI)
     if settings["map_nx"] * cell < need_x or settings["map_ny"] * cell < need_y:
         raise SpecError(
@@ -174,14 +175,11 @@ def plan(params: P.TitanParams, s: Mapping[str, Any], phase: jax.Array) -> G.Gai
     (k + 1/2) interval)."""
     dtype = jnp.asarray(params.l_std).dtype
     shape, cell = (int(s["map_nx"]), int(s["map_ny"])), float(s["cell"])
-    interval = jnp.asarray(s["frame_interval"], dtype)
-    gmap = M.frame_grid_map(
-        shape, jnp.zeros(2, dtype), jnp.asarray(cell, dtype), jnp.asarray(s["frame_size"], dtype), interval,
-        (jnp.array([0.5, 0.5], dtype) + jnp.asarray(phase, dtype)) * interval, jnp.asarray(s["slope"], dtype),
-    )
-    direction = jnp.asarray(s["direction"], dtype)
-    start = G.standard_start(params, gmap, jnp.array([G.SWEEP_START_X, 0.5 * shape[1] * cell], dtype), direction)
-    return G.plan_cycles(params, gmap, start, int(s["n_cycles"]), direction)
+    v = {n: jnp.asarray(s[n], dtype) for n in ("frame_size", "frame_interval", "slope", "direction", "start_x",
+                                               "frame_size_b", "frame_interval_b", "mix_block")}
+    gmap, start = G.sweep_setup(params, v["frame_size"], v["frame_interval"], v["slope"], v["direction"], shape,
+                                cell, phase=jnp.asarray(phase, dtype), **A.field_values(v))
+    return G.plan_cycles(params, gmap, start, int(s["n_cycles"]), v["direction"])
 
 
 def plan_loss_fn(settings: Mapping[str, Any]):
