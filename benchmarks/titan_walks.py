@@ -56,6 +56,18 @@ def main(argv=None) -> None:
         default=None,
         help="executor body_gain [1/s] (default: scenarios.PARAM_DEFAULTS)",
     )
+    ap.add_argument(
+        "--mass-feedforward",
+        type=float,
+        default=None,
+        help="executor mass_feedforward (1: the body moves against the legs' mass; 0: integral only)",
+    )
+    ap.add_argument(
+        "--nesm-tol",
+        type=float,
+        default=None,
+        help="success allowance below S_NE^c [m] (default: scenarios.PARAM_DEFAULTS)",
+    )
     args = ap.parse_args(argv)
 
     from jaxloco.robots.titan import scenarios as S
@@ -94,7 +106,15 @@ def main(argv=None) -> None:
         group = [row for row in planned if row[1] == width]
         sc = S.make_scenario(6 * n, beam_width=width)
         keys = group[0][4].keys()
-        extra = {} if args.body_gain is None else {"body_gain": args.body_gain}
+        extra = {
+            k: v
+            for k, v in (
+                ("body_gain", args.body_gain),
+                ("mass_feedforward", args.mass_feedforward),
+                ("nesm_tol", args.nesm_tol),
+            )
+            if v is not None
+        }
         p = S.params_batch(
             [row[2] for row in group],
             **{k: np.array([row[4][k] for row in group]) for k in keys},
@@ -113,11 +133,11 @@ def main(argv=None) -> None:
     head = (
         "| walk | plan min NESM | plan m/cycle | failed | mods | sim success | "
         "sim min NESM | touchdown err | min swing clearance | cycle-end COG err | "
-        "walked |"
+        "walked | sim min NESM in swings |"
     )
     print()
     print(head)
-    print("|" + " --- |" * 11)
+    print("|" + " --- |" * 12)
     for name, _, plan, gait, _ in planned:
         m, status = results[name]
         print(
@@ -125,7 +145,7 @@ def main(argv=None) -> None:
             f"{int(gait.n_failures)} | {int(gait.n_modifications)} | "
             f"{verdict(m, gait, status)} | {m['min_nesm']:.3f} | "
             f"{m['max_touchdown_error']:.3f} | {m['min_swing_clearance']:.3f} | "
-            f"{m['max_cycle_error']:.3f} | {m['final_progress']:.2f} |"
+            f"{m['max_cycle_error']:.3f} | {m['final_progress']:.2f} | {m['min_nesm_swing']:.3f} |"
         )
     print()
     for name, *_ in planned:

@@ -109,6 +109,31 @@ def test_leg_ik_matches_mujoco_forward_kinematics():
     )
 
 
+def test_com_offset_matches_mujoco_subtree_com():
+    """`kinematics.com_offset` (the planner's and executor's centre of mass with the legs'
+    400 kg of moving links each) against MuJoCo's subtree centre of mass of the body, for
+    random foot positions in the fans: the swinging leg moves it by centimetres."""
+    m = M.load_model()
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(1)
+    bid = m.body("body").id
+    assert K.total_mass() == m.body_subtreemass[bid]
+    spread = []
+    for _ in range(20):
+        feet = K.home_feet() + np.c_[rng.uniform(-0.6, 0.6, (4, 2)), rng.uniform(-0.3, 0.3, 4)]
+        q, reach = K.legs_inverse_kinematics(jnp.asarray(feet))
+        assert np.all(np.asarray(reach) > 0)
+        d.qpos[:] = m.qpos0
+        d.qpos[:7] = [0, 0, 0, 1, 0, 0, 0]
+        d.qpos[7:19] = np.asarray(q).reshape(-1)
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        com = np.asarray(K.com_offset(jnp.asarray(feet)))
+        np.testing.assert_allclose(com, d.subtree_com[bid], atol=1e-5)
+        spread.append(com)
+    assert np.ptp(np.asarray(spread)[:, :2], axis=0).max() > 0.03
+
+
 def test_home_keyframe_matches_the_neutral_stance():
     m = M.load_model()
     d = mujoco.MjData(m)

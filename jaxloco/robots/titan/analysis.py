@@ -40,11 +40,11 @@ trial). `gait.plan_cycles` uses `lax.while_loop`, so only forward-mode derivativ
 (`jax.grad`) raises. Across a change of the chosen foothold or trial the objective jumps,
 so gradient tuning should use flat ground or average over frame offsets.
 
-Limits (from `gait.py`): straight walking works within about +-30 deg of a body axis;
-beyond, the standard start is below S_NE^c and the cycle fails. The robot starts 3 m from
-the map's x = 0 edge with its feet about 2.1 m from the COG, so directions with a
-negative x component walk off the map (outside reads forbidden) and fail within a cycle
-or two.
+Directions: every heading plans (`gait.directional_stride` lengthens the stride off the
+body axes; `titan_directions` sweeps 24 headings). The robot starts at map x = `start_x`
+(default 3 m from the x = 0 edge) on the map's centre line with its feet about 2.1 m
+from the COG; cells outside the map read forbidden, so `start_x` and the map size must
+leave room for the walk (`titan_directions`: a 30 x 30 m map, start at its centre).
 """
 
 from __future__ import annotations
@@ -60,6 +60,7 @@ import numpy as np
 from jaxloco.analysis import Analysis, Metric, Param, Summary
 from jaxloco.robots.titan import gait as G
 from jaxloco.robots.titan import params as P
+from jaxloco.robots.titan import plots
 
 NESM_TOL = 1e-9  # [m] rounding allowance of nesm_ok's min_nesm >= S_NE^c
 TITAN_PARAMS = ("l_std", "w_std", "s_ne_c", "tether")  # fields of `TitanParams` set per row
@@ -228,19 +229,6 @@ def best_rows(cols: Mapping[str, np.ndarray]) -> list[tuple[tuple[float, ...], n
     return out
 
 
-def field_label(cols: Mapping[str, np.ndarray], i: int) -> str:
-    """The terrain of row i: 'flat', '0.2 m / 2 m' or a mixed field, with the slope if any."""
-    def one(size, interval):
-        return f"{size:g} m / {interval:g} m" if size > 0 else "flat"
-
-    label = one(float(cols["frame_size"][i]), float(cols["frame_interval"][i]))
-    if float(cols["mix_block"][i]) > 0:
-        label = (f"mixed {label} + {one(float(cols['frame_size_b'][i]), float(cols['frame_interval_b'][i]))}, "
-                 f"{float(cols['mix_block'][i]):g} m blocks")
-    slope = float(cols["slope"][i])
-    return label + (f", {math.degrees(slope):.0f} deg slope" if slope > 0 else "")
-
-
 def is_direction_study(cols: Mapping[str, np.ndarray]) -> bool:
     """One stride, at least 4 headings: summarize per field over the headings."""
     one_stride = all(len(set(np.asarray(cols[n], float).tolist())) == 1 for n in STRIDE_COLS)
@@ -250,7 +238,7 @@ def is_direction_study(cols: Mapping[str, np.ndarray]) -> bool:
 def summarize_directions(cols: Mapping[str, np.ndarray]) -> Summary:
     """Per field: walks, walks with min NESM >= S_NE^c and no failed cycle, failed cycles,
     the smallest min NESM (and its heading), distance per cycle mean (smallest)."""
-    labels = [field_label(cols, i) for i in range(len(cols["direction"]))]
+    labels = [plots.field_label(cols, i) for i in range(len(cols["direction"]))]
     deg = np.degrees(np.asarray(cols["direction"], float)) % 360.0
     nesm = np.asarray(cols["min_nesm"], float)
     ok = np.asarray(cols["nesm_ok"], bool)

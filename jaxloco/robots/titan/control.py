@@ -16,7 +16,8 @@ params entries of `scenarios.PARAM_DEFAULTS` and `scenarios.Plan.params`):
     from their targets (slip, the body correction below), so that the foot lands at
     its planned world position;
   * joint targets: `kinematics.legs_inverse_kinematics` of the foot targets in the
-    commanded body frame, with the body placed at its target plus a correction `corr`
+    commanded body frame, with the body placed where the whole-robot centre of mass
+    (the legs' mass included, `body_for_com`) is at its target, plus a correction `corr`
     that integrates the error of the whole-robot centre of mass (in the plane) and of
     the body origin (along the normal) against the planned body position (gain
     `body_gain` [1/s], at most MAX_CORR per axis), and the commanded attitude turned by
@@ -102,6 +103,20 @@ def leg_targets(p, feet_c: Array, body_c: Array, rot: Array | None = None) -> Ar
         R = geo.rpy_to_matrix(rot[0], rot[1], rot[2]) @ R
     q, _ = K.legs_inverse_kinematics((feet_c - body_c[None]) @ R)
     return q.reshape(-1)
+
+
+def body_for_com(p, feet_c: Array, com: Array) -> Array:
+    """Body origin (3,) [m, world] that puts the whole-robot centre of mass at `com` in the
+    slope plane (the normal component is the body origin's own), with the foot centres at
+    `feet_c` (4, 3, world) and the commanded attitude: com - the in-plane part of
+    `kinematics.com_offset` (the legs' mass), scaled by p["mass_feedforward"] (0: the body
+    is placed at `com`). Two fixed-point passes (the offset moves by ~6 % of the body)."""
+    n, R = frames(p)
+    body = com
+    for _ in range(2):
+        off = R @ K.com_offset((feet_c - body[None]) @ R)
+        body = com - p["mass_feedforward"] * (off - (off @ n) * n)
+    return body
 
 
 def smooth(s: Array) -> Array:
@@ -207,9 +222,9 @@ def executor_step(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tupl
     corr = jnp.clip(c.corr + gain * err, -MAX_CORR, MAX_CORR)
     rot = jnp.clip(c.corr_rot + gain * attitude_error(R_plan, obs["quat"]), -MAX_CORR_ROT, MAX_CORR_ROT)
     state = state._replace(corr=corr, corr_rot=rot)
-    q0 = leg_targets(p, now.feet, now.body + corr, rot)
+    q0 = leg_targets(p, now.feet, body_for_com(p, now.feet, now.body) + corr, rot)
     later, _ = step_targets(p, n_steps, weight, c, {**obs, "time": obs["time"] + CONTROL_DT})
-    q1 = leg_targets(p, later.feet, later.body + corr, rot)
+    q1 = leg_targets(p, later.feet, body_for_com(p, later.feet, later.body) + corr, rot)
     lag = jnp.asarray(SERVO_LAG, q0.dtype)
     q = 0.5 * (q0 + q1) + lag * (q1 - q0) / CONTROL_DT
     return state, jnp.concatenate([q, tether_force(p, weight)])

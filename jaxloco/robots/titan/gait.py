@@ -38,7 +38,8 @@ COG shift G-bar = L-bar + W-bar: six steps. Readings of the text chosen here:
   * Sec. 5.2.3: "|L| = min(|l_f-bar|, |l_f-bar|)" is a typo for min(|l_f-bar|, |l_r-bar|),
     capped at L_std.
   * modifications (a), (b) and Sec. 5.5 are a fixed trial order: |L| = L_max (N_L - j)/N_L
-    (j outer), |W| = W_std + i dW (i inner, i < N_W); the first trial whose half cycle
+    (j outer), |W| = `trial_lateral` (i inner: W_std + i dW for i < N_W, then narrower);
+    the first trial whose half cycle
     finds J_r and J_f and whose second half (same |W|, its own L-bar reductions) also
     succeeds is used. No trial left: the cycle fails and the robot holds still.
   * phase-reserved positioning (Sec. 5.3, Fig. 14; the paragraph is garbled): I_u lies
@@ -59,9 +60,13 @@ COG shift G-bar = L-bar + W-bar: six steps. Readings of the text chosen here:
     rear leg can lift with S_NE^c, the cycle is a single transition COG shift to the
     cycle-start pose of the new roles (counted as one modification); if that is not
     possible either, the cycle fails and the robot holds (never an unsafe step).
-  * limits of the chosen geometry (square stance, 90 deg fans, no body yaw): straight
-    walking works within about +-30 deg of a body axis; beyond, the standard start pose
-    is below S_NE^c and the planner reports failure.
+  * every direction (added; Sec. 7 walks "in all directions"): the standard stride is
+    longer off the body axes (`directional_stride`): with the square stance and no body
+    yaw, at 45 deg the lateral shift runs along the swing diagonal and only the stride
+    moves the COG off it.
+  * deadlocks (added): after the widened |W| trials come narrower ones (`trial_lateral`),
+    |L| is reduced in N_L = 6 steps, and when no trial succeeds the transition COG shift
+    below is tried as a recovery (if it moves the COG by at least TRANSITION_MIN).
   * gravity: on a slope the tethers cancel `tether` times the slope-parallel component
     (Sec. 8.1), so margins use up = ((1 - tether) sin(slope), 0, cos(slope)) normalized.
 """

@@ -56,6 +56,14 @@ FOOT_RADIUS = 0.04  # [m] contact sphere of the foot (the pad's radius is P.FOOT
 R_IN, R_OUT, R_THETA = float(P.R_IN), float(P.R_OUT), float(P.R_THETA)  # Fig. 3
 HOME_HEIGHT = float(P.H_G)  # [m] body origin above flat ground in the home pose (H_g)
 
+# masses [kg] (ours; Table 1 gives 7,000 kg in all): `model` builds the MJCF from these and
+# `com_offset` puts the centre of mass where the MJCF has it
+TRUNK_MASS = 4800.0  # box centred on the body origin
+TOWER_MASS = 100.0  # per leg: a vertical cylinder on the pivot, centre TOWER_Z
+TOWER_Z = 0.55  # [m] centre height of a tower in Sigma_b (model: from the trunk's bottom, -0.4 m, to 1.5 m)
+HUB_MASS, THIGH_MASS, SHANK_MASS, FOOT_MASS = 50.0, 200.0, 150.0, 50.0
+SHANK_END_GAP = 0.2  # [m] the shank's capsule stops this short of the foot
+
 
 def home_feet() -> np.ndarray:
     """Foot centres (4, 3) in Sigma_b of the home pose on flat ground."""
@@ -126,6 +134,34 @@ def in_reach_area(leg: int | Array, foot: Array) -> Array:
     r = jnp.sqrt(d[0] ** 2 + d[1] ** 2)
     ang = _wrap(jnp.arctan2(d[1], d[0]) - jnp.asarray(YAW0, foot.dtype)[leg])
     return (r >= R_IN) & (r <= R_OUT) & (jnp.abs(ang) <= 0.5 * R_THETA)
+
+
+def leg_mass_moment(leg: int | Array, foot: Array) -> Array:
+    """Sum of mass x centre of mass [kg m] (3,) in Sigma_b of the links of leg `leg` (hub
+    on the pivot, thigh pivot-knee, shank capsule from the knee to SHANK_END_GAP short of
+    the foot, foot sphere) with its foot centre at `foot` (3,) in Sigma_b (knee up)."""
+    q, _ = inverse_kinematics(leg, foot)
+    pivot = jnp.asarray(PIVOTS, q.dtype)[leg]
+    knee = knee_position(leg, q)
+    tip = foot_position(leg, q)  # = foot where reachable
+    shank_c = knee + (tip - knee) * (0.5 * (L2 - SHANK_END_GAP) / L2)
+    return (HUB_MASS * pivot + THIGH_MASS * 0.5 * (pivot + knee) + SHANK_MASS * shank_c
+            + FOOT_MASS * tip)
+
+
+def total_mass() -> float:
+    """The robot's mass [kg]: trunk, four towers, four legs (7,000 kg, Table 1)."""
+    return TRUNK_MASS + 4 * (TOWER_MASS + HUB_MASS + THIGH_MASS + SHANK_MASS + FOOT_MASS)
+
+
+def com_offset(feet: Array) -> Array:
+    """Whole-robot centre of mass (3,) [m] in Sigma_b (relative to the body origin, the
+    trunk's centre) with the foot centres at `feet` (4, 3) in Sigma_b: the legs' 400 kg of
+    moving links each shift it by up to a few cm as their feet move."""
+    dtype = jnp.result_type(feet, float)
+    towers = jnp.asarray(PIVOTS, dtype).at[:, 2].set(TOWER_Z)
+    legs = jax.vmap(leg_mass_moment)(jnp.arange(4), jnp.asarray(feet, dtype))
+    return (jnp.sum(legs, axis=0) + TOWER_MASS * jnp.sum(towers, axis=0)) / total_mass()
 
 
 def _wrap(a: Array) -> Array:

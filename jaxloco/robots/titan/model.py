@@ -78,18 +78,16 @@ ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 2  # = jaxloco.sim.terrain.ROBOT_* (tested
 SIZE = tuple(float(v) for v in P.ENVELOPE)  # Table 1: 4.8 x 5.0 x 3.0 m (x, y, z)
 TOTAL_MASS = float(P.MASS)  # 7,000 kg
 TRUNK_HALF = (1.4, 1.5, 0.4)
-TRUNK_MASS = 4800.0
+TRUNK_MASS = K.TRUNK_MASS
 TOWER_RADIUS, TOWER_TOP, TOWER_MASS = (
     0.25,
     SIZE[2] - K.HOME_HEIGHT,
-    100.0,
+    K.TOWER_MASS,
 )  # pivot towers (z up to TOWER_TOP)
-HUB_MASS, THIGH_MASS, SHANK_MASS, FOOT_MASS = 50.0, 200.0, 150.0, 50.0
+HUB_MASS, THIGH_MASS, SHANK_MASS, FOOT_MASS = K.HUB_MASS, K.THIGH_MASS, K.SHANK_MASS, K.FOOT_MASS
 THIGH_RADIUS, SHANK_RADIUS = 0.12, 0.10
 TOUCH_MARGIN = 0.02  # [m] touch site radius beyond the foot sphere
-SHANK_END_GAP = (
-    0.2  # [m] the shank capsule stops short of the foot (only the foot touches)
-)
+SHANK_END_GAP = K.SHANK_END_GAP  # [m] the shank capsule stops short of the foot (only the foot touches)
 
 # Servos (yaw, pitch, knee): stiffness [N m/rad], damping [N m s/rad], torque limit [N m]
 KP = (1.7e6, 3.3e6, 3.3e6)

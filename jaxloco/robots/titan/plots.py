@@ -5,6 +5,8 @@ the `titan.stride` sweep and planned walks.
     plot_stride_maps(table, paper)    ok fraction and distance per cycle over (L_std, W_std), per terrain
     plot_plan(plan, gmap)             a planned walk from above: frames, footholds, COG path (Figs. 19-20)
     plot_nesm_steps(plans, s_ne_c)    NE stability margin of every planned step against S_NE^c
+    field_label(cols, i)              the field of a sweep row in words (mixed fields included)
+    plot_directions(table, s_ne_c)    min NESM and distance per cycle against heading (polar), per field
 
 `plan` is a `gait.GaitPlan` and `gmap` a `maps.GridMap` (JAX or NumPy arrays; map frame:
 on a slope x runs up the fall line, SI units, radians). Every function returns the
@@ -22,7 +24,8 @@ import numpy as np
 
 from jaxloco.plots import column, heatmap
 
-__all__ = ["LEG_NAMES", "case_label", "plot_nesm_steps", "plot_plan", "plot_stride_maps", "terrain_cases"]
+__all__ = ["LEG_NAMES", "case_label", "field_label", "plot_directions", "plot_nesm_steps", "plot_plan",
+           "plot_stride_maps", "terrain_cases"]
 
 LEG_NAMES = ("LF", "RF", "LR", "RR")  # params.LEG_NAMES
 CASE = ("frame_size", "frame_interval", "slope")
@@ -136,4 +139,54 @@ def plot_nesm_steps(plans: Mapping[str, Any], s_ne_c: float, *, figsize=(10.0, 3
     ax.set_title("NE stability margin of every planned step (filled: swing, open: COG shift)", fontsize="medium")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="x-small", loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    return fig
+
+
+def field_label(cols: Mapping[str, Any], i: int) -> str:
+    """The terrain of row i of a `titan.stride` table (columns as arrays): 'flat',
+    '0.2 m / 2 m' or a mixed field, with the slope if any."""
+    def one(size, interval):
+        return f"{size:g} m / {interval:g} m" if size > 0 else "flat"
+
+    label = one(float(cols["frame_size"][i]), float(cols["frame_interval"][i]))
+    if float(cols["mix_block"][i]) > 0:
+        label = (f"mixed {label} + {one(float(cols['frame_size_b'][i]), float(cols['frame_interval_b'][i]))}, "
+                 f"{float(cols['mix_block'][i]):g} m blocks")
+    slope = float(cols["slope"][i])
+    return label + (f", {math.degrees(slope):.0f} deg slope" if slope > 0 else "")
+
+
+def plot_directions(table: Any, s_ne_c: float, *, figsize=(10.0, 4.4)):
+    """A direction study (`titan_directions`): min NESM and distance per cycle against the
+    heading (map frame; the body axes at 0, 90, 180, 270 deg) on polar axes, one line per
+    field, S_NE^c dashed; walks that failed a cycle or went below S_NE^c are crossed."""
+    import matplotlib.pyplot as plt
+
+    cols = {n: np.asarray(column(table, n)) for n in ("direction", "min_nesm", "distance_per_cycle", "nesm_ok",
+                                                       "frame_size", "frame_interval", "mix_block", "frame_size_b",
+                                                       "frame_interval_b", "slope")}
+    labels = np.asarray([field_label(cols, i) for i in range(len(cols["direction"]))])
+    heading = np.mod(cols["direction"].astype(float), 2 * math.pi)
+    fig, axes = plt.subplots(1, 2, figsize=figsize, subplot_kw={"projection": "polar"}, layout="constrained")
+    ring = np.linspace(0.0, 2 * math.pi, 181)
+    for ax, key, title in ((axes[0], "min_nesm", "min NESM [m]"), (axes[1], "distance_per_cycle",
+                                                                    "distance per cycle [m]")):
+        for label in dict.fromkeys(labels.tolist()):
+            sel = labels == label
+            order = np.argsort(heading[sel])
+            th = np.append(heading[sel][order], heading[sel][order][0] + 2 * math.pi)
+            r = np.append(cols[key][sel][order].astype(float), cols[key][sel][order][0])
+            line, = ax.plot(th, r, marker="o", ms=3, lw=1.2, label=label)
+            bad = sel & ~cols["nesm_ok"].astype(bool)
+            if bad.any():
+                ax.plot(heading[bad], cols[key][bad], "x", color=line.get_color(), ms=9, mew=2)
+        if key == "min_nesm":
+            ax.plot(ring, np.full_like(ring, s_ne_c), "k--", lw=1, label="S_NE^c")
+            ax.set_rlim(0.0, max(2.0 * s_ne_c, float(np.nanmax(cols[key])) * 1.1))
+        else:
+            ax.set_rlim(0.0, float(np.nanmax(cols[key])) * 1.1)
+        ax.set_title(title)
+        ax.set_rlabel_position(100)
+        ax.tick_params(axis="y", labelsize=7)
+    axes[0].legend(loc="upper center", bbox_to_anchor=(1.1, -0.06), ncol=2, fontsize=8, frameon=False)
     return fig

@@ -103,6 +103,7 @@ PARAM_DEFAULTS: dict[str, float] = {
     "swing_height": 0.5,  # [m] lift above the higher of start and target
     "contact_force": 0.05,  # touch above this fraction of M g = contact
     "body_gain": 3.0,  # [1/s] integral gain of the body position correction
+    "mass_feedforward": 1.0,  # 1: the body moves against the legs' mass (control.body_for_com); 0: integral only
     "s_ne_c": float(P.S_NE_C),  # [m] critical NE stability margin
     "nesm_tol": 0.005,  # [m] success: min_nesm >= s_ne_c - nesm_tol (servo compliance)
     "touchdown_tol": 0.1,  # [m] success: largest touchdown error
@@ -318,9 +319,11 @@ def initial_state(lay: Layout, nv: int, p, key) -> InitialState:
     """Standing on the plan's start footholds, the terrain placed from params p."""
     pos, quat = lay.terrain.place(_terrain_values(p), key)
     n, _ = control.frames(p)
-    q = control.leg_targets(p, p["plan_feet0"] + K.FOOT_RADIUS * n, p["plan_body0"])
+    feet = p["plan_feet0"] + K.FOOT_RADIUS * n
+    body = control.body_for_com(p, feet, p["plan_body0"])
+    q = control.leg_targets(p, feet, body)
     quat_b = control.body_quat(p["theta"], p["direction"], p["heading"])
-    qpos = jnp.concatenate([p["plan_body0"], quat_b, q])
+    qpos = jnp.concatenate([body, quat_b, q])
     ctrl = jnp.concatenate([q, control.tether_force(p, lay.weight)])
     return InitialState(qpos=qpos, qvel=jnp.zeros(nv), ctrl=ctrl, mocap_pos=pos, mocap_quat=quat)
 
