@@ -5,6 +5,7 @@ plus the planner -> executor plan conversion and the start-pose search."""
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -112,3 +113,35 @@ def test_planned_walk_runs_in_mujoco(runs, row):
     assert m["max_cycle_error"] < 0.08 and m["max_path_deviation"] < 0.08
     # and it walks: about the planned distance
     assert m["final_progress"] > 0.8 * N_CYCLES * 0.7
+
+
+def _beam_distance(xy, n_lines, spacing):
+    """Distance from points (..., 2) to the beams of a square field of n_lines x n_lines
+    centre lines every `spacing` m, centred on the origin (segments, not infinite lines)."""
+    c = (np.arange(n_lines) - 0.5 * (n_lines - 1)) * spacing
+    half = c[-1]
+    x, y = xy[..., 0], xy[..., 1]
+    dx = np.min(np.abs(x[..., None] - c), axis=-1)  # to the lines x = c (running along y)
+    dy = np.min(np.abs(y[..., None] - c), axis=-1)
+    along_y = np.hypot(dx, np.maximum(np.abs(y) - half, 0.0))
+    along_x = np.hypot(dy, np.maximum(np.abs(x) - half, 0.0))
+    return np.minimum(along_x, along_y)
+
+
+def test_a_surveyed_map_with_noise_plans_off_the_true_frames():
+    """Sec. 8.2.1 end to end on a 5 x 5 beam field (1.5 m): a total-station survey with 5 mm
+    noise, the maps made from it, a plan on them. Every cell the true frames forbid is
+    forbidden on the surveyed map too (its 5 cm placement margin covers the noise), and
+    every planned foothold keeps its pad off the true beams."""
+    field = S.FrameField(n_along=5, n_across=5, max_spacing=1.5, half_length=12.0, half_width=12.0)
+    noisy = W.surveyed_map(field, 1.5, P.FRAME_SMALL, 0.005, jax.random.PRNGKey(3), shape=W.SIM_SHAPE)
+    exact = W.surveyed_map(field, 1.5, P.FRAME_SMALL, shape=W.SIM_SHAPE, margin=0.0)
+    assert bool(jnp.all(noisy.forbidden | ~exact.forbidden))
+    assert int(exact.forbidden.sum()) > 1000
+    par = P.default_params()
+    start = W.clear_start(par, noisy, (-3.0, 0.4), 0.0)
+    gait = W._plan_cycles(par, noisy, start, n_cycles=N_CYCLES, direction=jnp.zeros(N_CYCLES))
+    assert int(gait.n_failures) == 0 and float(gait.min_nesm) >= P.S_NE_C - 1e-9
+    feet = np.concatenate([np.asarray(start.feet)[None], np.asarray(gait.feet)])[..., :2]
+    assert _beam_distance(feet, 5, 1.5).min() > 0.5 * P.FRAME_SMALL + P.FOOT_RADIUS
+    assert float(gait.cog[-1, 0] - start.cog[0]) > 0.5 * N_CYCLES

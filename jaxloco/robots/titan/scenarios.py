@@ -250,19 +250,32 @@ CONTROL_DT = control.CONTROL_DT  # [s] the executor's control period
 
 
 # ----------------------------------------------------------------------------- model
+class FrameField(NamedTuple):
+    """The simulated beams (`terrain.frames_on_slope`, centred on the origin): `n_along`
+    beams along x spaced across, `n_across` beams across spaced along x, `max_spacing`
+    [m] (the beams' length; a smaller `spacing` param makes them overhang), and the half
+    length and width [m] of the ground plane."""
+
+    n_along: int = N_BEAMS
+    n_across: int = N_BEAMS
+    max_spacing: float = MAX_SPACING
+    half_length: float = HALF_EXTENT
+    half_width: float = HALF_EXTENT
+
+
 def build_model(
-    beam_width: float = float(P.FRAME_SMALL),
+    beam_width: float = float(P.FRAME_SMALL), field: FrameField = FrameField()
 ) -> tuple[mujoco.MjModel, tr.Terrain]:
-    """The robot (`models/titan_xi.xml`) on the frames-on-a-plane terrain."""
+    """The robot (`models/titan_xi.xml`) on the frames-on-a-plane terrain `field`."""
     spec = titan_model.load_spec()
     terrain = tr.frames_on_slope(
-        nx=N_BEAMS,
-        ny=N_BEAMS,
+        nx=field.n_along,
+        ny=field.n_across,
         beam_width=beam_width,
-        max_spacing=MAX_SPACING,
+        max_spacing=field.max_spacing,
         max_beam_height=MAX_BEAM_HEIGHT,
-        half_length=HALF_EXTENT,
-        half_width=HALF_EXTENT,
+        half_length=field.half_length,
+        half_width=field.half_width,
     )
     terrain.add_to(spec, friction=(PARAM_DEFAULTS["mu"], 0.005, 0.0001))
     return spec.compile(), terrain
@@ -470,11 +483,12 @@ def make_scenario(
     record_every: int = 1,
     step_time: float = PARAM_DEFAULTS["step_time"],
     settle_time: float = PARAM_DEFAULTS["settle_time"],
+    field: FrameField = FrameField(),
 ) -> Scenario:
-    """The footstep executor (`control.py`) for plans of `n_steps` steps. horizon_s
-    default: the plan at (step_time, settle_time) plus 1 s (the params may change the
-    timing, not the horizon)."""
-    m, terrain = build_model(beam_width)
+    """The footstep executor (`control.py`) for plans of `n_steps` steps on the beams
+    `field`. horizon_s default: the plan at (step_time, settle_time) plus 1 s (the params
+    may change the timing, not the horizon)."""
+    m, terrain = build_model(beam_width, field)
     lay = model_layout(m, terrain, n_steps)
     if horizon_s is None:
         horizon_s = settle_time + n_steps * step_time + 1.0

@@ -9,10 +9,13 @@ centred on the origin at +-spacing/2, +-3 spacing/2, ... (N_BEAMS each way, reac
 about +-(N_BEAMS - 1) spacing / 2); `sim_map` builds the matching grid maps (frame
 lines at spacing/2 + k spacing). The maps are periodic: keep walks inside the beams.
 
-COG: the planner's COG is the body origin (the trunk's centre of mass, what the executor
-moves); the whole-robot centre of mass, which the executor's NESM uses, moves with the
-legs (each leg is 450 kg of 7 t): ~7 cm sideways in the standard gait, which costs
-~2 cm of the planned NE margin.
+COG: the planner's COG is the whole-robot centre of mass; the executor places the body
+so that the centre of mass with the legs (each leg is 450 kg of 7 t, up to ~7 cm off the
+trunk's) is there (`control.body_for_com`).
+
+Survey -> map -> long walk (Sec. 8.2-8.3): `field_survey`, `surveyed_map` and
+`plan_long_walk` on the dummy-frame field `LONG_FIELD`; `benchmarks/titan_long_walk.py`
+executes it.
 """
 
 from __future__ import annotations
@@ -184,3 +187,60 @@ def plan_walk(
         "s_ne_c": float(params.s_ne_c),
     }
     return plan, gait, scalars
+
+
+# ------------------------------------------------------------ survey -> map -> long walk
+# Sec. 8.3: "a plane 30 m x 5 m including frames of 0.2 m x 0.2 m". Ours: 0.2 m beams every
+# 1.5 m (the Sec. 8.4 test slope's grid, which the dummy frames stand for), 21 across and
+# 4 along: a field of 30.2 x 4.7 m centred on the origin, flat ground around it.
+LONG_FIELD = S.FrameField(n_along=4, n_across=21, max_spacing=1.5, half_length=30.0, half_width=8.0)
+LONG_SPACING = 1.5  # [m]
+LONG_SHAPE = (600, 120)  # planning map cells: x in [-30, 30], y in [-6, 6] m
+LONG_START = (-20.0, 0.0)  # [m] start COG, 5 m before the field
+
+
+def field_survey(field: S.FrameField, spacing: float, frame_size: float, noise: float = 0.0,
+                 key: jax.Array | None = None) -> tuple[jax.Array, jax.Array]:
+    """A synthetic total-station survey (Sec. 8.2.1 step 1, `maps.survey_points`) of the
+    simulated beams `field` every `spacing` m: the beam crossings measured on top and the
+    area centres on the ground, each coordinate with Gaussian noise of std `noise` [m]."""
+    n_nodes = (field.n_across, field.n_along)
+    origin = -0.5 * spacing * (np.asarray(n_nodes, float) - 1.0)
+    return M.survey_points(n_nodes, jnp.asarray(spacing), jnp.asarray(origin), frame_size, noise=noise, key=key)
+
+
+def surveyed_map(field: S.FrameField, spacing: float, frame_size: float, noise: float = 0.0,
+                 key: jax.Array | None = None, shape: tuple[int, int] = LONG_SHAPE,
+                 margin: float = PLACEMENT_MARGIN) -> M.GridMap:
+    """The planning maps made from `field_survey` by our map generation
+    (`maps.map_from_survey`, Sec. 8.2.1 steps 2-4), on a grid centred on the origin;
+    forbidden cells keep the pad plus `margin` off the surveyed frames."""
+    nodes, centres = field_survey(field, spacing, frame_size, noise, key)
+    origin = -0.5 * np.asarray(shape, float) * float(P.CELL)
+    return M.map_from_survey(nodes, centres, frame_size, frame_size, shape, jnp.asarray(origin),
+                             jnp.asarray(float(P.CELL)), foot_radius=float(P.FOOT_RADIUS) + margin)
+
+
+def plan_long_walk(n_cycles: int, noise: float = 0.005, seed: int = 0, frame_size: float = float(P.FRAME_SMALL),
+                   params: P.TitanParams | None = None):
+    """Sec. 8.3 end to end, planned: survey the long field with `noise`, make the maps,
+    plan `n_cycles` along +x from `LONG_START`. Returns (executor plan, planner output,
+    executor scalars, the surveyed map)."""
+    params = P.default_params() if params is None else params
+    gmap = surveyed_map(LONG_FIELD, LONG_SPACING, frame_size, noise, jax.random.PRNGKey(seed))
+    start = clear_start(params, gmap, LONG_START, 0.0)
+    gait = _plan_cycles(params, gmap, start, n_cycles=n_cycles, direction=jnp.zeros(n_cycles))
+    plan = executor_plan(gait, start, gmap, np.zeros(n_cycles))
+    scalars = {"theta": 0.0, "direction": 0.0, "spacing": LONG_SPACING, "beam_height": float(frame_size),
+               "tether": float(params.tether), "s_ne_c": float(params.s_ne_c)}
+    return plan, gait, scalars, gmap
+
+
+def converged(gait: G.GaitPlan, params: P.TitanParams, last: int = 2) -> bool:
+    """Back to the standard gait (Fig. 5): the last `last` cycles with |L| = |L-bar| =
+    L_std (along +x, a body axis), |W| = W_std and no modification."""
+    ls = np.asarray(gait.cycle_l, float)[-last:]
+    ws = np.asarray(gait.cycle_w, float)[-last:]
+    trials = np.asarray(gait.cycle_trials)[-last:]
+    return bool(np.allclose(ls, float(params.l_std), atol=1e-6) and np.allclose(ws, float(params.w_std), atol=1e-6)
+                and (trials == 0).all() and not np.asarray(gait.cycle_failed)[-last:].any())
