@@ -813,22 +813,10 @@ def sweep_plan(
     return plan_cycles(params, gmap, start, n_cycles, direction)
 
 
-def sweep_metrics(
-    params: P.TitanParams,
-    frame_size: Array,
-    frame_interval: Array,
-    slope: Array,
-    direction: Array,
-    n_cycles: int,
-    shape: tuple[int, int] = (160, 100),
-    cell: float = P.CELL,
-    **field,
-) -> dict[str, Array]:
-    """`sweep_plan`'s min NESM, distance per cycle, number of failed cycles and
-    modifications, path deviation (`field`: sweep_plan's start_x, field_b, mix_block)."""
-    plan = sweep_plan(
-        params, frame_size, frame_interval, slope, direction, n_cycles, shape, cell, **field
-    )
+def sweep_metrics(*args, **kwargs) -> dict[str, Array]:
+    """`sweep_plan(*args, **kwargs)`'s min NESM, distance per cycle, number of failed
+    cycles and modifications, path deviation."""
+    plan = sweep_plan(*args, **kwargs)
     return {
         "min_nesm": plan.min_nesm,
         "distance_per_cycle": plan.distance_per_cycle,
