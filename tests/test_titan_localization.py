@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from jaxloco import geometry as geo
 from jaxloco.robots.titan import localization as L
 
 CENTRE_B = jnp.array([-1.0, 0.4, 1.6])  # [m] the mechanism on the trunk's top, ours
@@ -23,7 +24,7 @@ def _poses(n, seed=0):
 
 
 def _measure(pos, euler, mount, noise=0.0, key=None):
-    R = L.euler_to_matrix(*euler)
+    R = geo.rpy_to_matrix(euler[2], euler[1], euler[0])
     pts = L.cube_points(pos, R, CENTRE_B, RADIUS, PHASES, mount)
     if noise:
         pts = pts + noise * jax.random.normal(key, pts.shape)
@@ -55,7 +56,7 @@ def test_pose_is_recovered_exactly_without_noise(mount):
     pose = run(pos, euler)
     np.testing.assert_allclose(pose.position, pos, atol=1e-8)
     np.testing.assert_allclose(pose.euler, euler, atol=1e-9)
-    R = jax.vmap(lambda e: L.euler_to_matrix(*e))(euler)
+    R = jax.vmap(lambda e: geo.rpy_to_matrix(e[2], e[1], e[0]))(euler)
     np.testing.assert_allclose(pose.rotation, R, atol=1e-9)
 
 

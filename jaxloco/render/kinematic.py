@@ -116,6 +116,9 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
     from jaxloco.sim import terrain as tr
 
     values = row.values
+    if float(values.get("mix_block", 0.0)) > 0:
+        raise SpecError("titan.stride: rendering a mixed field (mix_block > 0) is not supported; "
+                        "plot the plan with jaxloco.robots.titan.plots instead")
     start, plan, _, metrics = titan_plan(values)
     status = A.STATUSES[int(metrics.pop("status"))]
     metrics = _plain(metrics)
@@ -136,9 +139,6 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
     normal = rot[:, 2]
     body_quat = np.asarray(TC.body_quat(slope, 0.0, 0.0), float)
 
-    if float(values.get("mix_block", 0.0)) > 0:
-        raise SpecError("titan.stride: rendering a mixed field (mix_block > 0) is not supported; "
-                        "plot the plan with jaxloco.robots.titan.plots instead")
     model, terrain = _titan_model(frame_size, interval)
     model = model_copy(model)
     place = {"theta": slope, "direction": 0.0}

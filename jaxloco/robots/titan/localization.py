@@ -21,7 +21,8 @@ not in our copy, so how the axis is mounted is a reading:
     cannot). Kept as an option.
 
 Frames: world (TS) frame, z up; body frame Sigma_b (x forward, y left, z up). The body
-attitude is R = Rz(yaw) Ry(pitch) Rx(roll) (ZYX Euler angles, rad); positions in m.
+attitude is R = Rz(yaw) Ry(pitch) Rx(roll) (`geometry.rpy_to_matrix`; `Pose.euler` lists
+(yaw, pitch, roll), rad); positions in m.
 The measured points are in time order and the mechanism turns positively (right hand)
 about its axis, which fixes the axis' sign; the three points must span less than a
 full turn.
@@ -33,6 +34,8 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+
+from jaxloco import geometry as geo
 
 Array = jax.Array
 
@@ -54,18 +57,6 @@ class Pose(NamedTuple):
     position: Array
     rotation: Array
     euler: Array
-
-
-def euler_to_matrix(yaw: Array, pitch: Array, roll: Array) -> Array:
-    """R = Rz(yaw) Ry(pitch) Rx(roll) (3, 3)."""
-    cy, sy = jnp.cos(yaw), jnp.sin(yaw)
-    cp, sp = jnp.cos(pitch), jnp.sin(pitch)
-    cr, sr = jnp.cos(roll), jnp.sin(roll)
-    return jnp.stack([
-        jnp.stack([cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr]),
-        jnp.stack([sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr]),
-        jnp.stack([-sp, cp * sr, cp * cr]),
-    ])
 
 
 def circle_through(p1: Array, p2: Array, p3: Array) -> Circle:
@@ -112,7 +103,7 @@ def localize(points: Array, angle: Array, centre_b: Array, mount: str = "x") -> 
     `centre_b` (3,) [m]: origin = centre - R centre_b."""
     circle = circle_through(points[0], points[1], points[2])
     euler = attitude_from_axis(circle.axis, angle, mount)
-    R = euler_to_matrix(euler[0], euler[1], euler[2])
+    R = geo.rpy_to_matrix(euler[2], euler[1], euler[0])
     return Pose(circle.centre - R @ centre_b, R, euler)
 
 
