@@ -1,6 +1,7 @@
 """TITAN XI in MuJoCo: standing, one gait cycle of the footstep executor on flat ground,
-and the tethers holding the robot on the 30 deg slope (Sec. 8.4). One batch of four
-simulations compiled once (native backend)."""
+the tethers holding the robot on the 30 deg slope (Sec. 8.4), and the same cycle without
+re-referencing the foot targets (`control.anchor_to_feet`). One batch of five simulations
+compiled once (native backend)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from jaxloco.robots.titan import scenarios as S
 from jaxloco.sim.rollout import rollout
 
 THETA = float(P.SLOPE_ANGLE)
-WALK, HOLD, TETHER, NO_TETHER = range(4)
+WALK, HOLD, TETHER, NO_TETHER, NO_ANCHOR = range(5)
 
 
 @pytest.fixture(scope="module")
@@ -22,11 +23,12 @@ def runs():
     slope = hold.to_world(THETA)
     sc = S.make_scenario(walk.n_steps)
     p = S.params_batch(
-        [walk, hold, slope, slope],
-        theta=np.array([0.0, 0.0, THETA, THETA]),
-        tether=np.array([1.0, 1.0, 1.0, 0.0]),
+        [walk, hold, slope, slope, walk],
+        theta=np.array([0.0, 0.0, THETA, THETA, 0.0]),
+        tether=np.array([1.0, 1.0, 1.0, 0.0, 1.0]),
         # below tan(30 deg) = 0.58 on the slope: the robot slides unless the tethers hold it
-        mu=np.array([0.6, 0.6, 0.5, 0.5]),
+        mu=np.array([0.6, 0.6, 0.5, 0.5, 0.6]),
+        anchor_feet=np.array([1.0, 1.0, 1.0, 1.0, 0.0]),
     )
     return sc, rollout(sc, p, nthread=2)
 
@@ -83,3 +85,16 @@ def test_tethers_hold_the_robot_on_the_30_degree_slope(runs):
     # M g cos(theta)
     touch = r.records["touch"][TETHER, -1]
     assert abs(touch.sum() / (7000 * P.G * np.cos(THETA)) - 1.0) < 0.03
+
+
+def test_every_foot_carries_load_after_a_cycle(runs):
+    """A foot latched where it touched carries nothing unless the targets are re-referenced
+    at each step (`control.anchor_to_feet`): after one cycle without it a hind foot
+    holds < 5 % of the weight and its target hangs > 2 cm above it (the ratchet that sank
+    the body 0.22 m over the Sec. 8.3 field); with it every foot carries > 10 %."""
+    _, r = runs
+    load = r.records["touch"][:, -1] / (7000 * P.G)
+    assert load[WALK].min() > 0.10 and abs(load[WALK].sum() - 1.0) < 0.02
+    assert load[NO_ANCHOR].min() < 0.05
+    lift = (r.records["feet_target"] - r.records["feet"])[:, -1, :, 2]
+    assert np.abs(lift[WALK]).max() < 0.01 < 0.02 < lift[NO_ANCHOR].max()

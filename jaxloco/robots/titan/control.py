@@ -12,6 +12,9 @@ params entries of `scenarios.PARAM_DEFAULTS` and `scenarios.Plan.params`):
     target, then descends to the target and PRESS below it; as soon as its touch sensor
     reads more than `contact_force` (fraction of M g) in the descent, the foot target
     stops there ("lower until contact", the unevenness-absorbing gait of Fig. 6);
+  * at the start of each step the targets of the feet in contact are re-referenced to
+    where they stand (`anchor_to_feet`: each foot's offset along the normal, the common
+    slip in the plane), the body correction shifted to match;
   * the swing target is offset by the mean in-plane deviation of the supporting feet
     from their targets (slip, the body correction below), so that the foot lands at
     its planned world position;
@@ -146,7 +149,7 @@ def step_targets(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tuple
     n, _ = frames(p)
     t = obs["time"] - p["settle_time"]
     k_raw = jnp.floor(t / p["step_time"]).astype(jnp.int32)
-    k = jnp.clip(k_raw, -1, n_steps)
+    k = step_index(p, n_steps, obs["time"])
     phase = jnp.where((k_raw >= 0) & (k_raw < n_steps), t / p["step_time"] - k_raw, 1.0)
     # a new step: bank the previous one (its final targets become the start)
     new = k != c.k
@@ -198,6 +201,42 @@ def attitude_error(R_plan: Array, quat: Array) -> Array:
     return 0.5 * jnp.array([M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1]])
 
 
+def step_index(p, n_steps: int, time: Array) -> Array:
+    """The plan step running at `time` [s] (-1 before the plan, n_steps after it)."""
+    k_raw = jnp.floor((time - p["settle_time"]) / p["step_time"]).astype(jnp.int32)
+    return jnp.clip(k_raw, -1, n_steps)
+
+
+def anchor_to_feet(p, n_steps: int, weight: float, c: ExecutorState, obs) -> ExecutorState:
+    """At the start of a step, the targets of the feet in contact re-referenced to where
+    they stand (p["anchor_feet"] 1: fully, 0: never): along the normal each foot's own
+    offset, in the plane the feet's common (mean) slip; the body correction moves by the
+    mean shift, so that the commanded body does not jump.
+
+    Why: the executor commands the legs from world foot targets. Without re-referencing,
+    (a) along the normal a foot latched where it touched carries nothing (the body's
+    height integral does not share the load out: 0.3 % of the weight after one cycle,
+    `tests/test_titan_sim.py`) and each lift-off of a loaded leg ratchets the correction
+    up by the sag; (b) in the plane the supporting feet's common slip (1-2 cm per step,
+    the four-legged closed chain on compliant servos) stays in the targets, the swing
+    aims off by it (`step_targets`) and the correction holds it. Over the Sec. 8.3 field
+    both grew until the correction saturated at MAX_CORR (the body 0.22 m low, the feet
+    off by 0.2 m after ~8 cycles, then a foot on a frame). Per-foot differences in the
+    plane are left alone: they are mostly the legs' elastic splay under load (resetting
+    them made a standing robot's feet shuffle 7 cm in 20 s), and each foot is placed
+    afresh by its own swing every cycle."""
+    n, _ = frames(p)
+    new = step_index(p, n_steps, obs["time"]) != c.k
+    contact = obs["touch"] > p["contact_force"] * weight
+    use = (p["anchor_feet"] * jnp.where(new & contact, 1.0, 0.0))[:, None]
+    dev = use * (obs["feet"] - c.feet_end)
+    along = (dev @ n)[:, None] * n[None]  # per foot: each leg's compression
+    mean_plane = jnp.sum(dev - along, axis=0) / jnp.maximum(jnp.sum(use), 1e-9)  # the common slip
+    shift = use * (along + mean_plane[None])
+    return c._replace(feet=c.feet + shift, feet_end=c.feet_end + shift,
+                      corr=c.corr + jnp.sum(shift, axis=0) / jnp.maximum(jnp.sum(use), 1e-9))
+
+
 def executor_step(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tuple[ExecutorState, Array]:
     """One control period: the next state and the action (12 joint targets [rad], then the
     tether force (3,) [N]).
@@ -213,6 +252,7 @@ def executor_step(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tupl
     = q(t + dt/2) + (kv / kp) dq/dt, so that kp (ctrl - q) - kv dq = kp (q_d - q) + kv
     (dq_d - dq); without it the legs lag by (kv / kp) dq (6 cm in a swing) and the lags of
     the four supporting legs differ, pushing the feet to slip."""
+    c = anchor_to_feet(p, n_steps, weight, c, obs)
     now, state = step_targets(p, n_steps, weight, c, obs)
     n, R_plan = frames(p)
     err = now.body - obs["com"]

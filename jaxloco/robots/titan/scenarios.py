@@ -103,6 +103,7 @@ PARAM_DEFAULTS: dict[str, float] = {
     "swing_height": 0.5,  # [m] lift above the higher of start and target
     "contact_force": 0.05,  # touch above this fraction of M g = contact
     "body_gain": 3.0,  # [1/s] integral gain of the body position correction
+    "anchor_feet": 1.0,  # 1: foot targets re-referenced to the measured feet at each step (control.anchor_to_feet)
     "mass_feedforward": 1.0,  # 1: the body moves against the legs' mass (control.body_for_com); 0: integral only
     "s_ne_c": float(P.S_NE_C),  # [m] critical NE stability margin
     "nesm_tol": 0.005,  # [m] success: min_nesm >= s_ne_c - nesm_tol (servo compliance)
