@@ -52,8 +52,10 @@ PRESS = 0.03  # [m] the descent goes this far below the target if no contact com
 MAX_CORR = 0.2  # [m] largest body position correction per axis
 MAX_CORR_ROT = 0.1  # [rad] largest body attitude correction per axis
 SWING_RISE = 0.25  # fraction of a swing spent rising (and descending); the rest moves across
+UNLOAD = 0.1  # fraction of a step spent moving the load between the legs (the swing foot rises after it)
 # servo lag kv / kp [s] per joint (12,): the planned speed is fed forward through it
 SERVO_LAG = np.tile(np.asarray(titan_model.KV) / np.asarray(titan_model.KP), 4)
+SERVO_COMPLIANCE = np.tile(1.0 / np.asarray(titan_model.KP), 4)  # [rad / (N m)] per joint (12,)
 
 
 class ExecutorState(NamedTuple):
@@ -78,6 +80,7 @@ class StepTargets(NamedTuple):
     feet: Array  # (4, 3) foot centre targets
     body: Array  # (3,) body target
     descending: Array  # () bool: the swing foot is in its descent
+    phase: Array  # () fraction of the step elapsed (1 outside the plan)
 
 
 def body_quat(theta: Array, direction: Array, heading: Array) -> Array:
@@ -177,7 +180,7 @@ def step_targets(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tuple
     goal_top = goal + (top - goal @ n) * n
     bottom = goal - PRESS * n
     a = SWING_RISE
-    up = start + (start_top - start) * smooth(phase / a)
+    up = start + (start_top - start) * smooth((phase - UNLOAD) / (a - UNLOAD))
     across = start_top + (goal_top - start_top) * smooth((phase - a) / (1 - 2 * a))
     down = goal_top + (bottom - goal_top) * smooth((phase - (1 - a)) / a)
     descending = (u >= 0) & (phase >= 1 - a)
@@ -192,7 +195,7 @@ def step_targets(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tuple
     feet_end = jnp.where(swinging, jnp.where(latched, hold, bottom)[None], feet_prev)  # where this step ends
     state = c._replace(k=k, feet=feet_prev, body=body_prev, feet_end=feet_end, body_end=body_goal, latched=latched,
                        hold=hold)
-    return StepTargets(k, u, feet_t, body_t, descending), state
+    return StepTargets(k, u, feet_t, body_t, descending, phase), state
 
 
 def attitude_error(R_plan: Array, quat: Array) -> Array:
@@ -214,10 +217,10 @@ def anchor_to_feet(p, n_steps: int, weight: float, c: ExecutorState, obs) -> Exe
     mean shift, so that the commanded body does not jump.
 
     Why: the executor commands the legs from world foot targets. Without re-referencing,
-    (a) along the normal a foot latched where it touched carries nothing (the body's
-    height integral does not share the load out: 0.3 % of the weight after one cycle,
-    `tests/test_titan_sim.py`) and each lift-off of a loaded leg ratchets the correction
-    up by the sag; (b) in the plane the supporting feet's common slip (1-2 cm per step,
+    (a) along the normal each touchdown latches a target off by the servos' sag (before
+    the load feedforward a foot latched where it touched carried 0.3 % of the weight
+    after one cycle and each lift-off of a loaded leg ratcheted the correction up by the
+    sag); (b) in the plane the supporting feet's common slip (1-2 cm per step,
     the four-legged closed chain on compliant servos) stays in the targets, the swing
     aims off by it (`step_targets`) and the correction holds it. Over the Sec. 8.3 field
     both grew until the correction saturated at MAX_CORR (the body 0.22 m low, the feet
@@ -235,6 +238,68 @@ def anchor_to_feet(p, n_steps: int, weight: float, c: ExecutorState, obs) -> Exe
     shift = use * (along + mean_plane[None])
     return c._replace(feet=c.feet + shift, feet_end=c.feet_end + shift,
                       corr=c.corr + jnp.sum(shift, axis=0) / jnp.maximum(jnp.sum(use), 1e-9))
+
+
+def load_shares(com: Array, feet: Array, support: Array, up: Array) -> Array:
+    """Static load shares (4,) of the feet (sum 1, 0 off the support): the minimum-norm
+    weights w >= 0 with sum w_i (feet_i - com) = 0 in the plane normal to `up` (the
+    direction against gravity plus tethers), so that the support forces w_i |g_eff| up
+    carry the robot without a moment about its centre of mass. Three feet: the unique
+    (barycentric) shares; four: the least-squares spread of the indeterminate stance."""
+    a = jnp.array([1.0, 0.0, 0.0], feet.dtype)
+    e1 = a - (a @ up) * up
+    e1 = e1 / jnp.linalg.norm(e1)
+    e2 = jnp.cross(up, e1)
+    m = support.astype(feet.dtype)
+    rel = feet - com[None]
+    A = jnp.stack([jnp.ones(4, feet.dtype), rel @ e1, rel @ e2]) * m[None]
+    w = A.T @ jnp.linalg.solve(A @ A.T, jnp.array([1.0, 0.0, 0.0], feet.dtype))
+    w = jnp.maximum(w, 0.0) * m
+    return w / jnp.sum(w)
+
+
+def load_feedforward(p, weight: float, now: StepTargets, q: Array, rot: Array) -> Array:
+    """Joint target offsets (12,) [rad] that pre-deflect the servos by the static loads:
+    each foot's expected support force f_i = w_i |g_eff| up (`load_shares` of the
+    commanded COG over the step's support) needs the actuator torques -J_i^T f_i (J_i:
+    the foot's Jacobian in Sigma_b at the joint targets q), which the servos give at
+    ctrl - q = KP^-1 (-J_i^T f_i). The shares blend from the previous step's support to
+    this step's over the first UNLOAD of the step (the swing foot stays down until then),
+    so the load moves to the three supporting legs before a foot rises and back after it
+    lands. Why: the servos are compliant (~1 cm at the foot under a leg's share); when a
+    leg lifted, the other three sagged and the body tipped towards the lifted corner,
+    taking 1.5 cm off the COG's distance to the support edge (1-2 mm of NESM) until the
+    integral correction caught up. p["load_feedforward"] scales it (0: off)."""
+    n, R = frames(p)
+    R = geo.rpy_to_matrix(rot[0], rot[1], rot[2]) @ R
+    g_eff = jnp.array([0.0, 0.0, -weight], q.dtype) + tether_force(p, weight)
+    up = -g_eff / jnp.linalg.norm(g_eff)
+    k = now.k
+    prev_swing = jnp.where(k >= 1, p["plan_swing"][jnp.clip(k - 1, 0, p["plan_swing"].shape[0] - 1)], -1)
+    legs = jnp.arange(4)
+    w_prev = load_shares(now.body, now.feet, legs != prev_swing, up)
+    w_now = load_shares(now.body, now.feet, legs != now.swing, up)
+    blend = smooth(now.phase / UNLOAD)
+    w = w_prev + (w_now - w_prev) * blend
+    forces = (w[:, None] * jnp.linalg.norm(g_eff) * up[None]) @ R  # (4, 3) in Sigma_b
+    jac = jax.vmap(jax.jacfwd(K.foot_position, argnums=1))(legs, q.reshape(4, 3))  # (4, 3, 3)
+    tau = -jnp.einsum("lij,li->lj", jac, forces).reshape(-1)
+    return p["load_feedforward"] * jnp.asarray(SERVO_COMPLIANCE, q.dtype) * tau
+
+
+def support_shift(p, n_steps: int, now: StepTargets, obs) -> Array:
+    """The in-plane shift (3,) [m] of the COG target that keeps it where the plan put it
+    relative to the support: the mean deviation of the supporting feet from their
+    planned footholds, times p["support_relative"] (0: the COG target is the plan's, in
+    the world). The planner's NE margin is a property of the COG against the support
+    polygon; the supporting feet slip 1-2 cm per step under the compliant servos, and a
+    COG held in the world loses that much margin (up to 4 mm of NESM on the long field)."""
+    n, _ = frames(p)
+    kk = jnp.clip(now.k, 0, n_steps - 1)
+    planned = jnp.where(now.k >= 0, p["plan_feet"][kk], p["plan_feet0"]) + K.FOOT_RADIUS * n
+    support = (jnp.arange(4) != now.swing)[:, None]
+    dev = jnp.sum(jnp.where(support, obs["feet"] - planned, 0.0), axis=0) / jnp.sum(support)
+    return p["support_relative"] * (dev - (dev @ n) * n)
 
 
 def executor_step(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tuple[ExecutorState, Array]:
@@ -255,6 +320,7 @@ def executor_step(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tupl
     c = anchor_to_feet(p, n_steps, weight, c, obs)
     now, state = step_targets(p, n_steps, weight, c, obs)
     n, R_plan = frames(p)
+    now = now._replace(body=now.body + support_shift(p, n_steps, now, obs))
     err = now.body - obs["com"]
     err = err + ((obs["com"] - obs["body"]) @ n) * n
     running = (obs["time"] > p["settle_time"]) & (obs["time"] < end_time(p, n_steps))
@@ -264,9 +330,10 @@ def executor_step(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tupl
     state = state._replace(corr=corr, corr_rot=rot)
     q0 = leg_targets(p, now.feet, body_for_com(p, now.feet, now.body) + corr, rot)
     later, _ = step_targets(p, n_steps, weight, c, {**obs, "time": obs["time"] + CONTROL_DT})
+    later = later._replace(body=later.body + support_shift(p, n_steps, later, obs))
     q1 = leg_targets(p, later.feet, body_for_com(p, later.feet, later.body) + corr, rot)
     lag = jnp.asarray(SERVO_LAG, q0.dtype)
-    q = 0.5 * (q0 + q1) + lag * (q1 - q0) / CONTROL_DT
+    q = 0.5 * (q0 + q1) + lag * (q1 - q0) / CONTROL_DT + load_feedforward(p, weight, now, q0, rot)
     return state, jnp.concatenate([q, tether_force(p, weight)])
 
 

@@ -46,7 +46,9 @@ but the swinging one, at the measured foot positions and whole-robot COG; a rest
 foot counts even while a touchdown transient briefly unloads it; min_nesm_swing the
 same during swings only, i.e. on the three-leg support), nesm_ok
 (min_nesm >= s_ne_c - nesm_tol: the servos' compliance costs a few mm),
-max_touchdown_error (foot centre vs target at the end of each swing), swing_collision (the swinging leg touched a frame: clearance < 0 while
+max_touchdown_error (foot centre vs target at the end of each swing, in the plane: along
+the normal the descent stops on contact wherever the ground is, which absorbs a map's
+height error), swing_collision (the swinging leg touched a frame: clearance < 0 while
 swinging), min_swing_clearance, forbidden_landing (a foot in contact touching a frame),
 max_cycle_error (whole-robot COG vs the planned body position at the ends of cycles, in
 the plane), max_path_deviation (that COG off the cycle's path line, in the plane), final_progress (body
@@ -104,6 +106,8 @@ PARAM_DEFAULTS: dict[str, float] = {
     "contact_force": 0.05,  # touch above this fraction of M g = contact
     "body_gain": 3.0,  # [1/s] integral gain of the body position correction
     "anchor_feet": 1.0,  # 1: foot targets re-referenced to the measured feet at each step (control.anchor_to_feet)
+    "support_relative": 1.0,  # 1: the COG target follows the supporting feet's slip (control.support_shift)
+    "load_feedforward": 1.0,  # 1: the servos pre-deflected by the static foot loads (control.load_feedforward)
     "mass_feedforward": 1.0,  # 1: the body moves against the legs' mass (control.body_for_com); 0: integral only
     "s_ne_c": float(P.S_NE_C),  # [m] critical NE stability margin
     "nesm_tol": 0.005,  # [m] success: min_nesm >= s_ne_c - nesm_tol (servo compliance)
@@ -433,7 +437,8 @@ def summarize(lay: Layout, p, r, final) -> dict:
     sw = p["plan_swing"]
     swc = jnp.maximum(sw, 0)
     goal = p["plan_feet"][steps, swc] + K.FOOT_RADIUS * n
-    td_err = jnp.linalg.norm(r["feet"][lastc, swc] - goal, axis=-1)
+    miss = r["feet"][lastc, swc] - goal
+    td_err = jnp.linalg.norm(miss - (miss @ n)[:, None] * n, axis=-1)  # in the plane
     max_td = sm.masked_max(td_err, reached & (sw >= 0), 0.0)
     # the swinging leg's clearance to the frames
     swinging = running & (u >= 0)
