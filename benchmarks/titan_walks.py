@@ -141,9 +141,9 @@ def main(argv=None) -> None:
     for name, _, plan, gait, _ in planned:
         m, status = results[name]
         print(
-            f"| {name} | {float(gait.min_nesm):.3f} | {float(gait.distance_per_cycle):.2f} | "
+            f"| {name} | {float(gait.min_nesm):.4f} | {float(gait.distance_per_cycle):.2f} | "
             f"{int(gait.n_failures)} | {int(gait.n_modifications)} | "
-            f"{verdict(m, gait, status)} | {m['min_nesm']:.3f} | "
+            f"{verdict(m, gait, status)} | {m['min_nesm']:.4f} | "
             f"{m['max_touchdown_error']:.3f} | {m['min_swing_clearance']:.3f} | "
             f"{m['max_cycle_error']:.3f} | {m['final_progress']:.2f} | {m['min_nesm_swing']:.3f} |"
         )

@@ -197,6 +197,7 @@ _BUILTIN: dict[str, str] = {
     "octopus.step_climb": "jaxloco.robots.octopus.sim_analysis:STEP_CLIMB",
     "octopus.paper": "jaxloco.robots.octopus.paper_analysis:PAPER_EXPERIMENTS",
     "titan.stride": "jaxloco.robots.titan.analysis:STRIDE",
+    "titan.walk": "jaxloco.robots.titan.sim_analysis:WALK",
     "snake.kv": "jaxloco.robots.snake.analysis:KV",
     "snake.reach": "jaxloco.robots.snake.sim_analysis:REACH",
 }

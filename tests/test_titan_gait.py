@@ -12,6 +12,7 @@ import pytest
 
 from jaxloco import stability as stab
 from jaxloco.robots.titan import gait as G
+from jaxloco.robots.titan import kinematics as K
 from jaxloco.robots.titan import maps as M
 from jaxloco.robots.titan import params as P
 
@@ -212,7 +213,8 @@ def test_flat_ground_gives_the_standard_intermittent_crawl_gait(scenarios):
 def test_standard_gait_margins_match_closed_form(scenarios):
     plan = _take(scenarios[3], 0)
     L, w, h = P.L_STD, P.W_STD / 2, P.H_G
-    nesm, lon = _closed_form_swing_margins(L, w, h)
+    # a swing's margin takes the whole-robot COM with the leg raised (gait.swing_cog)
+    nesm, lon = _closed_form_swing_margins(L, w, h + K.swing_com_height())
     swing = np.asarray(plan.swing_leg) >= 0
     np.testing.assert_allclose(plan.nesm[swing], nesm, rtol=1e-9)
     np.testing.assert_allclose(plan.long_margin[swing], lon, rtol=1e-9)
@@ -230,7 +232,7 @@ def test_standard_gait_margins_match_closed_form(scenarios):
         ]
     )
     mask = jnp.array([True, True, False, True])
-    cog = jnp.array([0.0, 0.0, h])
+    cog = jnp.array([0.0, 0.0, h + K.swing_com_height()])
     assert float(stab.ne_stability_margin(cog, feet, mask)) == pytest.approx(
         nesm, rel=1e-12
     )

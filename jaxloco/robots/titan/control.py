@@ -287,19 +287,53 @@ def load_feedforward(p, weight: float, now: StepTargets, q: Array, rot: Array) -
     return p["load_feedforward"] * jnp.asarray(SERVO_COMPLIANCE, q.dtype) * tau
 
 
+EDGE_TAU = 0.05  # [m] support edges this much farther from the COG than the nearest weigh 1/e as much
+MEAN_SLIP_WEIGHT = 0.01  # weight of the supporting feet's mean slip (against 1 for the nearest edge)
+
+
 def support_shift(p, n_steps: int, now: StepTargets, obs) -> Array:
-    """The in-plane shift (3,) [m] of the COG target that keeps it where the plan put it
-    relative to the support: the mean deviation of the supporting feet from their
-    planned footholds, times p["support_relative"] (0: the COG target is the plan's, in
-    the world). The planner's NE margin is a property of the COG against the support
-    polygon; the supporting feet slip 1-2 cm per step under the compliant servos, and a
-    COG held in the world loses that much margin (up to 4 mm of NESM on the long field)."""
+    """The in-plane shift (3,) [m] of the COG target that keeps its distances to the edges
+    of the support polygon as the plan had them, now that the supporting feet stand
+    where they are (times p["support_relative"]; 0: the COG target is the plan's, in
+    the world). Weighted least squares over the planned support's hull edges e:
+    n'_e . shift = d_e - d'_e, with d_e the planned COG's distance to the planned edge,
+    d'_e to the edge through the measured feet and n'_e its inward normal, each edge
+    weighted by exp(-(d_e - min d) / EDGE_TAU) so that the edges that set the margin
+    count most, and shift = the supporting feet's mean slip with weight
+    MEAN_SLIP_WEIGHT (it fixes the direction along a lone critical edge). A common slip
+    d of every foot gives shift = d exactly.
+
+    Why: the planner's NE margin is a property of the COG against the support polygon,
+    and the supporting feet slip 1-2 cm per step (the four-legged closed chain on
+    compliant servos), not all alike; a COG held in the world lost up to 4 mm of NESM on
+    the long field, and one moved by the feet's mean slip still up to 1.4 mm."""
     n, _ = frames(p)
     kk = jnp.clip(now.k, 0, n_steps - 1)
     planned = jnp.where(now.k >= 0, p["plan_feet"][kk], p["plan_feet0"]) + K.FOOT_RADIUS * n
-    support = (jnp.arange(4) != now.swing)[:, None]
-    dev = jnp.sum(jnp.where(support, obs["feet"] - planned, 0.0), axis=0) / jnp.sum(support)
-    return p["support_relative"] * (dev - (dev @ n) * n)
+    support = jnp.arange(4) != now.swing
+    a = jnp.where(jnp.abs(n[0]) < 0.9, jnp.array([1.0, 0.0, 0.0]), jnp.array([0.0, 1.0, 0.0]))
+    e1 = a - (a @ n) * n
+    e1 = e1 / jnp.linalg.norm(e1)
+    B = jnp.stack([e1, jnp.cross(n, e1)])  # (2, 3) in-plane axes
+    P2, A2, c = planned @ B.T, obs["feet"] @ B.T, B @ now.body
+    E = geo.hull_edges(P2, support)  # counter-clockwise: the interior is on the left
+
+    def line(F):  # inward unit normals (4, 4, 2) and COG distances (4, 4) of the lines i -> j
+        e = F[None, :, :] - F[:, None, :]
+        length = jnp.linalg.norm(e, axis=-1)
+        nl = jnp.stack([-e[..., 1], e[..., 0]], axis=-1) / jnp.where(length > 0, length, 1.0)[..., None]
+        return nl, jnp.sum(nl * (c[None, None] - F[:, None, :]), axis=-1)
+
+    _, d_plan = line(P2)
+    nl_act, d_act = line(A2)
+    d_min = jnp.min(jnp.where(E, d_plan, jnp.inf))
+    w = jnp.where(E, jnp.exp(-(d_plan - d_min) / EDGE_TAU), 0.0)
+    sup = support[:, None].astype(A2.dtype)
+    mean_slip = jnp.sum(sup * (A2 - P2), axis=0) / jnp.sum(sup)
+    M = jnp.einsum("ij,ijk,ijl->kl", w, nl_act, nl_act) + MEAN_SLIP_WEIGHT * jnp.eye(2, dtype=A2.dtype)
+    rhs = jnp.einsum("ij,ij,ijk->k", w, d_plan - d_act, nl_act) + MEAN_SLIP_WEIGHT * mean_slip
+    shift2 = jnp.linalg.solve(M, rhs)
+    return p["support_relative"] * (shift2 @ B)
 
 
 def executor_step(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tuple[ExecutorState, Array]:

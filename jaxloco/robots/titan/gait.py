@@ -81,6 +81,7 @@ import numpy as np
 
 from jaxloco import geometry as geo
 from jaxloco import stability as stab
+from jaxloco.robots.titan import kinematics as K
 from jaxloco.robots.titan import maps as M
 from jaxloco.robots.titan import params as P
 
@@ -218,6 +219,15 @@ def virtual_plane(feet: Array) -> tuple[Array, Array]:
 def plane_height(normal: Array, offset: Array, xy: Array) -> Array:
     """z of the plane {n.x = offset} at xy (..., 2)."""
     return (offset - xy @ normal[:2]) / normal[2]
+
+
+def swing_cog(cog: Array) -> Array:
+    """The whole-robot centre of mass (3,) [m, map frame] while a leg swings, for the
+    planned COG `cog` (H_g above the virtual plane): in the plane the executor holds it
+    on `cog` (`control.body_for_com`), along the map normal (the body's z_b) the raised
+    leg lifts it `kinematics.swing_com_height` above the body origin. Every NE margin of
+    a three-leg support in the planner uses it (added: the paper's COG is the body's)."""
+    return cog.at[..., 2].add(K.swing_com_height())
 
 
 def _axis_margin(c: Array, a: Array, b: Array, ref: Array) -> Array:
@@ -378,8 +388,8 @@ def half_cycle(
 
     def cond_r(x):
         sup = feet.at[r].set(x)
-        m1 = stab.ne_stability_margin(cog, sup, mask_f, up)
-        m2 = edge_energy_margin(cog2, x, feet[fb], feet[rb], up)
+        m1 = stab.ne_stability_margin(swing_cog(cog), sup, mask_f, up)
+        m2 = edge_energy_margin(swing_cog(cog2), x, feet[fb], feet[rb], up)
         return (m1 >= params.s_ne_c) & (m2 >= params.s_ne_c)
 
     valid_r = free & reach(c_b, r) & jax.vmap(cond_r)(c3)
@@ -396,7 +406,7 @@ def half_cycle(
 
     def cond_f(x):
         sup = feet.at[r].set(j_r).at[f].set(x)
-        return stab.ne_stability_margin(cog2, sup, mask_rb, up) >= params.s_ne_c
+        return stab.ne_stability_margin(swing_cog(cog2), sup, mask_rb, up) >= params.s_ne_c
 
     # (added) two steps ahead: after the shift r-bar swings, then f-bar with the support
     # {J_r-bar, J_r, J_f}; keep only J_f for which some free, reachable landing of r-bar
@@ -413,7 +423,7 @@ def half_cycle(
     y_ok = ~M.sample_forbidden(gmap, y_xy) & in_fan(y_b - g_b - pivots[rb], rb, params)
 
     B = stab.vertical_frame(up, dtype)
-    y3u, cog2u, fbu = y3 @ B.T, B @ cog2, B @ feet[fb]
+    y3u, cog2u, fbu = y3 @ B.T, B @ swing_cog(cog2), B @ feet[fb]
 
     def ahead(x):
         xu = B @ x
@@ -484,7 +494,7 @@ def plan_cycle(
     cog = state.cog.at[2].set(plane_height(nrm, off, state.cog[:2]) + params.h_g)
     feet_b = (feet[:, :2] - cog[:2]) @ R
     up_ok = lambda rl: (
-        stab.ne_stability_margin(cog, feet, jnp.arange(4) != rl[0], up) >= params.s_ne_c
+        stab.ne_stability_margin(swing_cog(cog), feet, jnp.arange(4) != rl[0], up) >= params.s_ne_c
     )
     roles, n_r = leg_roles(feet_b, d_b, state.rear)
     # (added) the first swing of the cycle must itself keep S_NE^c. The previous cycle
@@ -577,7 +587,7 @@ def plan_cycle(
         )
         cog_t = cog.at[:2].set(cog[:2] + R @ t_b)
         m_shift, _ = _step_margins(feet, cog, cog_t, -1, up, d_map)
-        m_swing = stab.ne_stability_margin(cog_t, feet, jnp.arange(4) != rl[0], up)
+        m_swing = stab.ne_stability_margin(swing_cog(cog_t), feet, jnp.arange(4) != rl[0], up)
         legs4 = jnp.arange(4)
         reach = jnp.all(
             jax.vmap(lambda q, i: in_fan(q, i, params))(feet_b - t_b - pivots, legs4)
@@ -635,6 +645,7 @@ def _step_margins(feet_before, cog0, cog1, leg, up, d_map):
     (static) COG for a swing; for a COG shift the four legs at start, middle and end."""
     mask = jnp.arange(4) != leg
     cogs = jnp.stack([cog0, 0.5 * (cog0 + cog1), cog1])
+    cogs = jnp.where(leg >= 0, swing_cog(cogs), cogs)
     ne = jax.vmap(lambda c: stab.ne_stability_margin(c, feet_before, mask, up))(cogs)
     lo = jax.vmap(lambda c: stab.longitudinal_margin(c, feet_before, mask, d_map, up))(
         cogs

@@ -35,6 +35,7 @@ the feet (vertical shanks), 2.35 m above the ground.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import jax
@@ -183,3 +184,13 @@ def home_joint_angles() -> np.ndarray:
         )
         out[i] = [math.atan2(math.sin(q0), math.cos(q0)), q1, q2]
     return np.round(out, 9)
+
+
+@functools.cache
+def swing_com_height(lift: float = float(P.SWING_HEIGHT)) -> float:
+    """Height [m] along z_b of the whole-robot centre of mass above the body origin while
+    a leg swings: the home stance with one foot raised by `lift`, the largest over the
+    legs (2.1 cm at the executor's 0.5 m lift; at the body origin in the home stance)."""
+    with jax.ensure_compile_time_eval():  # a constant, also when first called inside a jit
+        feet = jnp.asarray(home_feet())
+        return max(float(com_offset(feet.at[leg, 2].add(lift))[2]) for leg in range(4))

@@ -99,6 +99,7 @@ N_W_DOWN = 3  # (added) then narrower: |W| = W_std - k DW, k = 1 .. N_W_DOWN (ga
 N_L = 6  # longitudinal trials: |L| = L_max (N_L - j) / N_L, j < N_L (modification (a)-2)
 SWING_CLEARANCE = 0.15  # [m] above the highest point under the return path (Sec. 6.4.1)
 SWING_MIN_LIFT = 0.2  # [m] minimum lift above the virtual plane
+SWING_HEIGHT = 0.5  # [m] the executor's foot lift above the higher of lift-off and touchdown, default (ours)
 UNEVEN_MAX = (
     0.1  # [m] height range under a foot pad that makes a cell forbidden (Sec. 8.2.1)
 )

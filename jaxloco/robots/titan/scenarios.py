@@ -45,7 +45,8 @@ Metrics (`summarize`): min_nesm (during the plan, over the planned support: ever
 but the swinging one, at the measured foot positions and whole-robot COG; a resting
 foot counts even while a touchdown transient briefly unloads it; min_nesm_swing the
 same during swings only, i.e. on the three-leg support), nesm_ok
-(min_nesm >= s_ne_c - nesm_tol: the servos' compliance costs a few mm),
+(min_nesm >= s_ne_c - nesm_tol; default 0: the executor keeps the plan's margin,
+`control.support_shift`, `control.load_feedforward`),
 max_touchdown_error (foot centre vs target at the end of each swing, in the plane: along
 the normal the descent stops on contact wherever the ground is, which absorbs a map's
 height error), swing_collision (the swinging leg touched a frame: clearance < 0 while
@@ -102,7 +103,7 @@ PARAM_DEFAULTS: dict[str, float] = {
     "heading": 0.0,  # [rad] body yaw about the plane normal
     "step_time": 3.0,  # [s] per step (swing or body shift)
     "settle_time": 1.0,  # [s] standing before the first step
-    "swing_height": 0.5,  # [m] lift above the higher of start and target
+    "swing_height": P.SWING_HEIGHT,  # [m] lift above the higher of start and target
     "contact_force": 0.05,  # touch above this fraction of M g = contact
     "body_gain": 3.0,  # [1/s] integral gain of the body position correction
     "anchor_feet": 1.0,  # 1: foot targets re-referenced to the measured feet at each step (control.anchor_to_feet)
@@ -110,7 +111,7 @@ PARAM_DEFAULTS: dict[str, float] = {
     "load_feedforward": 1.0,  # 1: the servos pre-deflected by the static foot loads (control.load_feedforward)
     "mass_feedforward": 1.0,  # 1: the body moves against the legs' mass (control.body_for_com); 0: integral only
     "s_ne_c": float(P.S_NE_C),  # [m] critical NE stability margin
-    "nesm_tol": 0.005,  # [m] success: min_nesm >= s_ne_c - nesm_tol (servo compliance)
+    "nesm_tol": 0.0,  # [m] success: min_nesm >= s_ne_c - nesm_tol (0: the paper's criterion as it stands)
     "touchdown_tol": 0.1,  # [m] success: largest touchdown error
     "path_tol": 0.1,  # [m] success: largest path deviation at cycle ends
 }

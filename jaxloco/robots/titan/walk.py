@@ -13,9 +13,9 @@ COG: the planner's COG is the whole-robot centre of mass; the executor places th
 so that the centre of mass with the legs (each leg is 450 kg of 7 t, up to ~7 cm off the
 trunk's) is there (`control.body_for_com`).
 
-Survey -> map -> long walk (Sec. 8.2-8.3): `field_survey`, `surveyed_map` and
-`plan_long_walk` on the dummy-frame field `LONG_FIELD`; `benchmarks/titan_long_walk.py`
-executes it.
+Survey -> map -> long walk (Sec. 8.2-8.3): `field_survey` and `surveyed_map` of a frame
+field such as the dummy-frame field `LONG_FIELD`, `plan_on_map` on the result; the
+simulated analysis `titan.walk` (`sim_analysis.py`, spec `titan_long_walk`) executes it.
 """
 
 from __future__ import annotations
@@ -156,26 +156,24 @@ def clear_start(
     return G.GaitState(feet, start.cog.at[2].set(cog_z), start.yaw, start.rear)
 
 
-def plan_walk(
-    start_xy,
+def plan_on_map(
+    params: P.TitanParams,
+    gmap: M.GridMap,
+    near_xy,
     n_cycles: int,
     direction=0.0,
-    frame_size: float = float(P.FRAME_SMALL),
     spacing: float = float(P.GRID_SMALL),
+    frame_size: float = float(P.FRAME_SMALL),
     slope: float = 0.0,
-    params: P.TitanParams | None = None,
-    shape: tuple[int, int] = SIM_SHAPE,
 ) -> tuple[S.Plan, G.GaitPlan, dict[str, float]]:
-    """Plan `n_cycles` on the simulated frames from the standard start with the COG near
-    `start_xy` (map frame; `clear_start` moves it by up to 1.5 m so that no foot starts
-    on a frame) along `direction` (map-frame angle [rad], scalar or one per
-    cycle; the first sets the start pose). Returns the executor plan, the planner's
-    output and the executor's scalar params for the terrain (theta, spacing,
+    """Plan `n_cycles` on the planning map `gmap` from the standard start with the COG near
+    `near_xy` (map frame; `clear_start` moves it by up to 1.5 m so that no foot starts on
+    a frame) along `direction` (map-frame angle [rad], scalar or one per cycle; the first
+    sets the start pose). Returns the executor plan, the planner's output and the
+    executor's scalar params for the simulated terrain (theta, direction, spacing,
     beam_height, tether, s_ne_c)."""
-    params = P.default_params() if params is None else params
-    gmap = sim_map(frame_size, spacing, slope, shape)
     dirs = jnp.broadcast_to(jnp.asarray(direction, float), (n_cycles,))
-    start = clear_start(params, gmap, start_xy, float(dirs[0]))
+    start = clear_start(params, gmap, near_xy, float(dirs[0]))
     gait = _plan_cycles(params, gmap, start, n_cycles=n_cycles, direction=dirs)
     plan = executor_plan(gait, start, gmap, np.asarray(dirs))
     scalars = {
@@ -189,13 +187,30 @@ def plan_walk(
     return plan, gait, scalars
 
 
+def plan_walk(
+    start_xy,
+    n_cycles: int,
+    direction=0.0,
+    frame_size: float = float(P.FRAME_SMALL),
+    spacing: float = float(P.GRID_SMALL),
+    slope: float = 0.0,
+    params: P.TitanParams | None = None,
+    shape: tuple[int, int] = SIM_SHAPE,
+) -> tuple[S.Plan, G.GaitPlan, dict[str, float]]:
+    """`plan_on_map` on the exact map of the simulated frames (`sim_map`)."""
+    params = P.default_params() if params is None else params
+    gmap = sim_map(frame_size, spacing, slope, shape)
+    return plan_on_map(params, gmap, start_xy, n_cycles, direction, spacing, frame_size, slope)
+
+
 # ------------------------------------------------------------ survey -> map -> long walk
 # Sec. 8.3: "a plane 30 m x 5 m including frames of 0.2 m x 0.2 m". Ours: 0.2 m beams every
 # 1.5 m (the Sec. 8.4 test slope's grid, which the dummy frames stand for), 21 across and
-# 4 along: a field of 30.2 x 4.7 m centred on the origin, flat ground around it.
-LONG_FIELD = S.FrameField(n_along=4, n_across=21, max_spacing=1.5, half_length=30.0, half_width=8.0)
+# 4 along: a field of 30.2 x 4.7 m centred on the origin, flat ground around it (80 m
+# long: 60 cycles from LONG_START leave the field and return to the standard gait).
+LONG_FIELD = S.FrameField(n_along=4, n_across=21, max_spacing=1.5, half_length=40.0, half_width=8.0)
 LONG_SPACING = 1.5  # [m]
-LONG_SHAPE = (600, 120)  # planning map cells: x in [-30, 30], y in [-6, 6] m
+LONG_SHAPE = (800, 120)  # planning map cells: x in [-40, 40], y in [-6, 6] m
 LONG_START = (-20.0, 0.0)  # [m] start COG, 5 m before the field
 
 
@@ -211,29 +226,15 @@ def field_survey(field: S.FrameField, spacing: float, frame_size: float, noise: 
 
 def surveyed_map(field: S.FrameField, spacing: float, frame_size: float, noise: float = 0.0,
                  key: jax.Array | None = None, shape: tuple[int, int] = LONG_SHAPE,
-                 margin: float = PLACEMENT_MARGIN) -> M.GridMap:
+                 margin: float = PLACEMENT_MARGIN, slope: float = 0.0) -> M.GridMap:
     """The planning maps made from `field_survey` by our map generation
     (`maps.map_from_survey`, Sec. 8.2.1 steps 2-4), on a grid centred on the origin;
-    forbidden cells keep the pad plus `margin` off the surveyed frames."""
+    forbidden cells keep the pad plus `margin` off the surveyed frames. The survey is in
+    the plane's own frame (on a slope: x up the fall line), the map's `slope` places it."""
     nodes, centres = field_survey(field, spacing, frame_size, noise, key)
     origin = -0.5 * np.asarray(shape, float) * float(P.CELL)
     return M.map_from_survey(nodes, centres, frame_size, frame_size, shape, jnp.asarray(origin),
-                             jnp.asarray(float(P.CELL)), foot_radius=float(P.FOOT_RADIUS) + margin)
-
-
-def plan_long_walk(n_cycles: int, noise: float = 0.005, seed: int = 0, frame_size: float = float(P.FRAME_SMALL),
-                   params: P.TitanParams | None = None):
-    """Sec. 8.3 end to end, planned: survey the long field with `noise`, make the maps,
-    plan `n_cycles` along +x from `LONG_START`. Returns (executor plan, planner output,
-    executor scalars, the surveyed map)."""
-    params = P.default_params() if params is None else params
-    gmap = surveyed_map(LONG_FIELD, LONG_SPACING, frame_size, noise, jax.random.PRNGKey(seed))
-    start = clear_start(params, gmap, LONG_START, 0.0)
-    gait = _plan_cycles(params, gmap, start, n_cycles=n_cycles, direction=jnp.zeros(n_cycles))
-    plan = executor_plan(gait, start, gmap, np.zeros(n_cycles))
-    scalars = {"theta": 0.0, "direction": 0.0, "spacing": LONG_SPACING, "beam_height": float(frame_size),
-               "tether": float(params.tether), "s_ne_c": float(params.s_ne_c)}
-    return plan, gait, scalars, gmap
+                             jnp.asarray(float(P.CELL)), foot_radius=float(P.FOOT_RADIUS) + margin, slope=slope)
 
 
 def converged(gait: G.GaitPlan, params: P.TitanParams, last: int = 2) -> bool:

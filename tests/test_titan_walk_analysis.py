@@ -1,0 +1,56 @@
+"""`titan.walk` (issue 19 Sec. 3): planned walks on exact and surveyed maps executed in
+MuJoCo, as a sweep analysis. One batch of short walks on the Sec. 7 grid (0.2 m frames
+on 2.0 m), planned on the exact map and on a survey with 5 mm noise."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from jaxloco.analysis import SpecError, get
+from jaxloco.robots.titan import params as P
+from jaxloco.robots.titan import sim_analysis as SA
+from jaxloco.robots.titan import walk as W
+
+N_CYCLES = 2
+
+
+@pytest.fixture(scope="module")
+def rows():
+    analysis = get("titan.walk")
+    fixed = {**analysis.defaults(), "n_cycles": N_CYCLES, "nthread": 2}
+    batch = analysis.make_batch_fn(fixed)
+    swept = {"map": np.array(["exact", "survey"]), "start_jitter": np.array([0.0, 0.3])}
+    keys = np.array([[0, 1], [0, 2]], np.uint32)
+    return batch(swept, keys)
+
+
+def test_grid_field_beams_match_the_planning_map():
+    # an even count of beams each way centred on the origin: centre lines at
+    # +-spacing/2, +-3 spacing/2, ... as walk.sim_map's, covering the walk's map
+    for spacing in (1.5, 2.0, 3.0):
+        field = SA.grid_field(spacing)
+        assert field.n_along % 2 == 0 and field.n_along == field.n_across
+        assert 0.5 * (field.n_along - 1) * spacing >= SA.GRID_HALF
+    assert SA.grid_shape(N_CYCLES) == W.SIM_SHAPE
+    assert SA.grid_shape(12)[0] * float(P.CELL) > 12 + 2 * SA.ROBOT_REACH
+
+
+def test_planned_walks_hold_up_in_mujoco(rows):
+    # both maps: every cycle planned, the walk executed without a fall, no foot on a
+    # frame, the NE margin kept at S_NE^c (no allowance), about the
+    # planned distance
+    assert list(rows["status"]) == [0, 0], rows
+    assert rows["success"].all() and rows["planned"].all()
+    assert not rows["feet_on_frames"].any() and not rows["swing_collision"].any()
+    assert (rows["sim_min_nesm"] >= P.S_NE_C).all()
+    assert (rows["plan_min_nesm"] >= P.S_NE_C - 1e-9).all()
+    assert (np.abs(rows["sim_min_nesm"] - rows["plan_min_nesm"]) < 0.002).all()
+    assert (rows["max_touchdown_error"] < 0.05).all()
+    assert (rows["distance"] > 0.7 * N_CYCLES).all()
+
+
+def test_the_long_field_is_planned_on_a_survey():
+    batch = get("titan.walk").make_batch_fn({**get("titan.walk").defaults(), "n_cycles": 1})
+    with pytest.raises(SpecError, match="long field"):
+        batch({"field": np.array(["long"]), "map": np.array(["exact"])}, np.zeros((1, 2), np.uint32))
