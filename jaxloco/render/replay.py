@@ -324,6 +324,20 @@ def leggrope_fragile_walk(row: Row) -> Replay:
                             camera={"azimuth": 150.0, "elevation": -25.0})
 
 
+def titan_walk(row: Row) -> Replay:
+    """`titan.walk`: the planned walk in MuJoCo, captioned with the step, the swinging leg
+    and the simulated NE margin."""
+    legs = ("LF", "RF", "LR", "RR")
+
+    def caption(row: Row, records: Mapping[str, np.ndarray]) -> list[str]:
+        step, swing, nesm = (np.asarray(records[k]) for k in ("step", "swing", "nesm"))
+        return [f"step {k + 1}  {'swing ' + legs[u] if u >= 0 else 'COG shift' if k >= 0 else 'settling'}"
+                f"  NESM {m:.4f} m" for k, u, m in zip(step.astype(int), swing.astype(int), nesm)]
+
+    return simulated_replay(row, ("success", "sim_min_nesm", "distance", "feet_on_frames"), caption,
+                            camera={"azimuth": 135.0, "elevation": -25.0, "distance": 14.0})
+
+
 def generic_host(row: Row) -> Replay:
     """Any other host analysis that runs a `jaxloco.sim` rollout: its first three metrics."""
     return simulated_replay(row)
@@ -337,6 +351,7 @@ REPLAYS: dict[str, str] = {
     "octopus.step_climb": "jaxloco.render.replay:octopus_step_climb",
     "octopus.paper": "jaxloco.render.replay:octopus_step_climb",
     "leggrope.fragile_walk": "jaxloco.render.replay:leggrope_fragile_walk",
+    "titan.walk": "jaxloco.render.replay:titan_walk",
 }
 NO_REPLAY: dict[str, str] = {
     "octopus.terrain_classification": "a row is a Monte-Carlo set of static postures, not a motion",

@@ -38,7 +38,7 @@ of the planned margin to the legs' mass, `walk.py`).
 Default case: the Sec. 8.4 test slope (30 deg), walking straight up the fall line for 4
 cycles, with the tethers cancelling only 75 % of the slope-parallel gravity (Sec. 8.1
 assumes all of it; the remaining downhill pull tilts the effective gravity by ~8 deg)
-and no frames. There the default stride keeps min NESM 0.038 m, 8 mm above S_NE^c = 0.03 m,
+and no frames. There the default stride keeps min NESM 0.037 m, 7 mm above S_NE^c = 0.03 m,
 and the tuning finds a stride that is faster and keeps more margin. With the full tether
 (flat-ground margins) the NESM of the standard gait grows with L_std up to the fans' reach
 and the tuning just runs to the reach limit (L_std 0.98 m, W_std 0.43 m, next to its
@@ -63,9 +63,10 @@ with the cotangents. `plan_loss_fn` is the plain (forward-mode only) function.
 Frames: without frames the search keeps the standard landing points I_u until a reach or
 S_NE^c condition fails, so the pieces are long (a line scan of the default case in L_std
 jumps at 0.805 and 0.875 m, nowhere below) and gradient descent works. The runner reports
-the best evaluated step, which can sit next to such a jump: in the spec's run step 69
-(loss -1.470, min NESM 0.056 m at (0.755, 0.971) m) while the iterates settle at -1.385
-(min NESM 0.049 m) about (0.76, 0.97) m; a sweep row reproduces either exactly. On
+the best evaluated step, which can sit next to such a jump: in the spec's run step 67
+(loss -1.442, min NESM 0.056 m at (0.741, 1.006) m; measured before the planner took the
+swing leg's centre of mass: step 69, -1.470 at (0.755, 0.971) m); a sweep row reproduces
+it exactly. On
 frame maps (frame_size > 0) the search picks the first valid grid candidate, and the
 plan jumps every few cm of L_std (a chosen candidate, a modification (a)/(b), a held
 cycle); the soft-min NESM there is a sawtooth pinned near S_NE^c whose slope inside a
