@@ -110,6 +110,14 @@ def _ne_edge_margins(cog: Array, contacts: Array, up: Array | None) -> tuple[Arr
     return jnp.where(side >= 0, rise, -rise), p[:, :2]
 
 
+def ne_edge_margins(cog: Array, contacts: Array, mask: Array, up: Array | None = None) -> tuple[Array, Array]:
+    """The signed energy margins (N, N) [m] of every tipping axis i -> j (as in
+    `ne_stability_margin`) and the support polygon's counter-clockwise hull edges (N, N)
+    bool: `ne_stability_margin` is the smallest margin over the edges."""
+    S, p2 = _ne_edge_margins(cog, contacts, up)
+    return S, geo.hull_edges(p2, mask)
+
+
 def ne_stability_margin(cog: Array, contacts: Array, mask: Array, up: Array | None = None) -> Array:
     """Normalized energy stability margin (Hirose, Tsukagoshi & Yoneda, ICRA 2001), in m.
 

@@ -134,13 +134,19 @@ def test_support_shift_follows_the_feet_slip_in_the_plane():
     walk = S.demo_crawl_plan(1)
     p = {k: jnp.asarray(v[0]) for k, v in S.params_batch([walk]).items()}
     n_steps = walk.n_steps
-    slip = jnp.array([0.02, -0.01, 0.005])
+    slip = jnp.array([0.02, -0.01, 0.0])
     planned = p["plan_feet"][3] + control.K.FOOT_RADIUS * jnp.array([0.0, 0.0, 1.0])
     now = control.StepTargets(jnp.asarray(3), jnp.asarray(int(walk.swing[3])), planned, p["plan_body"][3],
                               jnp.asarray(False), jnp.asarray(0.5))
-    # every supporting foot slid by `slip`: the COG target moves with them, in the plane only
-    feet = planned.at[:].add(slip).at[int(walk.swing[3])].add(jnp.array([0.3, 0.0, 0.4]))
+    swing_off = jnp.zeros((4, 3)).at[int(walk.swing[3])].set(jnp.array([0.3, 0.0, 0.4]))
+    # every supporting foot slid by `slip` in the plane: the COG target moves with them, exactly
+    feet = planned + slip + swing_off
     shift = control.support_shift(p, n_steps, now, {"feet": feet})
-    np.testing.assert_allclose(shift, [0.02, -0.01, 0.0], atol=1e-7)
+    np.testing.assert_allclose(shift, slip, atol=1e-6)
+    # the feet also rose 5 mm: the shift stays in the plane, and the COG, now lower against the
+    # tipping axes, needs a slightly different shift to keep each edge's energy margin
+    risen = control.support_shift(p, n_steps, now, {"feet": feet + jnp.array([0.0, 0.0, 0.005])})
+    assert float(risen[2]) == 0.0
+    assert 1e-5 < float(jnp.linalg.norm(risen - slip)) < 2e-3
     assert float(jnp.linalg.norm(control.support_shift({**p, "support_relative": 0.0}, n_steps, now,
                                                        {"feet": feet}))) == 0.0

@@ -50,7 +50,9 @@ def test_planned_walks_hold_up_in_mujoco(rows):
     assert (rows["distance"] > 0.7 * N_CYCLES).all()
 
 
-def test_the_long_field_is_planned_on_a_survey():
+def test_the_long_field_is_surveyed_and_walked_along_x():
     batch = get("titan.walk").make_batch_fn({**get("titan.walk").defaults(), "n_cycles": 1})
     with pytest.raises(SpecError, match="long field"):
         batch({"field": np.array(["long"]), "map": np.array(["exact"])}, np.zeros((1, 2), np.uint32))
+    with pytest.raises(SpecError, match="walked along"):
+        batch({"field": np.array(["long"]), "direction": np.array([0.5])}, np.zeros((1, 2), np.uint32))

@@ -40,6 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco import geometry as geo
+from jaxloco import stability as stab
 from jaxloco.robots.titan import kinematics as K
 from jaxloco.robots.titan import model as titan_model
 from jaxloco.sim import terrain as tr
@@ -287,52 +288,57 @@ def load_feedforward(p, weight: float, now: StepTargets, q: Array, rot: Array) -
     return p["load_feedforward"] * jnp.asarray(SERVO_COMPLIANCE, q.dtype) * tau
 
 
-EDGE_TAU = 0.05  # [m] support edges this much farther from the COG than the nearest weigh 1/e as much
-MEAN_SLIP_WEIGHT = 0.01  # weight of the supporting feet's mean slip (against 1 for the nearest edge)
+EDGE_TAU = 0.005  # [m] support edges with this much more NE margin than the smallest weigh 1/e as much
+MEAN_SLIP_WEIGHT = 0.01  # weight of the supporting feet's mean slip (against 1 for the critical edge)
 
 
 def support_shift(p, n_steps: int, now: StepTargets, obs) -> Array:
-    """The in-plane shift (3,) [m] of the COG target that keeps its distances to the edges
-    of the support polygon as the plan had them, now that the supporting feet stand
-    where they are (times p["support_relative"]; 0: the COG target is the plan's, in
-    the world). Weighted least squares over the planned support's hull edges e:
-    n'_e . shift = d_e - d'_e, with d_e the planned COG's distance to the planned edge,
-    d'_e to the edge through the measured feet and n'_e its inward normal, each edge
-    weighted by exp(-(d_e - min d) / EDGE_TAU) so that the edges that set the margin
-    count most, and shift = the supporting feet's mean slip with weight
-    MEAN_SLIP_WEIGHT (it fixes the direction along a lone critical edge). A common slip
-    d of every foot gives shift = d exactly.
+    """The in-plane shift (3,) [m] of the COG target that gives each edge of the support
+    polygon the NE margin the plan gave it, now that the supporting feet stand where
+    they are (times p["support_relative"]; 0: the COG target is the plan's, in the
+    world). Linearised weighted least squares over the planned support's hull edges e:
+    grad S'_e . shift = S_e - S'_e, with S_e the planned edge's energy margin, S'_e the
+    margin about the axis through the measured feet (3D: their heights count) and its
+    in-plane gradient, each row scaled to unit gradient and weighted by
+    exp(-(S_e - min S) / EDGE_TAU), so that the edges that set the margin count most; plus
+    shift = the supporting feet's mean slip with weight MEAN_SLIP_WEIGHT (it fixes the
+    direction along a lone critical edge). A common slip of every foot in the plane
+    gives shift = that slip.
 
-    Why: the planner's NE margin is a property of the COG against the support polygon,
-    and the supporting feet slip 1-2 cm per step (the four-legged closed chain on
-    compliant servos), not all alike; a COG held in the world lost up to 4 mm of NESM on
-    the long field, and one moved by the feet's mean slip still up to 1.4 mm."""
+    Why: the planner's NE margin is a property of the COG against the support, and the
+    supporting feet slip 1-2 cm per step (the four-legged closed chain on compliant
+    servos), not all alike, and on a surveyed map stand a few mm off the planned heights;
+    a COG held in the world lost up to 4 mm of NESM on the long field, one moved by the
+    feet's mean slip up to 1.4 mm, one that kept the planar edge distances 0.08 mm."""
     n, _ = frames(p)
     kk = jnp.clip(now.k, 0, n_steps - 1)
-    planned = jnp.where(now.k >= 0, p["plan_feet"][kk], p["plan_feet0"]) + K.FOOT_RADIUS * n
+    planned = jnp.where(now.k >= 0, p["plan_feet"][kk], p["plan_feet0"])  # ground contacts
+    actual = obs["feet"] - K.FOOT_RADIUS * n
     support = jnp.arange(4) != now.swing
+    g_eff = jnp.array([0.0, 0.0, -1.0], actual.dtype) + tether_force(p, 1.0)
+    up = -g_eff / jnp.linalg.norm(g_eff)
     a = jnp.where(jnp.abs(n[0]) < 0.9, jnp.array([1.0, 0.0, 0.0]), jnp.array([0.0, 1.0, 0.0]))
     e1 = a - (a @ n) * n
     e1 = e1 / jnp.linalg.norm(e1)
-    B = jnp.stack([e1, jnp.cross(n, e1)])  # (2, 3) in-plane axes
-    P2, A2, c = planned @ B.T, obs["feet"] @ B.T, B @ now.body
-    E = geo.hull_edges(P2, support)  # counter-clockwise: the interior is on the left
+    B = jnp.stack([e1, jnp.cross(n, e1)]).astype(actual.dtype)  # (2, 3) in-plane axes
+    s_plan, E = stab.ne_edge_margins(now.body, planned, support, up)
 
-    def line(F):  # inward unit normals (4, 4, 2) and COG distances (4, 4) of the lines i -> j
-        e = F[None, :, :] - F[:, None, :]
-        length = jnp.linalg.norm(e, axis=-1)
-        nl = jnp.stack([-e[..., 1], e[..., 0]], axis=-1) / jnp.where(length > 0, length, 1.0)[..., None]
-        return nl, jnp.sum(nl * (c[None, None] - F[:, None, :]), axis=-1)
+    def margins(shift2):
+        return stab.ne_edge_margins(now.body + shift2 @ B, actual, support, up)[0]
 
-    _, d_plan = line(P2)
-    nl_act, d_act = line(A2)
-    d_min = jnp.min(jnp.where(E, d_plan, jnp.inf))
-    w = jnp.where(E, jnp.exp(-(d_plan - d_min) / EDGE_TAU), 0.0)
-    sup = support[:, None].astype(A2.dtype)
-    mean_slip = jnp.sum(sup * (A2 - P2), axis=0) / jnp.sum(sup)
-    M = jnp.einsum("ij,ijk,ijl->kl", w, nl_act, nl_act) + MEAN_SLIP_WEIGHT * jnp.eye(2, dtype=A2.dtype)
-    rhs = jnp.einsum("ij,ij,ijk->k", w, d_plan - d_act, nl_act) + MEAN_SLIP_WEIGHT * mean_slip
-    shift2 = jnp.linalg.solve(M, rhs)
+    s_min = jnp.min(jnp.where(E, s_plan, jnp.inf))
+    sup = support[:, None].astype(actual.dtype)
+    mean_slip = B @ (jnp.sum(sup * (actual - planned), axis=0) / jnp.sum(sup))
+    shift2 = jnp.zeros(2, actual.dtype)
+    for _ in range(2):  # Gauss-Newton: the margins are smooth, two steps reach ~1e-5 m
+        s_act, grad = margins(shift2), jax.jacfwd(margins)(shift2)  # (4, 4), (4, 4, 2)
+        norm = jnp.linalg.norm(grad, axis=-1)
+        unit = grad / jnp.where(norm > 0, norm, 1.0)[..., None]
+        gap = (s_plan - s_act) / jnp.where(norm > 0, norm, 1.0)
+        w = jnp.where(E & (norm > 0), jnp.exp(-(s_plan - s_min) / EDGE_TAU), 0.0)
+        M = jnp.einsum("ij,ijk,ijl->kl", w, unit, unit) + MEAN_SLIP_WEIGHT * jnp.eye(2, dtype=actual.dtype)
+        rhs = jnp.einsum("ij,ij,ijk->k", w, gap, unit) + MEAN_SLIP_WEIGHT * (mean_slip - shift2)
+        shift2 = shift2 + jnp.linalg.solve(M, rhs)
     return p["support_relative"] * (shift2 @ B)
 
 

@@ -153,7 +153,7 @@ def row_terrain(v: Mapping[str, Any]) -> tuple[S.FrameField, float, float]:
 
 def plan_row(v: Mapping[str, Any], key: np.ndarray, n_cycles: int):
     """The executor plan, planner output and executor scalars of one row (module
-    docstring, steps 2-3); ValueError when no start pose is clear of the frames."""
+    docstring, steps 2-3); `walk.NoClearStart` when no start pose is clear of the frames."""
     field, spacing, _ = row_terrain(v)
     params = dataclasses.replace(P.default_params(), tether=jnp.asarray(float(v["tether"])))
     size, slope = float(v["frame_size"]), float(v["slope"])
@@ -204,12 +204,14 @@ def make_batch_fn(fixed: Mapping[str, Any]):
         out["status"] = np.full(n, 7)
         if any(v["field"] == "long" and v["map"] == "exact" for v in rows):
             raise SpecError("titan.walk: map = 'exact' is for the grid field; the long field is planned on a survey")
+        if any(v["field"] == "long" and float(v["direction"]) != 0.0 for v in rows):
+            raise SpecError("titan.walk: direction is for the grid field; the long field is walked along +x")
         groups: dict[tuple, list] = {}
         for i, v in enumerate(rows):
             try:
                 planned = plan_row(v, keys[i], n_cycles)
-            except ValueError:
-                continue  # no clear start: status 7, metrics nan
+            except W.NoClearStart:
+                continue  # status 7, metrics nan
             groups.setdefault(row_terrain(v), []).append((i, v, planned))
         for (field, _spacing, width), group in groups.items():
             sc = _scenario(6 * n_cycles, width, field)

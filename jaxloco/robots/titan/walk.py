@@ -106,6 +106,10 @@ def executor_plan(
     )
 
 
+class NoClearStart(ValueError):
+    """No start pose near the requested one keeps every foot off the frames."""
+
+
 def clear_start(
     params: P.TitanParams,
     gmap: M.GridMap,
@@ -121,7 +125,7 @@ def clear_start(
     is none (dense frames: 0.2 m frames every 1.5 m leave no room for the standard
     stance), the standard start at `near_xy` with each foot on a frame moved to the
     nearest free cell centre within `snap` m and the COG put H_g above the new virtual
-    plane. ValueError if a foot finds no free cell."""
+    plane. NoClearStart (a ValueError) if a foot finds no free cell."""
     near = np.asarray(near_xy, float)
     ticks = np.arange(-0.5 * search, 0.5 * search + 1e-9, step)
     cand = near + np.stack(np.meshgrid(ticks, ticks, indexing="ij"), -1).reshape(-1, 2)
@@ -144,7 +148,7 @@ def clear_start(
             dist = np.where(ok, np.linalg.norm(centres - xy[leg], axis=1), np.inf)
             best = int(np.argmin(dist))
             if dist[best] > snap:
-                raise ValueError(
+                raise NoClearStart(
                     f"clear_start: foot {leg} of the start pose near {near.tolist()} "
                     f"has no free cell within {snap} m"
                 )
