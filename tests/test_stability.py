@@ -291,6 +291,28 @@ def test_nesm_against_brute_force_rotation():
         assert float(out["long"][b]) == pytest.approx(ref_l, abs=1e-10)
 
 
+
+@pytest.mark.parametrize("t", [0.0, 0.3])
+def test_ne_edge_margins_are_the_nesm_per_edge(t):
+    """The per-edge energy margins: the four hull edges of a square on the slope z = t x
+    carry the closed-form rises, the smallest is `ne_stability_margin`, and no diagonal
+    or masked edge is marked as a hull edge."""
+    a, h = 0.5, 0.4
+    c = np.array([[-a, -a], [a, -a], [a, a], [-a, a]])
+    contacts, mask = _pad(np.column_stack([c, t * c[:, 0]]))
+    cog = jnp.array([0.0, 0.0, h])
+    S, E = sm.ne_edge_margins(cog, contacts, mask)
+    edges = {(int(i), int(j)) for i, j in zip(*np.nonzero(np.asarray(E)))}
+    assert edges == {(0, 1), (1, 2), (2, 3), (3, 0)}
+    down, up = h + a * t, h - a * t  # COG height over the downhill (x = -a) and uphill edges
+    expected = {(3, 0): np.hypot(a, down) - down, (1, 2): np.hypot(a, up) - up}
+    if t == 0.0:  # flat: the edges y = -a, y = +a too
+        expected.update({(0, 1): np.hypot(a, h) - h, (2, 3): np.hypot(a, h) - h})
+    for (i, j), want in expected.items():
+        assert float(S[i, j]) == pytest.approx(want, abs=1e-9)
+    assert float(jnp.min(jnp.where(E, S, jnp.inf))) == pytest.approx(
+        float(sm.ne_stability_margin(cog, contacts, mask)), abs=1e-12)
+
 # ------------------------------------------------------------ longitudinal stability margin
 RECT = [[-2, -1, 0], [3, -1, 0.2], [3, 1, 0.1], [-2, 1, 0], [0, 0, 0]]
 
