@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import jax
+import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
@@ -117,6 +119,26 @@ def test_load_over_probe_compares_later_loads_with_the_probed_force(walk):
     # a probed foothold carries no more than it was probed with (issue 18): the grope
     # ends at 1.01 R_ref and the walk's other steps stay below R_ref
     assert 0.5 < r.metrics["max_load_over_probe"][0] <= 1.0
+
+
+def test_foothold_offset_is_the_toes_distance_from_its_pad_in_the_slope_plane(walk):
+    """The recorded foothold offset, recomputed from the toe sites and the planned
+    footholds while all four legs still stand on their starting pads; the sound walk and
+    the walk that regropes after L2's collapse stay on their footholds (the toe resting
+    in the collapsed pad's hole during the retry is not counted)."""
+    _, r = walk
+    p = {k: jnp.asarray(v[0]) for k, v in scenarios.params_batch(1, theta=THETA).items()}
+    t = control.walk_targets(p, jax.random.PRNGKey(0), gait.DESIGNS["mirrored"])
+    feet0, n0 = np.asarray(t.feet0), np.asarray(t.normals0)
+    first = np.nonzero((r.records["grope"][0] == 0) & (r.records["phase"][0] == control.A))[0]
+    assert len(first) > 3
+    for i in first:
+        d = r.records["toe_pos"][0, i] - model.TOE_RADIUS * n0 - feet0
+        in_plane = d - np.sum(d * n0, axis=1, keepdims=True) * n0
+        np.testing.assert_allclose(r.records["foothold_offset"][0, i], np.linalg.norm(in_plane, axis=1), atol=1e-9)
+    assert 0.0 < r.metrics["max_foothold_offset"][0] < scenarios.PAD_HALF
+    assert not r.metrics["off_foothold"][0] and r.metrics["completed_gropes"][0] >= 1
+    assert r.metrics["collapses_met"][1] == 1 and not r.metrics["off_foothold"][1]
 
 
 def test_after_collapse_marks_the_window_after_each_rise_of_the_collapse_count():

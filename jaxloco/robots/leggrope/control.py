@@ -74,7 +74,12 @@ class GropeSettings:
     v_lift: float = 0.02  # B': toe raise speed [m/s]
     f_zero: float = 0.03  # B': "normal force 0" threshold, fraction of M g
     f_touch: float = 0.06  # C*: touchdown threshold, fraction of M g
-    v_touch: float = 0.03  # C*: toe lowering speed [m/s]
+    # C*: toe lowering speed [m/s]. The touchdown is declared on the filtered force, so a
+    # stiff leg coming down faster is already pressing hard when D'-1 begins, and in a
+    # four-leg stance its diagonal leg carries that: at 0.03 m/s, 0.15 M g at touchdown
+    # and the diagonal 5-10 % past its probe at R_ref = 0.4 M g cos(theta)
+    # (docs/leggrope.md). Default (ours).
+    v_touch: float = 0.01
     clearance: float = 0.01  # C: the swing ends this far above the target [m]
     probe_depth: float = 0.03  # C*: give up (no foothold) this far below the target [m]
     v_push: float = 0.01  # D'-2: toe push speed [m/s]

@@ -166,16 +166,21 @@ def make_scenario(
     def record(p, data: SimData, obs, c: control.GropeState, e):
         t = c.targets
         moved = _moved_legs(c.k, design.order)
-        normals = jnp.where(moved[:, None], t.cand_normals[jnp.arange(4), jnp.where(
-            (c.bits >> jnp.arange(4)) & 1, 1, 0)], t.normals0)
+        on_fallback = jnp.where((c.bits >> jnp.arange(4)) & 1, 1, 0)
+        normals = jnp.where(moved[:, None], t.cand_normals[jnp.arange(4), on_fallback], t.normals0)
+        centres = jnp.where(moved[:, None], t.cand[jnp.arange(4), on_fallback], t.feet0)
         return {
             "rpy": sm.quat_to_rpy(obs["quat"]),
             "quat": obs["quat"],
             "normal_force": jnp.einsum("li,li->l", obs["foot_force"], normals),
             "foot_force": obs["foot_force"],
             "toe_pos": data.site_xpos[toe_sites],
+            # each toe's contact point off the centre of the foothold it stands on, in
+            # the foothold's plane [m] (the pads are 2 PAD_HALF wide)
+            "foothold_offset": _in_plane_offset(data.site_xpos[toe_sites] - model.TOE_RADIUS * normals, centres, normals),
             "cog": data.subtree_com[torso],
             "phase": c.phase,
+            "retry": c.cand,  # 1 while the groping leg tries its fallback foothold
             "grope": c.k,
             "leg": label[jnp.asarray(design.order)[jnp.minimum(c.k, 3)]],  # paper label 0..3 = L1..L4
             "collapsed": jnp.sum(e["collapsed"]),
@@ -220,8 +225,19 @@ def make_scenario(
             record_every * settings.control_dt))
         collapsed_leg, collapse_tilt = _first_collapse(r, window)
         late, weak_accepted = _probe_outcomes(c, e)
+        # the largest offset of a loaded toe from its foothold's centre; not the groping
+        # leg from its touchdown to the end of its grope (C* to D'-2, the foothold is being
+        # found), while it retries after a collapse (its toe may rest in the hole) or once
+        # the walk has stopped;
+        # past PAD_HALF the toe has slid off its (probed) foothold
+        groping_leg = jnp.arange(4)[None, :] == jnp.asarray(design.order)[jnp.minimum(r["grope"], 3)][:, None]
+        finding = (((r["phase"] >= control.TOUCH) & (r["phase"] <= control.D2)) | (r["phase"] == control.STOPPED)
+                   | (r["retry"] == 1))
+        standing = contacts & ~(groping_leg & finding[:, None])
+        offset = _peak(r["foothold_offset"], standing)
+        off = offset > PAD_HALF
         return {
-            "success": done & ~fell & (c.status == 0),
+            "success": done & ~fell & (c.status == 0) & ~off,
             "completed_gropes": c.k,
             "max_attitude_change": jnp.max(tilt),
             "max_abs_roll": att["max_abs_roll"],
@@ -240,6 +256,8 @@ def make_scenario(
             "collapsed_leg": collapsed_leg,
             "collapse_tilt": collapse_tilt,
             "late_collapses": late,
+            "max_foothold_offset": offset,
+            "off_foothold": off,
             "weak_accepted": weak_accepted,
             "status": jnp.where(done, 0, jnp.where(c.status > 0, c.status, 2)),
         }
@@ -352,6 +370,13 @@ def _first_collapse(r, window: int) -> tuple[jax.Array, jax.Array]:
     after = r["quat"][jnp.minimum(k + window, n - 1)]
     tilt = sm.tilt_change(after[None], before)[0]
     return jnp.where(any_hit, r["leg"][k], -1), jnp.where(any_hit, tilt, jnp.nan)
+
+
+def _in_plane_offset(points: jax.Array, centres: jax.Array, normals: jax.Array) -> jax.Array:
+    """Distances (..., 4) [m] of `points` from `centres` within the planes of unit `normals`
+    (all (..., 4, 3))."""
+    d = points - centres
+    return jnp.linalg.norm(d - jnp.sum(d * normals, axis=-1, keepdims=True) * normals, axis=-1)
 
 
 def _peak(x: jax.Array, valid: jax.Array) -> jax.Array:

@@ -87,6 +87,10 @@ METRICS = (
            kind="int"),
     Metric("collapse_tilt", "attitude change over the 0.2 s after the first collapse (paper Fig. 13: ~2 deg; nan: "
            "no collapse)", "rad"),
+    Metric("max_foothold_offset", "largest distance of a loaded toe's contact point from the centre of the "
+           "foothold it stands on, in the foothold's plane (outside the groping leg's C* to D'-2)", "m"),
+    Metric("off_foothold", "a loaded toe slid off its foothold (max_foothold_offset > the pad half side, "
+           "scenarios.PAD_HALF): the walk fails", kind="bool"),
     Metric("late_collapses", "groped footholds that collapsed once their grope had accepted them, under a load it "
            "did not verify (the method's premise: never)", kind="int"),
     Metric("weak_accepted", "groped footholds weaker than R_ref that their grope accepted and that still stand",
@@ -96,7 +100,8 @@ METRICS = (
     Metric("t_diverged", "time the simulation diverged (nan: it did not)", "s"),
 )
 
-STATUSES = ("ok", "failed: no foothold", "failed: timeout", "diverged", "fell", "stopped: foothold collapsed")
+STATUSES = ("ok", "failed: no foothold", "failed: timeout", "diverged", "fell", "stopped: foothold collapsed",
+            "failed: slid off a foothold")
 # the jitters draw from the row's key with its low bits flipped, so that they do not
 # repeat the draws the same key makes for the terrain and the weak footholds
 JITTER_SALT = 0x5EED
@@ -130,7 +135,8 @@ def make_batch_fn(fixed: Mapping[str, Any]):
         out["tilt_change"] = np.degrees(out["max_attitude_change"])
         fell = np.asarray(result.metrics["fell"], bool)
         code = np.array([_SCENARIO_STATUS.get(s, 3) for s in result.status])
-        code = np.where(result.diverged, 3, np.where(fell & ~result.diverged, 4, code))
+        off = np.asarray(result.metrics["off_foothold"], bool) & (code == 0)
+        code = np.where(result.diverged, 3, np.where(fell & ~result.diverged, 4, np.where(off, 6, code)))
         out["success"] = np.asarray(out["success"], bool) & ~result.diverged
         out["status"] = code
         return out
