@@ -74,12 +74,16 @@ class GropeSettings:
     v_lift: float = 0.02  # B': toe raise speed [m/s]
     f_zero: float = 0.03  # B': "normal force 0" threshold, fraction of M g
     f_touch: float = 0.06  # C*: touchdown threshold, fraction of M g
-    # C*: toe lowering speed [m/s]. The touchdown is declared on the filtered force, so a
-    # stiff leg coming down faster is already pressing hard when D'-1 begins, and in a
-    # four-leg stance its diagonal leg carries that: at 0.03 m/s, 0.15 M g at touchdown
-    # and the diagonal 5-10 % past its probe at R_ref = 0.4 M g cos(theta)
-    # (docs/leggrope.md). Default (ours).
-    v_touch: float = 0.01
+    v_touch: float = 0.03  # C*: toe lowering speed [m/s]
+    # C*: ... but within `touch_band` of the foothold's mapped surface the toe comes down
+    # at `v_contact` [m/s]. The touchdown is declared on the filtered force, so a stiff leg
+    # meeting the surface at 0.03 m/s already pressed 0.15 M g when D'-1 began, and in a
+    # four-leg stance its diagonal leg carries that: 5-10 % past its probe at R_ref = 0.4
+    # M g cos(theta) (docs/leggrope.md). Slow only near the surface, so that a toe that
+    # finds nothing (a collapsed pad) still reaches `probe_depth` well inside
+    # `phase_timeout`. Defaults (ours).
+    v_contact: float = 0.01
+    touch_band: float = 0.005
     clearance: float = 0.01  # C: the swing ends this far above the target [m]
     probe_depth: float = 0.03  # C*: give up (no foothold) this far below the target [m]
     v_push: float = 0.01  # D'-2: toe push speed [m/s]
@@ -317,7 +321,8 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         frac = jnp.clip(tau / s_.swing_time, 0.0, 1.0)
         lift = p["swing_height"] * jnp.sin(jnp.pi * frac)
         toe_c = s.toe_from + (above - s.toe_from) * gait.min_jerk(frac) + lift * n_tgt
-        toe_touch = s.toe_cmd[g] - s_.v_touch * dt * n_tgt
+        near_surface = jnp.abs(jnp.dot(above - s.toe_cmd[g], n_tgt) - s_.clearance) < s_.touch_band
+        toe_touch = s.toe_cmd[g] - jnp.where(near_surface, s_.v_contact, s_.v_touch) * dt * n_tgt
         # D'-2 pushes only while the other three legs all carry load: once one lifts
         # off, more push would only tilt the body, and the body's creep does the rest
         others_loaded = jnp.min(jnp.where(jnp.arange(4) == g, jnp.inf, force @ n_now)) > s_.f_zero * mg

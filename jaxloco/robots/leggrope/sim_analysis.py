@@ -90,7 +90,7 @@ METRICS = (
     Metric("max_foothold_offset", "largest distance of a loaded toe's contact point from the centre of the "
            "foothold it stands on, in the foothold's plane (outside the groping leg's C* to D'-2)", "m"),
     Metric("off_foothold", "a loaded toe slid off its foothold (max_foothold_offset > the pad half side, "
-           "scenarios.PAD_HALF): the walk fails", kind="bool"),
+           "scenarios.PAD_HALF: outside the circle inscribed in the square pad): the walk fails", kind="bool"),
     Metric("late_collapses", "groped footholds that collapsed once their grope had accepted them, under a load it "
            "did not verify (the method's premise: never)", kind="int"),
     Metric("weak_accepted", "groped footholds weaker than R_ref that their grope accepted and that still stand",
