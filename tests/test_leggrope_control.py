@@ -96,3 +96,25 @@ def test_swing_cog_keeps_every_stance_load_within_r_ref(factor):
         else:  # the rule is needed: the blend alone overloads a stance leg in some grope
             overloaded = overloaded or np.max(_barycentric(blended, np.asarray(plan.feet[k, stance, :2]))) > factor
     assert factor == 0.5 or overloaded
+
+
+def test_touchdown_slows_only_near_the_mapped_surface():
+    """C* lowers the toe at v_touch, at v_contact within touch_band of the surface the
+    map predicts (clearance below the swing's end point), and at v_touch again below it
+    (a collapsed pad: the toe must reach probe_depth before the phase times out)."""
+    s = control.GropeSettings()
+    n = jnp.array([0.0, -np.sin(0.3), np.cos(0.3)])
+    above = jnp.array([0.1, 0.2, 0.05])
+    for depth, speed in [(0.0, s.v_touch), (s.clearance - 0.5 * s.touch_band, s.v_contact),
+                         (s.clearance + 0.5 * s.touch_band, s.v_contact), (s.clearance + 2 * s.touch_band, s.v_touch)]:
+        toe = above - depth * n
+        step = np.asarray(toe - control.touch_command(toe, above, n, s))
+        np.testing.assert_allclose(step, speed * s.control_dt * np.asarray(n), atol=1e-12)
+    assert s.v_contact < s.v_touch
+    # a toe that finds nothing reaches probe_depth below the surface well inside the phase
+    # timeout; lowered at v_contact all the way it would not (the walk timed out instead of
+    # regroping a fallback)
+    band = 2 * s.touch_band
+    assert (s.clearance + s.probe_depth - band) / s.v_touch + band / s.v_contact < 0.6 * s.phase_timeout
+    assert (s.clearance + s.probe_depth) / s.v_contact >= s.phase_timeout
+

@@ -321,8 +321,7 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         frac = jnp.clip(tau / s_.swing_time, 0.0, 1.0)
         lift = p["swing_height"] * jnp.sin(jnp.pi * frac)
         toe_c = s.toe_from + (above - s.toe_from) * gait.min_jerk(frac) + lift * n_tgt
-        near_surface = jnp.abs(jnp.dot(above - s.toe_cmd[g], n_tgt) - s_.clearance) < s_.touch_band
-        toe_touch = s.toe_cmd[g] - jnp.where(near_surface, s_.v_contact, s_.v_touch) * dt * n_tgt
+        toe_touch = touch_command(s.toe_cmd[g], above, n_tgt, s_)
         # D'-2 pushes only while the other three legs all carry load: once one lifts
         # off, more push would only tilt the body, and the body's creep does the rest
         others_loaded = jnp.min(jnp.where(jnp.arange(4) == g, jnp.inf, force @ n_now)) > s_.f_zero * mg
@@ -403,6 +402,18 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         return new, joint_targets(robot, t.R_GR, body, toe_cmd)
 
     return init, step
+
+
+def touch_command(toe: Array, above: Array, normal: Array, settings: GropeSettings) -> Array:
+    """C*: the groping toe's next command (3,) [m, world], lowered along the target
+    foothold's unit `normal` for one control period from `toe`: at `v_touch`, but at
+    `v_contact` while the command is within `touch_band` of the foothold's mapped surface
+    (`clearance` below `above`, the swing's end point), so that the stiff leg meets the
+    surface slowly and a toe that finds nothing below it still goes on at full speed."""
+    depth = jnp.dot(above - toe, normal)  # how far below the swing's end point the toe is commanded
+    near_surface = jnp.abs(depth - settings.clearance) < settings.touch_band
+    speed = jnp.where(near_surface, settings.v_contact, settings.v_touch)
+    return toe - speed * settings.control_dt * normal
 
 
 def twist_mode(xy: Array) -> Array:
