@@ -27,6 +27,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from jaxloco import geometry as geo
 from jaxloco.robots.leggrope import control, gait, kinematics, model
 from jaxloco.robots.leggrope.params import LEG_NAMES, G, default_params
 from jaxloco.sim import metrics as sm
@@ -166,7 +167,7 @@ def make_scenario(
     def record(p, data: SimData, obs, c: control.GropeState, e):
         t = c.targets
         moved = _moved_legs(c.k, design.order)
-        on_fallback = jnp.where((c.bits >> jnp.arange(4)) & 1, 1, 0)
+        on_fallback = (c.bits >> jnp.arange(4)) & 1
         normals = jnp.where(moved[:, None], t.cand_normals[jnp.arange(4), on_fallback], t.normals0)
         centres = jnp.where(moved[:, None], t.cand[jnp.arange(4), on_fallback], t.feet0)
         return {
@@ -373,10 +374,10 @@ def _first_collapse(r, window: int) -> tuple[jax.Array, jax.Array]:
 
 
 def _in_plane_offset(points: jax.Array, centres: jax.Array, normals: jax.Array) -> jax.Array:
-    """Distances (..., 4) [m] of `points` from `centres` within the planes of unit `normals`
-    (all (..., 4, 3))."""
-    d = points - centres
-    return jnp.linalg.norm(d - jnp.sum(d * normals, axis=-1, keepdims=True) * normals, axis=-1)
+    """Distances (4,) [m] of `points` from `centres` within the planes of unit `normals`
+    (all (4, 3))."""
+    in_plane = jax.vmap(geo.project_to_plane, in_axes=(0, 0, None))(points - centres, normals, 0.0)
+    return jnp.linalg.norm(in_plane, axis=-1)
 
 
 def _peak(x: jax.Array, valid: jax.Array) -> jax.Array:

@@ -88,7 +88,8 @@ METRICS = (
     Metric("collapse_tilt", "attitude change over the 0.2 s after the first collapse (paper Fig. 13: ~2 deg; nan: "
            "no collapse)", "rad"),
     Metric("max_foothold_offset", "largest distance of a loaded toe's contact point from the centre of the "
-           "foothold it stands on, in the foothold's plane (outside the groping leg's C* to D'-2)", "m"),
+           "foothold it stands on, in the foothold's plane (not the groping leg from C* to the end of D'-2, "
+           "while it retries a fallback, or after the walk stopped)", "m"),
     Metric("off_foothold", "a loaded toe slid off its foothold (max_foothold_offset > the pad half side, "
            "scenarios.PAD_HALF: outside the circle inscribed in the square pad): the walk fails", kind="bool"),
     Metric("late_collapses", "groped footholds that collapsed once their grope had accepted them, under a load it "

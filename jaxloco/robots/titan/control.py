@@ -323,15 +323,16 @@ def support_shift(p, n_steps: int, now: StepTargets, obs) -> Array:
     B = jnp.stack([e1, jnp.cross(n, e1)]).astype(actual.dtype)  # (2, 3) in-plane axes
     s_plan, E = stab.ne_edge_margins(now.body, planned, support, up)
 
-    def margins(shift2):
-        return stab.ne_edge_margins(now.body + shift2 @ B, actual, support, up)[0]
+    def margins(shift2):  # (value, value): jacfwd's aux gives the margins with their Jacobian
+        s = stab.ne_edge_margins(now.body + shift2 @ B, actual, support, up)[0]
+        return s, s
 
     s_min = jnp.min(jnp.where(E, s_plan, jnp.inf))
     sup = support[:, None].astype(actual.dtype)
     mean_slip = B @ (jnp.sum(sup * (actual - planned), axis=0) / jnp.sum(sup))
     shift2 = jnp.zeros(2, actual.dtype)
     for _ in range(2):  # Gauss-Newton: the margins are smooth, two steps reach ~1e-5 m
-        s_act, grad = margins(shift2), jax.jacfwd(margins)(shift2)  # (4, 4), (4, 4, 2)
+        grad, s_act = jax.jacfwd(margins, has_aux=True)(shift2)  # (4, 4, 2), (4, 4)
         norm = jnp.linalg.norm(grad, axis=-1)
         unit = grad / jnp.where(norm > 0, norm, 1.0)[..., None]
         gap = (s_plan - s_act) / jnp.where(norm > 0, norm, 1.0)
