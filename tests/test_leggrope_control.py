@@ -1,6 +1,7 @@
-"""The leg-grope controller's pure parts: the A' COG inside pi_g (`control.swing_cog`) and
-the four-leg twist relief (`control.twist_mode`, `control.twist_relief`), checked
-against closed forms (barycentric statics, a rigid plate on four springs)."""
+"""The leg-grope controller's pure parts: the A' COG inside pi_g (`control.swing_cog`),
+the four-leg twist relief (`control.twist_mode`, `control.twist_relief`) and the in-plane
+load sharing (`control.shear_relief`), checked against closed forms (barycentric
+statics, a rigid plate on four springs)."""
 
 from __future__ import annotations
 
@@ -62,6 +63,67 @@ def test_twist_relief_raises_the_toes_that_carry_the_twist():
     f = 20.0 + 5.0 * n  # a positive twist on top of an even stance
     dz = np.asarray(control.twist_relief(jnp.asarray(f), jnp.asarray(RECT), 1e-4))
     assert np.all(np.sign(dz) == np.sign(n))
+
+
+def _plate_shear(xy: np.ndarray, offsets: np.ndarray, total: np.ndarray, k: float) -> np.ndarray:
+    """In-plane reactions (4, 2) on four fixed toes of a rigid plate (translation u,
+    rotation phi about the toes' centroid) whose legs, of in-plane stiffness k, pull each
+    toe towards its command, moved by `offsets` (4, 2): f_i = -k (offsets_i + u + phi t_i),
+    t_i the rotation direction, with resultant `total` and no moment about the normal
+    axis."""
+    c = xy - xy.mean(axis=0)
+    t = np.column_stack([-c[:, 1], c[:, 0]])
+    # unknowns (u_x, u_y, phi): sum f = total, sum t . f = 0
+    B = np.zeros((4, 2, 3))
+    B[:, 0, 0] = B[:, 1, 1] = 1.0
+    B[:, :, 2] = t
+    lhs = np.einsum("lij,lik->jk", B, B)  # rows: sum of f (x, y) and the moment, per unit k
+    rhs = -np.einsum("lij,li->j", B, offsets) - np.concatenate([total, [0.0]]) / k
+    s = np.linalg.solve(lhs, rhs)
+    return -k * (offsets + np.einsum("lij,j->li", B, s))
+
+
+def test_shear_relief_shares_the_in_plane_load_by_normal_load():
+    """A plate on four stiff legs shares a slope's tangential load equally by stiffness;
+    with unequal normal loads the lightest toe then uses most of its friction cone. The
+    relief, applied period after period, drives the toes to the shares N_i / sum N of the
+    resultant (up to the rotation the plate's moment balance fixes), keeping the
+    resultant: the friction ratios equalize."""
+    k, weight = 4000.0, 70.0
+    normal = np.array([10.0, 25.0, 20.0, 15.0])
+    total = np.array([18.0, 0.0])  # M g sin(pi/12) up the slope
+    offsets = np.zeros((4, 2))
+    f0 = _plate_shear(RECT, offsets, total, k)
+    ratio0 = np.linalg.norm(f0, axis=1) / normal
+    gain = 0.1 * 0.02 / weight  # the walk's default: 0.1 m/s per M g, 20 ms periods
+    for _ in range(400):
+        f = _plate_shear(RECT, offsets, total, k)
+        force = np.column_stack([f, normal])
+        offsets = offsets + np.asarray(control.shear_relief(jnp.asarray(force), jnp.asarray(np.column_stack(
+            [RECT, np.zeros(4)])), gain))[:, :2]
+    assert np.allclose(f.sum(axis=0), total)
+    # the fixed point: the shares by normal load plus a rotation (the moment balance)
+    c = RECT - RECT.mean(axis=0)
+    t = np.column_stack([-c[:, 1], c[:, 0]])
+    excess = f - normal[:, None] / normal.sum() * total
+    excess -= np.sum(excess * t) / np.sum(t * t) * t
+    assert np.max(np.abs(excess)) < 1e-3 * np.linalg.norm(total)
+    ratio = np.linalg.norm(f, axis=1) / normal
+    assert np.ptp(ratio0) > 0.2  # unequal to start from
+    assert np.ptp(ratio) < 0.3 * np.ptp(ratio0)
+    assert np.max(ratio) < np.max(ratio0) - 0.1
+
+
+def test_shear_relief_moves_an_overloaded_toe_along_its_excess_and_sums_to_zero():
+    normal = np.full(4, 20.0)
+    f = np.tile([4.0, 0.0], (4, 1))
+    f[0] += [3.0, 1.0]  # toe 0 carries more than its share
+    f[2] -= [3.0, 1.0]  # the diagonal toe less (no net change)
+    toes = np.column_stack([RECT, np.zeros(4)])
+    off = np.asarray(control.shear_relief(jnp.asarray(np.column_stack([f, normal])), jnp.asarray(toes), 1e-3))
+    assert np.allclose(off.sum(axis=0), 0.0, atol=1e-15)
+    assert np.allclose(off[:, 2], 0.0)
+    assert off[0, :2] @ np.array([3.0, 1.0]) > 0 > off[2, :2] @ np.array([3.0, 1.0])  # along the excess
 
 
 def _barycentric(p: np.ndarray, tri: np.ndarray) -> np.ndarray:

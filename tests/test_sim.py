@@ -20,7 +20,7 @@ from jaxloco.robots.leggrope.params import default_params
 from jaxloco.robots.leggrope.scenarios import standing_scenario
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.rollout import rollout, stack_params
-from jaxloco.sim.scenario import ModelField
+from jaxloco.sim.scenario import ModelField, initial_activation
 
 
 @pytest.fixture(scope="module")
@@ -162,6 +162,18 @@ def test_scenario_validates_its_shape():
     sc = standing_scenario(horizon=4, substeps=1)
     with pytest.raises(ValueError, match="multiple"):
         sc.with_(record_every=3)
+
+
+def test_filtered_servos_start_at_their_controls():
+    """Actuators with a setpoint filter (MJCF timeconst: an activation state) start at their
+    controls, the filter's steady state; MuJoCo would start them at 0."""
+    xml = """<mujoco><worldbody><body><joint name='a' type='hinge'/><geom size='.1' mass='1'/>
+    <body><joint name='b' type='hinge'/><geom size='.1' mass='1'/></body></body></worldbody>
+    <actuator><position joint='a' kp='10'/><position joint='b' kp='10' timeconst='0.02'/></actuator></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    act = np.asarray(initial_activation(m, jnp.array([[0.3, -0.7], [0.1, 0.2]])))
+    assert act.shape == (2, 1) and np.allclose(act[:, 0], [-0.7, 0.2])
+    assert robot_model.build_spec().compile().na == 12  # the leg-grope servos are filtered
 
 
 def test_model_file_matches_generator_and_table_1():

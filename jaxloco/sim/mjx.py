@@ -44,7 +44,7 @@ with contextlib.redirect_stdout(io.StringIO()):  # mujoco.mjx prints "Failed to 
     from mujoco import mjx
 
 from jaxloco.sim import data as simdata
-from jaxloco.sim.scenario import Final, Scenario, init_fn, model_field_values, tick_fn
+from jaxloco.sim.scenario import Final, Scenario, init_fn, initial_activation, model_field_values, tick_fn
 
 
 def check_supported(scenario: Scenario) -> None:
@@ -85,6 +85,8 @@ def rollout_fn(scenario: Scenario):
             mocap_pos=s0.mocap_pos.astype(dtype),
             mocap_quat=s0.mocap_quat.astype(dtype),
         )
+        if scenario.model.na:
+            d = d.replace(act=initial_activation(scenario.model, s0.ctrl.astype(dtype)))
         d = mjx.forward(m, d)
         cstate, estate = init(params, simdata.from_mjx(d))
 

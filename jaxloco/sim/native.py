@@ -26,7 +26,7 @@ import mujoco.batch
 import numpy as np
 
 from jaxloco.sim import data as simdata
-from jaxloco.sim.scenario import Final, Scenario, init_fn, tick_fn
+from jaxloco.sim.scenario import Final, Scenario, init_fn, initial_activation, tick_fn
 
 # warnings that mean the simulation can no longer be trusted
 DIVERGENCE_WARNINGS = (
@@ -77,6 +77,8 @@ def run(
     batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
     for name in ("qpos", "qvel", "ctrl", "mocap_pos", "mocap_quat"):
         batch.bind(name)[...] = np.asarray(getattr(init_state, name))
+    if scenario.model.na:
+        batch.bind("act")[...] = np.asarray(initial_activation(scenario.model, jnp.asarray(init_state.ctrl)))
     batch.forward()
     cstate, estate = jitted["init"](params, simdata.from_native(bound))
     layout = _layout(bound)

@@ -65,6 +65,17 @@ class InitialState:
     mocap_quat: Array
 
 
+def initial_activation(model: mujoco.MjModel, ctrl: Array) -> Array:
+    """Actuator activations (..., na) at rest for the controls `ctrl` (..., nu): every
+    actuator with a state (a servo's setpoint filter, MJCF `timeconst`) starts at its
+    control, the filter's steady state (MuJoCo starts it at 0, which would command the
+    joints to zero at t = 0). Integrator-type states get the same value."""
+    ids = np.nonzero(model.actuator_actnum > 0)[0]
+    adr = model.actuator_actadr[ids] + model.actuator_actnum[ids] - 1
+    act = jnp.zeros((*ctrl.shape[:-1], model.na), ctrl.dtype)
+    return act.at[..., adr].set(ctrl[..., ids])
+
+
 @dataclass(frozen=True)
 class ModelField:
     """A per-simulation model field: `model.<name>[index] = value(params)`.

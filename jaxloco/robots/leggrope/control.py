@@ -27,7 +27,9 @@ For each groping leg g in the order L2, L1, L3, L4 (phases as `PHASES`):
         design's COG targets have 11 mm of grope-region margin (`gait.GaitDesign`).
 In A', D'-1 and after the cycle (four legs down) the controller relaxes the stance's
 twist with the toe force sensors (`twist_relief`, ours: the paper's flexible legs do this
-by themselves, our stiff servos do not).
+by themselves, our stiff servos do not) and shares the in-plane load between the toes in
+proportion to their normal loads (`shear_relief`, ours: without it the most lightly
+loaded toe slips first and the stance creeps downhill).
 The leg numbering, footsteps, COG rule, fallback directions and grope overshoot come from
 a `gait.GaitDesign` (default: the mirrored reading's forward crawl along x_R).
 If the normal force of the groping leg collapses during C*/D'-1/D'-2 (it falls below
@@ -377,6 +379,10 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         four_legs = (ph == A) | (ph == D1) | (ph == DONE)
         relief = twist_relief(force[:, 2], s.toe_cmd[:, :2], p["twist_relief"] * dt / mg)
         toe_cmd = toe_cmd + jnp.where(four_legs, relief, 0.0)[:, None] * jnp.array([0.0, 0.0, 1.0], toe_cmd.dtype)
+        # ... and share its in-plane load by the toes' normal loads (`shear_relief`), in
+        # the body frame (parallel to the slope)
+        shear = shear_relief(force @ t.R_GR, s.toe_cmd @ t.R_GR, p["shear_relief"] * dt / mg) @ t.R_GR.T
+        toe_cmd = toe_cmd + jnp.where(four_legs, shear, 0.0)
         next_g = order[jnp.minimum(k, 3)]
         grope_force = jnp.where(grope_done, s.grope_force.at[g].set(f_peak), s.grope_force)
         grope_time = jnp.where(grope_done, s.grope_time.at[g].set(obs["time"]), s.grope_time)
@@ -441,6 +447,33 @@ def twist_relief(f_z: Array, xy: Array, gain: Array) -> Array:
     It uses the toe force sensors the robot has; `twist_relief` = 0 turns it off."""
     n = twist_mode(xy)
     return gain * jnp.dot(n, f_z) * n
+
+
+def shear_relief(force: Array, toes: Array, gain: Array) -> Array:
+    """In-plane toe offsets (4, 3) [m] for one control period that share a four-leg
+    stance's in-plane load in proportion to the toes' normal loads, so that every toe
+    uses the same fraction of its friction cone.
+
+    force: the toes' ground reactions (4, 3) [N] and toes: their positions (4, 3) [m],
+    both in a frame whose z axis is the slope normal (the offsets are in that frame, z
+    zero); gain [m/N]. Each toe's offset is `gain` times its in-plane reaction less its
+    share N_i / sum N of the resultant, without the part that would turn the stance about
+    the normal axis (so the offsets sum to zero and do not yaw the stance). A toe that
+    carries more than its share has its command moved along its excess reaction, i.e.
+    towards where its leg pushes it, which unloads it.
+
+    Not in the paper (its flexible legs comply); our stiff servos share the slope's
+    tangential load by stiffness, not by normal load: at R_ref = 0.4 M g cos(theta) the
+    lightly loaded toes sat at the friction limit and the stance crept off its pads
+    (docs/leggrope.md). `shear_relief` = 0 turns it off."""
+    xy = toes[:, :2] - jnp.mean(toes[:, :2], axis=0)
+    normal = jnp.maximum(force[:, 2], 0.0)
+    share = normal / jnp.maximum(jnp.sum(normal), 1e-9)
+    tangential = force[:, :2]
+    excess = tangential - share[:, None] * jnp.sum(tangential, axis=0)[None]
+    turn = jnp.stack([-xy[:, 1], xy[:, 0]], axis=1)  # rigid rotation about the toes' centroid
+    excess = excess - jnp.sum(excess * turn) / jnp.maximum(jnp.sum(turn * turn), 1e-12) * turn
+    return gain * jnp.concatenate([excess, jnp.zeros((4, 1), xy.dtype)], axis=1)
 
 
 def _move(start: Array, end: Array, tau: Array, a_max: Array, v_max: Array) -> tuple[Array, Array]:

@@ -40,6 +40,12 @@ MODEL_PATH = mjcf.MODELS_DIR / "leggrope.xml"
 TOE_RADIUS = 0.008  # [m]
 KP = 150.0  # position servo stiffness [N m / rad]
 KV = 3.0  # position servo damping [N m s / rad]
+# The servos follow their setpoints through a first-order filter (MJCF `timeconst`), as a
+# servo amplifier's setpoint smoothing does. Without it each 20 ms control period's new
+# setpoint is a step: a stiff servo answers it with a force transient every period, the
+# toes slip a little at each one, and at R_ref = 0.4 M g cos(theta) a walk's stance toes
+# crept up to 67 mm downhill in one cycle (18 mm with a 4 ms control period). Default (ours).
+SERVO_TIMECONST = 0.02  # [s]
 TAU_MAX = 12.0  # joint torque limit [N m]
 ARMATURE = 0.005  # reflected rotor inertia [kg m^2]
 TIMESTEP = 0.002  # physics step [s]
@@ -106,7 +112,7 @@ def build_spec(params: LegGropeParams | None = None) -> mujoco.MjSpec:
     for leg in LEG_NAMES:
         for name in JOINTS:
             spec.add_actuator(name=f"{leg}_{name}", target=f"{leg}_{name}",
-                              trntype=mujoco.mjtTrn.mjTRN_JOINT).set_to_position(kp=KP, kv=KV)
+                              trntype=mujoco.mjtTrn.mjTRN_JOINT).set_to_position(kp=KP, kv=KV, timeconst=SERVO_TIMECONST)
             act = spec.actuator(f"{leg}_{name}")
             act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
             act.forcerange = [-TAU_MAX, TAU_MAX]

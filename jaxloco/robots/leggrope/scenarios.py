@@ -13,8 +13,8 @@ the target pads, Mg U(r_break_lo, r_break_hi) with probability p_weak (else infi
 
 Parameters (one dict per simulation, see `PARAM_DEFAULTS`): theta, psi [rad]; mu;
 r_ref_factor (R_ref = factor M g cos theta); stride, swing_height [m]; facet_spread
-[rad]; fallback_distance [m]; safe_blend, swing_margin [m], twist_relief [m/s per M g], grope_blend;
-p_weak; r_break_lo, r_break_hi [M g]; weak_leg (int, -1 none);
+[rad]; fallback_distance [m]; safe_blend, swing_margin [m], twist_relief and
+shear_relief [m/s per M g], grope_blend; p_weak; r_break_lo, r_break_hi [M g]; weak_leg (int, -1 none);
 regrope (int: 1 regropes a fallback after a collapse, 0 stops).
 """
 
@@ -62,6 +62,7 @@ PARAM_DEFAULTS: dict[str, float] = {
     "safe_blend": 0.4,
     "swing_margin": 0.005,
     "twist_relief": 0.02,
+    "shear_relief": 0.1,
     "grope_blend": 0.1,
     "p_weak": 0.0,
     "r_break_lo": 0.35,

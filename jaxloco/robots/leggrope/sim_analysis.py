@@ -42,6 +42,9 @@ PARAMS = (
     Param("twist_relief", 0.02, "A', D'-1 (four legs): toe height correction rate per M g of measured stance twist "
           "(control.twist_relief; the paper's flexible legs do this by themselves; 0: off), default (ours)", "m/s",
           lo=0.0, hi=0.5),
+    Param("shear_relief", 0.1, "A', D'-1 (four legs): in-plane toe correction rate per M g of a toe's in-plane "
+          "reaction beyond its share by normal load (control.shear_relief; 0: off), default (ours)", "m/s",
+          lo=0.0, hi=1.0),
     Param("grope_blend", 0.1, "D'-2: the body creeps at most this fraction from the grope COG towards the foothold",
           "", lo=0.0, hi=0.5),
     Param("regrope", 1, "after a foothold collapses: 1 regropes a fallback foothold (the method, step D), 0 stops "
