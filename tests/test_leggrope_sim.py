@@ -89,7 +89,7 @@ def test_grope_breaks_a_foothold_just_under_r_ref_and_the_walk_stops(walk):
     _, r = walk
     assert r.metrics["weak_accepted"][0] == 0 and r.metrics["late_collapses"][0] == 0
     assert r.metrics["collapses_met"][1] >= 1 and r.metrics["late_collapses"][1] == 0
-    assert r.metrics["weak_accepted"][1] == 0
+    assert r.metrics["weak_accepted"][1] == 0 and r.metrics["late_weak_collapses"][1] == 0
     assert r.metrics["collapses_met"][2] == 1 and r.metrics["completed_gropes"][2] == 0
     assert r.metrics["late_collapses"][2] == 0 and r.metrics["weak_accepted"][2] == 0
     assert r.status[2] == "stopped_on_collapse" and not r.metrics["fell"][2]
@@ -236,8 +236,10 @@ def test_summary_reports_load_over_probe_of_the_successful_runs():
     steady = sim_analysis.summarize(table.append_column("max_load_over_probe_steady", pa.array([0.9, 1.0, 2.0, 0.95,
                                                                                                0.8, 0.7])))
     assert steady.rows[0][col + 1] == "0.95 (1.00)" and steady.rows[1][col + 1] == "-"
-    assert s.columns[-1] == "late / weak accepted"
+    assert s.columns[-1] == "late (weak) / weak accepted"
     assert s.rows[0][-1] == "3 / 2" and s.rows[1][-1] == "0 / 0"  # every row of the group, failed ones too
+    split = sim_analysis.summarize(table.append_column("late_weak_collapses", pa.array([1, 0, 0, 0, 0, 0])))
+    assert split.rows[0][-1] == "3 (1) / 2"
 
 
 def test_summary_groups_the_collapse_experiments_by_weak_leg():

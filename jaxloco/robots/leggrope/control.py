@@ -104,6 +104,12 @@ class GropeSettings:
     # cent stronger than R_ref broke just after its grope had accepted it: 3 "late"
     # collapses in a walk of `leggrope_probe`.)
     grope_hold: float = 0.15
+    # once a grope is accepted, its toe's command returns from the depth it was pushed to
+    # onto the foothold surface at this speed [m/s] (ours). At once, the step let the body
+    # drop onto a corner whose leg the push had lifted: 1.39 R_ref on the foothold just
+    # probed at 1.1; at 0.01 m/s the pushed leg stays loaded into A' (load/probe 0.99 on
+    # sound footholds at R_ref = M g cos(theta) / 2, 0.97 at 0.03)
+    v_release: float = 0.03
     phase_timeout: float = 4.0  # any phase longer than this stops the walk [s]
     force_filter: float = 0.05  # time constant of the toe-force low-pass filter [s]
     collapse_min_peak: float = 0.15  # collapse detection needs a peak above this, fraction of M g
@@ -148,6 +154,7 @@ class GropeState:
     body_cmd: Array  # (3,) commanded body origin
     toe_from: Array  # (3,) groping toe centre at the start of the phase
     toe_cmd: Array  # (4, 3) commanded toe centres
+    release: Array  # (4, 3) what remains of each toe command's return from its grope's push [m]
     f_peak: Array  # peak normal force of the groping leg since touchdown [N]
     hold: Array  # time in D'-2 since the normal force went over the threshold [s] (-1: not yet)
     collapses: Array  # collapses met
@@ -288,7 +295,7 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         z = jnp.zeros((), dtype)
         i0 = jnp.zeros((), jnp.int32)
         return GropeState(k=i0, phase=i0, tau=z, cand=i0, bits=i0, body_from=t.body0, body_cmd=t.body0,
-                          toe_from=toes[design.order[0]], toe_cmd=toes, f_peak=z, hold=-jnp.ones((), dtype),
+                          toe_from=toes[design.order[0]], toe_cmd=toes, release=jnp.zeros_like(toes), f_peak=z, hold=-jnp.ones((), dtype),
                           collapses=i0, status=i0,
                           grope_force=jnp.zeros(4, dtype), grope_time=jnp.full(4, jnp.inf, dtype),
                           force=jnp.asarray(obs["foot_force"], dtype), targets=t)
@@ -368,12 +375,16 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         bits = jnp.where(grope_done, s.bits | (s.cand << g), s.bits)
         cand = jnp.where(retry, 1, jnp.where(grope_done, 0, s.cand))
         status = jnp.where(stop, 3, jnp.where(give_up, 1, jnp.where(timeout, 2, s.status)))
-        # once probed, the groping toe's command goes back to the foothold surface: a
-        # command left pushed into the ground would keep loading that leg for the rest
-        # of the walk (position control of an over-constrained four-leg stance; leaving
-        # it to the twist relief instead was worse: load/probe up to 1.01 at R_ref =
-        # M g cos(theta) / 2, where the reset gives 0.94)
-        toe_cmd = s.toe_cmd.at[g].set(jnp.where(grope_done, target, toe_g))
+        # once probed, the groping toe's command goes back to the foothold surface, at
+        # v_release: a command left pushed into the ground would keep loading that leg
+        # for the rest of the walk (position control of an over-constrained four-leg
+        # stance; leaving it to the twist relief instead was worse: load/probe up to 1.01
+        # at R_ref = M g cos(theta) / 2, where the return gives 0.94)
+        toe_cmd = s.toe_cmd.at[g].set(toe_g)
+        release = s.release.at[g].set(jnp.where(grope_done, target - toe_g, s.release[g]))
+        release_step = release * jnp.minimum(1.0, s_.v_release * dt / jnp.maximum(
+            jnp.linalg.norm(release, axis=1, keepdims=True), 1e-12))
+        toe_cmd, release = toe_cmd + release_step, release - release_step
         # A', D'-1 and after the cycle the robot stands on four legs: relax the stance's
         # twist (`twist_relief`)
         four_legs = (ph == A) | (ph == D1) | (ph == DONE)
@@ -396,6 +407,7 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
             body_cmd=body,
             toe_from=jnp.where(changed, toe_cmd[next_g], s.toe_from),
             toe_cmd=toe_cmd,
+            release=release,
             f_peak=jnp.where(changed, 0.0, f_peak),
             hold=jnp.where(changed, -1.0, hold),
             collapses=s.collapses + collapsed.astype(s.collapses.dtype),

@@ -226,7 +226,7 @@ def make_scenario(
         t_end = sm.first_time(r["phase"] >= control.DONE, jnp.arange(r["phase"].shape[0]) * (
             record_every * settings.control_dt))
         collapsed_leg, collapse_tilt = _first_collapse(r, window)
-        late, weak_accepted = _probe_outcomes(c, e)
+        late, late_weak, weak_accepted = _probe_outcomes(c, e)
         # the largest offset of a loaded toe from its foothold's centre; not the groping
         # leg from its touchdown to the end of its grope (C* to D'-2, the foothold is being
         # found), while it retries after a collapse (its toe may rest in the hole) or once
@@ -258,6 +258,7 @@ def make_scenario(
             "collapsed_leg": collapsed_leg,
             "collapse_tilt": collapse_tilt,
             "late_collapses": late,
+            "late_weak_collapses": late_weak,
             "max_foothold_offset": offset,
             "off_foothold": off,
             "weak_accepted": weak_accepted,
@@ -407,20 +408,22 @@ def _probe_forces(r, fn: jax.Array, grope_force: jax.Array, order) -> jax.Array:
     return jnp.maximum(grope_force, jnp.max(jnp.where(groping, fn, 0.0), axis=0))
 
 
-def _probe_outcomes(c: control.GropeState, e) -> tuple[jax.Array, jax.Array]:
+def _probe_outcomes(c: control.GropeState, e) -> tuple[jax.Array, jax.Array, jax.Array]:
     """How well the gropes verified the footholds the walk stands on. Each leg's groped
     foothold is its fallback pad (8 + leg) if it moved there, else its primary (4 + leg).
     late: groped footholds that collapsed once their grope had accepted them (in the
-    period it ended, or later), under a load the grope did not verify (the method's
-    premise says never); weak_accepted: groped footholds weaker than R_ref (R_break <
-    R_ref) that their grope accepted and that still stand."""
+    period it ended, or later), under a load the grope did not verify; late_weak: those
+    of them weaker than R_ref (R_break < R_ref: the grope should have broken them, the
+    method's premise says never); weak_accepted: groped footholds weaker than R_ref
+    that their grope accepted and that still stand."""
     legs = jnp.arange(4)
     t_done = c.grope_time  # (4,) when each leg's grope ended (inf: not yet)
     pad = jnp.where((c.bits >> legs) & 1, 8 + legs, 4 + legs)
     t_col = e["t_collapse"][pad]
-    late = jnp.sum(jnp.isfinite(t_col) & (t_col >= t_done))
+    late = jnp.isfinite(t_col) & (t_col >= t_done)
+    weak = e["r_break"][pad] < c.targets.r_ref
     accepted = jnp.isfinite(t_done) & ~e["collapsed"][pad]
-    return late, jnp.sum(accepted & (e["r_break"][pad] < c.targets.r_ref))
+    return jnp.sum(late), jnp.sum(late & weak), jnp.sum(accepted & weak)
 
 
 def _moved_legs(k, order):

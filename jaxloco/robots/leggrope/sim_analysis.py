@@ -97,6 +97,8 @@ METRICS = (
            "scenarios.PAD_HALF: outside the circle inscribed in the square pad): the walk fails", kind="bool"),
     Metric("late_collapses", "groped footholds that collapsed once their grope had accepted them, under a load it "
            "did not verify (the method's premise: never)", kind="int"),
+    Metric("late_weak_collapses", "late_collapses of footholds weaker than R_ref, which their grope should have "
+           "broken (the others are stronger footholds broken later, e.g. by a neighbour's collapse)", kind="int"),
     Metric("weak_accepted", "groped footholds weaker than R_ref that their grope accepted and that still stand",
            kind="int"),
     Metric("tilt_change", "largest change of the body's tilt from the start, in degrees (max_attitude_change)",
@@ -168,13 +170,13 @@ def summarize(table) -> Summary:
             f"{np.nanmin(cols['min_margin'][sel]) * 1000:.0f}",
             _load_over_probe(cols, sel),
             _load_over_probe(cols, sel, "max_load_over_probe_steady"),
-            _sum_pair(cols, "late_collapses", "weak_accepted", sel),
+            _late_and_weak(cols, sel),
         ))
     return Summary(
         title="leg-grope walk over fragile footholds (native MuJoCo)",
         columns=("R_ref/Mg cos", "p_weak", "weak leg", "runs", "success", "max tilt change [deg]",
                  "collapse tilt [deg]", "max N/R_ref outside D'", "collapses met/survived", "min margin [mm]",
-                 "load / probe", "load / probe, no impulse", "late / weak accepted"),
+                 "load / probe", "load / probe, no impulse", "late (weak) / weak accepted"),
         rows=tuple(rows),
         notes=("other swept parameters are pooled; paper: attitude change ~2 deg when L1's foothold collapses",
                "collapse tilt: the attitude change over the 0.2 s after the first collapse, mean (worst) over the "
@@ -182,16 +184,21 @@ def summarize(table) -> Summary:
                "load / probe: a groped foothold's largest later normal force / the force its grope probed it with, "
                "mean (worst) over the successful runs; > 1: loaded beyond what the grope verified; 'no impulse': "
                "without the 0.2 s after each collapse (paper Fig. 14: below R_ref 'except for the impulse')",
-               "late / weak accepted: groped footholds that collapsed after their grope accepted them / weaker than "
-               "R_ref and accepted, summed over the runs (the method's premise: 0 / 0)"),
+               "late (weak) / weak accepted: groped footholds that collapsed after their grope accepted them (of "
+               "them weaker than R_ref) / weaker than R_ref and accepted, summed over the runs (the method's premise: "
+               "(0) / 0)"),
     )
 
 
-def _sum_pair(cols: dict, a: str, b: str, sel: np.ndarray) -> str:
-    """'sum(a) / sum(b)' over `sel` ('-' for an older table without the columns)."""
-    if a not in cols or b not in cols:
+def _late_and_weak(cols: dict, sel: np.ndarray) -> str:
+    """'late (late weak) / weak accepted', each summed over `sel` ('-' for an older table
+    without the columns; the '(late weak)' part only where the table has it)."""
+    if "late_collapses" not in cols or "weak_accepted" not in cols:
         return "-"
-    return f"{int(np.sum(cols[a][sel]))} / {int(np.sum(cols[b][sel]))}"
+    late = f"{int(np.sum(cols['late_collapses'][sel]))}"
+    if "late_weak_collapses" in cols:
+        late += f" ({int(np.sum(cols['late_weak_collapses'][sel]))})"
+    return f"{late} / {int(np.sum(cols['weak_accepted'][sel]))}"
 
 
 def _mean_worst(cols: dict, name: str, sel: np.ndarray, scale: float = 1.0, digits: int = 2) -> str:
