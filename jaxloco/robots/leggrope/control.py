@@ -105,11 +105,11 @@ class GropeSettings:
     # collapses in a walk of `leggrope_probe`.)
     grope_hold: float = 0.15
     # once a grope is accepted, its toe's command returns from the depth it was pushed to
-    # onto the foothold surface at this speed [m/s] (ours). At once, the step let the body
-    # drop onto a corner whose leg the push had lifted: 1.39 R_ref on the foothold just
-    # probed at 1.1; at 0.01 m/s the pushed leg stays loaded into A' (load/probe 0.99 on
-    # sound footholds at R_ref = M g cos(theta) / 2, 0.97 at 0.03)
-    v_release: float = 0.03
+    # onto the foothold surface at this speed [m/s] (ours). At once (a step), the body
+    # dropped onto a corner whose leg the push had lifted: 1.39 R_ref on the foothold just
+    # probed at 1.1. Slower keeps the pushed leg loaded into A': on sound footholds at
+    # R_ref = M g cos(theta) / 2, load/probe 0.99 at 0.01 m/s, 0.97 at 0.03, 0.92 at 0.1.
+    v_release: float = 0.1
     phase_timeout: float = 4.0  # any phase longer than this stops the walk [s]
     force_filter: float = 0.05  # time constant of the toe-force low-pass filter [s]
     collapse_min_peak: float = 0.15  # collapse detection needs a peak above this, fraction of M g
