@@ -126,6 +126,24 @@ def test_shear_relief_moves_an_overloaded_toe_along_its_excess_and_sums_to_zero(
     assert off[0, :2] @ np.array([3.0, 1.0]) > 0 > off[2, :2] @ np.array([3.0, 1.0])  # along the excess
 
 
+def test_a_probed_toe_returns_from_its_push_at_v_release():
+    """The toe command's return from the push: straight, at most v_release * dt per period,
+    all of what is left once that is shorter; nothing moves where nothing is left."""
+    settings = control.GropeSettings()
+    step = settings.v_release * settings.control_dt  # 2 mm at 0.1 m/s, 20 ms periods
+    push = np.array([0.0, 0.003, 0.004])  # 5 mm back up along a tilted normal
+    release = np.zeros((4, 3))
+    release[1] = push
+    toe, periods = np.zeros((4, 3)), 0
+    while np.any(release != 0.0):
+        d = np.asarray(control.release_step_of(jnp.asarray(release), step))
+        assert np.linalg.norm(d[1]) <= step + 1e-15 and np.all(d[[0, 2, 3]] == 0.0)
+        assert np.allclose(np.cross(d[1], push), 0.0) and d[1] @ push > 0  # along the return
+        toe, release, periods = toe + d, release - d, periods + 1
+        assert periods <= 10
+    assert np.allclose(toe[1], push) and periods == 3  # 2 + 2 + 1 mm
+
+
 def _barycentric(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
     T = np.column_stack([tri[0] - tri[2], tri[1] - tri[2]])
     w = np.linalg.solve(T, p - tri[2])

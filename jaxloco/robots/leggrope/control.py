@@ -295,7 +295,8 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         z = jnp.zeros((), dtype)
         i0 = jnp.zeros((), jnp.int32)
         return GropeState(k=i0, phase=i0, tau=z, cand=i0, bits=i0, body_from=t.body0, body_cmd=t.body0,
-                          toe_from=toes[design.order[0]], toe_cmd=toes, release=jnp.zeros_like(toes), f_peak=z, hold=-jnp.ones((), dtype),
+                          toe_from=toes[design.order[0]], toe_cmd=toes, release=jnp.zeros_like(toes), f_peak=z,
+                          hold=-jnp.ones((), dtype),
                           collapses=i0, status=i0,
                           grope_force=jnp.zeros(4, dtype), grope_time=jnp.full(4, jnp.inf, dtype),
                           force=jnp.asarray(obs["foot_force"], dtype), targets=t)
@@ -382,8 +383,7 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         # at R_ref = M g cos(theta) / 2, where the return gives 0.94)
         toe_cmd = s.toe_cmd.at[g].set(toe_g)
         release = s.release.at[g].set(jnp.where(grope_done, target - toe_g, s.release[g]))
-        release_step = release * jnp.minimum(1.0, s_.v_release * dt / jnp.maximum(
-            jnp.linalg.norm(release, axis=1, keepdims=True), 1e-12))
+        release_step = release_step_of(release, s_.v_release * dt)
         toe_cmd, release = toe_cmd + release_step, release - release_step
         # A', D'-1 and after the cycle the robot stands on four legs: relax the stance's
         # twist (`twist_relief`)
@@ -420,6 +420,14 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
         return new, joint_targets(robot, t.R_GR, body, toe_cmd)
 
     return init, step
+
+
+def release_step_of(release: Array, max_step: Array) -> Array:
+    """This period's part (4, 3) [m] of each toe command's remaining return `release`
+    (4, 3) [m] from its grope's push: all of it, or `max_step` [m] along it if it is
+    longer (a straight return at v_release)."""
+    length = jnp.linalg.norm(release, axis=1, keepdims=True)
+    return release * jnp.minimum(1.0, max_step / jnp.maximum(length, 1e-12))
 
 
 def touch_command(toe: Array, above: Array, normal: Array, settings: GropeSettings) -> Array:
