@@ -111,11 +111,10 @@ def build_spec(params: LegGropeParams | None = None) -> mujoco.MjSpec:
         toe.add_site(name=f"{leg}_toe", size=[0.005, 0, 0])
     for leg in LEG_NAMES:
         for name in JOINTS:
-            spec.add_actuator(name=f"{leg}_{name}", target=f"{leg}_{name}",
-                              trntype=mujoco.mjtTrn.mjTRN_JOINT).set_to_position(kp=KP, kv=KV, timeconst=SERVO_TIMECONST)
-            act = spec.actuator(f"{leg}_{name}")
-            act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
-            act.forcerange = [-TAU_MAX, TAU_MAX]
+            servo = spec.add_actuator(name=f"{leg}_{name}", target=f"{leg}_{name}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+            servo.set_to_position(kp=KP, kv=KV, timeconst=SERVO_TIMECONST)
+            servo.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            servo.forcerange = [-TAU_MAX, TAU_MAX]
     for leg in LEG_NAMES:
         spec.add_sensor(name=f"{leg}_force", type=mujoco.mjtSensor.mjSENS_FORCE,
                         objtype=mujoco.mjtObj.mjOBJ_SITE, objname=f"{leg}_toe")

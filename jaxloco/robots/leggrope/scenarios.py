@@ -179,7 +179,8 @@ def make_scenario(
             "toe_pos": data.site_xpos[toe_sites],
             # each toe's contact point off the centre of the foothold it stands on, in
             # the foothold's plane [m] (the pads are 2 PAD_HALF wide)
-            "foothold_offset": _in_plane_offset(data.site_xpos[toe_sites] - model.TOE_RADIUS * normals, centres, normals),
+            "foothold_offset": _in_plane_offset(data.site_xpos[toe_sites] - model.TOE_RADIUS * normals, centres,
+                                                normals),
             "cog": data.subtree_com[torso],
             "phase": c.phase,
             "retry": c.cand,  # 1 while the groping leg tries its fallback foothold

@@ -96,7 +96,7 @@ METRICS = (
     Metric("off_foothold", "a loaded toe slid off its foothold (max_foothold_offset > the pad half side, "
            "scenarios.PAD_HALF: outside the circle inscribed in the square pad): the walk fails", kind="bool"),
     Metric("late_collapses", "groped footholds that collapsed once their grope had accepted them, under a load it "
-           "did not verify (the method's premise: never)", kind="int"),
+           "did not verify (weak or not; the premise's violations are late_weak_collapses)", kind="int"),
     Metric("late_weak_collapses", "late_collapses of footholds weaker than R_ref, which their grope should have "
            "broken (the others are stronger footholds broken later, e.g. by a neighbour's collapse)", kind="int"),
     Metric("weak_accepted", "groped footholds weaker than R_ref that their grope accepted and that still stand",
