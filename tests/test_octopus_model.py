@@ -63,8 +63,9 @@ def test_options_and_counts(model):
 def test_names(model):
     assert [model.actuator(i).name for i in range(model.nu)] == list(P.ACTUATOR_NAMES)
     for arm in P.ARM_NAMES:
-        for j in P.ARM_JOINTS + ("roller_a", "roller_b"):
+        for j in P.ARM_JOINTS + ("roller",):
             model.joint(f"{arm}_{j}")
+        assert model.joint(f"{arm}_roller").type == mujoco.mjtJoint.mjJNT_BALL
         for j in P.ARM_JOINTS:
             assert model.sensor(f"{arm}_{j}_pos").type == mujoco.mjtSensor.mjSENS_JOINTPOS
             assert model.sensor(f"{arm}_{j}_torque").type == mujoco.mjtSensor.mjSENS_ACTUATORFRC
@@ -83,7 +84,7 @@ def test_names(model):
         assert model.sensor(s).objid[0] == model.site("imu").id
     # the passive roller joints are unactuated
     actuated = {model.actuator_trnid[i, 0] for i in range(model.nu) if model.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT}
-    assert all(model.joint(f"{a}_roller_{x}").id not in actuated for a in P.ARM_NAMES for x in "ab")
+    assert all(model.joint(f"{a}_roller").id not in actuated for a in P.ARM_NAMES)
 
 
 def test_collision_bits_match_terrain(model):
@@ -263,3 +264,64 @@ def test_crawlers_and_flippers_climb_a_200mm_step():
     assert np.all(np.isfinite(d.qpos))
     assert d.qpos[0] > edge + 0.5  # the whole robot is on the step
     assert d.qpos[2] == pytest.approx(h + P.BASE_HEIGHT, abs=0.01) and _up(d.qpos[3:7]) > 0.999
+
+
+def _roller_drag_forces(roller=octo_model.add_roller):
+    """A 10 kg stub on x / y slides (velocity servos, 0.1 m/s) and a free z slide, with a
+    forearm pointing down and back at 45 deg (as on a placed arm) and the roller at its
+    end on a floor (mu 0.8), dragged 0.3 m along y (about six roller turns), then 0.3 m
+    along x. Returns the largest servo force [N] in the second half of each drag (the
+    steady part) and the weight [N]."""
+    spec = mujoco.MjSpec()
+    spec.option.timestep = 0.002
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[5, 5, 0.1], contype=terrain.TERRAIN_CONTYPE,
+                            conaffinity=terrain.TERRAIN_CONAFFINITY, friction=[0.8, 0.005, 0.0001])
+    stub = spec.worldbody.add_body(name="stub", pos=[0, 0, 0.25])
+    for name, axis in (("sx", [1, 0, 0]), ("sy", [0, 1, 0]), ("sz", [0, 0, 1])):
+        stub.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
+    stub.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.02, 0, 0], mass=10.0, contype=0, conaffinity=0)
+    forearm = stub.add_body(name="forearm", euler=[0, 0.75 * np.pi, 0])  # its x axis down and back
+    roller(forearm, "arm0", [0.3, 0, 0])
+    for name in ("sx", "sy"):
+        act = spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        act.set_to_velocity(kv=2000.0)
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    weight = float(np.sum(m.body_mass) * 9.81)
+    steady = []
+    for act, n_steps in (("sy", 1500), ("sx", 1500)):
+        d.ctrl[:] = 0.0
+        d.ctrl[m.actuator(act).id] = 0.1
+        forces = []
+        for _ in range(n_steps):
+            mujoco.mj_step(m, d)
+            forces.append(abs(d.actuator_force[m.actuator(act).id]))
+        assert d.ncon == 1  # the roller stays on the floor
+        steady.append(max(forces[n_steps // 2:]))
+    return steady, weight
+
+
+def test_roller_rolls_every_way():
+    """The passive roller rolls in both horizontal directions, also after several turns
+    in one of them: dragging it takes a small fraction of the friction limit mu N."""
+    (f_side, f_along), weight = _roller_drag_forces()
+    assert f_side < 0.1 * 0.8 * weight
+    assert f_along < 0.1 * 0.8 * weight
+
+
+def _gimbal_roller(parent, arm, pos):
+    """The roller as it was before 3 Dec 2026 (two nested hinges), for the test below."""
+    roller = parent.add_body(name=f"{arm}_roller", pos=pos)
+    for jname, axis in (("roller_a", [0, 0, 1]), ("roller_b", [0, 1, 0])):
+        roller.add_joint(name=f"{arm}_{jname}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis,
+                         damping=octo_model.ROLLER_DAMPING, armature=octo_model.ROLLER_ARMATURE)
+    roller.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[P.ROLLER_RADIUS, 0, 0], mass=P.MASS_ROLLER,
+                    **octo_model.COLLIDE)
+    return roller
+
+
+def test_drag_test_sees_a_locked_roller():
+    """The drag test can fail: the nested-hinge roller of before 3 Dec 2026 slides, at
+    about mu N, in this forearm pose."""
+    forces, weight = _roller_drag_forces(_gimbal_roller)
+    assert max(forces) > 0.3 * 0.8 * weight

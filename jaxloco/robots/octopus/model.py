@@ -16,9 +16,9 @@ Structure ({R} = the `chassis` body frame, see `params.py`; 100 kg in all):
     angle 0 continues the crawler's bottom line, > 0 lifts the tip, limits +-85 deg;
   * arms `arm1..4` (1 LF, 2 RF, 3 LR, 4 RR) at (+-m/2, +-n/2, 0): hinges `arm{i}_swing`
     (z), `arm{i}_boom` (y; > 0 lowers the boom), `arm{i}_elbow` (y, d3 to the right of the
-    boom end), the forearm (l2 to the roller centre), then the passive two-axis roller:
-    hinges `arm{i}_roller_a` (forearm z) and `arm{i}_roller_b` (y) and a sphere of radius
-    50 mm. The site `arm{i}_tip` at the roller centre is the EPRA of Eqs. 1-6;
+    boom end), the forearm (l2 to the roller centre), then the passive two-axis roller: a
+    sphere of radius 50 mm on a ball joint `arm{i}_roller` that rolls in every direction
+    (`add_roller`). The site `arm{i}_tip` at the roller centre is the EPRA of Eqs. 1-6;
   * contact-point sites (`scenarios.CONTACT_SITES`, observed by the controllers; the
     stability margin uses every wheel and roller, `scenarios.SUPPORT_BODIES`):
     `crawler_{l,r}_{front,rear}` under the main crawler end axles and `flipper_*_tip`
@@ -240,13 +240,7 @@ def build_spec() -> mujoco.MjSpec:
                       fromto=[0, 0, 0, P.L2 - P.ROLLER_RADIUS, 0, 0], mass=P.MASS_FOREARM,
                       rgba=[0.85, 0.65, 0.15, 1], **COLLIDE)
         fore.add_site(name=f"{arm}_tip", pos=[P.L2, 0, 0], size=[0.01, 0, 0])
-        roller = fore.add_body(name=f"{arm}_roller", pos=[P.L2, 0, 0])
-        for jname, axis in (("roller_a", [0, 0, 1]), ("roller_b", [0, 1, 0])):
-            roller.add_joint(name=f"{arm}_{jname}", type=_HINGE, axis=axis, damping=ROLLER_DAMPING,
-                             armature=ROLLER_ARMATURE)
-        roller.add_geom(name=f"{arm}_roller", type=_SPHERE, size=[P.ROLLER_RADIUS, 0, 0], mass=P.MASS_ROLLER,
-                        rgba=[0.1, 0.1, 0.1, 1], **COLLIDE)
-        _touch_site(roller, f"{arm}_roller", P.ROLLER_RADIUS)
+        add_roller(fore, arm, [P.L2, 0, 0])
 
     # Tracks: joint equalities tie every wheel of a side to its first main wheel (equal rim
     # speeds), and a tendon (mean rim travel [m]) carries the side's velocity servo.
@@ -331,6 +325,25 @@ def _wheel_radii() -> dict[str, float]:
             for k in range(P.FLIPPER_WHEELS):
                 out[f"flipper_{fr}{side}_w{k + 1}"] = float(radii[k])
     return out
+
+
+def add_roller(parent: mujoco.MjsBody, arm: str, pos: list[float]) -> mujoco.MjsBody:
+    """The passive two-axis roller at an arm's end (paper, "Arm moving", Fig. 8): a sphere
+    of radius ROLLER_RADIUS on a ball joint `{arm}_roller`, so that it rolls freely in
+    every direction on the ground (the paper's purpose: "to prevent robot arms being
+    broken during EPRA's slippage"), with its touch site. Before 3 Dec 2026 it hung on two
+    nested hinges (forearm z, then y). Dragged over a floor (mu 0.8) with the forearm 45
+    deg down and back, that roller slid at about mu N in both directions, where the ball
+    rolls at 0.4 % of mu N (`tests/test_octopus_model.py::test_roller_rolls_every_way`),
+    so a placed arm whose boom turned dragged its roller and pushed the body (a model
+    artifact)."""
+    roller = parent.add_body(name=f"{arm}_roller", pos=pos)
+    roller.add_joint(name=f"{arm}_roller", type=mujoco.mjtJoint.mjJNT_BALL, damping=ROLLER_DAMPING,
+                     armature=ROLLER_ARMATURE)
+    roller.add_geom(name=f"{arm}_roller", type=_SPHERE, size=[P.ROLLER_RADIUS, 0, 0], mass=P.MASS_ROLLER,
+                    rgba=[0.1, 0.1, 0.1, 1], **COLLIDE)
+    _touch_site(roller, f"{arm}_roller", P.ROLLER_RADIUS)
+    return roller
 
 
 def _touch_site(body: mujoco.MjsBody, name: str, radius: float) -> None:

@@ -3,9 +3,15 @@ read any table (heatmap, plot_tuning, plot_validation) are in `jaxloco.plots`.
 
     plot_accuracy_map(table, sigma)              terrain-classification accuracy over terrain
                                                  type x height for one (sigma_1, sigma_2, sigma_3)
-    climb_trace(records, i, times)               pitch, roll, stability margin and phase over time
-                                                 of one recorded step-climbing rollout
-    plot_climb_traces(traces, paper)             those over time, one line per run (Figs. 12-13)
+    climb_trace(records, i, times)               pitch, roll, stability margin, phase, arm joints
+                                                 and torques over time of one recorded rollout
+    plot_climb_traces(traces, paper)             pitch and margin over time, one line per run
+                                                 (Figs. 12-13)
+    plot_attitude_traces(traces, paper)          pitch and roll over time (Figs. 16, 18)
+    plot_arm_joints(trace, arms)                 swing, boom, elbow of two arms over time with the
+                                                 robot phases shaded (Fig. 14, phases A-F)
+    plot_arm_on_obstacle(trace, arm)             one arm's joints and elbow torque over time, with
+                                                 the time its roller rode an obstacle (Fig. 20)
 
 A table is a `pyarrow.Table` or a mapping of column name to array. Every plot function
 returns the matplotlib Figure; matplotlib is imported inside the functions. Nothing here
@@ -19,9 +25,18 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["TERRAIN_NAMES", "climb_trace", "plot_accuracy_map", "plot_climb_traces"]
+__all__ = ["TERRAIN_NAMES", "climb_trace", "plot_accuracy_map", "plot_arm_joints", "plot_arm_on_obstacle",
+           "plot_attitude_traces", "plot_climb_traces"]
 
 TERRAIN_NAMES = ("flat", "step up", "step down", "slope up", "slope down", "rough")  # analysis.TERRAINS order
+ARM_LABELS = ("LF", "RF", "LR", "RR")  # params.ARM_LABELS (arms 1..4)
+# the CLM robot phases (clm.PHASE_NAMES, in order) and the phases of the paper's Fig. 14
+# they correspond to: A initialisation and B walking with arm transfers are our WALK (C,
+# the stop at the step, is WALK's approach after the step is confirmed), D the posture
+# adjustment (PREPARE), E the climb, F the release; DONE and CRAWL come after or beside it
+CLM_PHASES = ("walk", "prepare", "climb", "release", "done", "crawl")
+PAPER_PHASE = {"walk": "A-C", "prepare": "D", "climb": "E", "release": "F", "done": "after F", "crawl": "CRAWL (ours)"}
+OBSTACLE_MIN = 0.1  # [m] scenarios.OBSTACLE_MIN: a roller contact this high is on an obstacle top
 from jaxloco.plots import column, heatmap
 
 
@@ -57,12 +72,18 @@ def climb_trace(records: Mapping[str, Any], i: int, times: Any) -> dict[str, np.
     margin = np.asarray(sm.support_margins(jnp.asarray(records["cog"][i]), jnp.asarray(records["contact_points"][i]),
                                            jnp.asarray(contact)))
     margin = np.where(contact.sum(axis=1) >= 3, margin, np.nan)
+    n = len(rpy)
     return {
-        "t": np.asarray(times, float)[: len(rpy)],
+        "t": np.asarray(times, float)[:n],
         "pitch": -rpy[:, 1],
         "roll": rpy[:, 0],
         "margin": margin,
         "phase": np.asarray(records["phase"][i]),
+        "arm_q": np.asarray(records["arm_q"][i]).reshape(n, 4, 3),
+        "arm_tau": np.asarray(records["arm_tau"][i]).reshape(n, 4, 3),
+        # the arm rollers are the last four sites of the support set (scenarios.SUPPORT_BODIES)
+        "roller_on": contact[:, 8:12],
+        "roller_z": np.asarray(records["contact_points"][i])[:, 8:12, 2],
     }
 
 
@@ -90,4 +111,101 @@ def plot_climb_traces(traces: Mapping[str, Mapping[str, np.ndarray]],
         ax.set_title(t, fontsize="medium")
         ax.grid(alpha=0.3)
         ax.legend(fontsize="x-small")
+    return fig
+
+
+def _phase_spans(t: np.ndarray, phase: np.ndarray) -> list[tuple[float, float, int]]:
+    """(start, end, phase) of every run of equal phase values over time t [s]."""
+    edges = np.flatnonzero(np.diff(phase)) + 1
+    starts, ends = np.r_[0, edges], np.r_[edges, len(phase)]
+    dt = t[1] - t[0] if len(t) > 1 else 0.0
+    return [(float(t[a]), float(t[b - 1] + dt), int(phase[a])) for a, b in zip(starts, ends)]
+
+
+def plot_attitude_traces(traces: Mapping[str, Mapping[str, np.ndarray]],
+                         paper: Mapping[str, Mapping[str, float]] | None = None, *, figsize=(9.0, 3.4)):
+    """Nose-up pitch and roll [rad] over time, one line per labelled run (the paper's Figs.
+    16 and 18, two terraces from the front and from the side). paper: per label,
+    {"max_pitch": ..., "max_abs_roll": ...} drawn as dashed lines (roll at +-)."""
+    import matplotlib.pyplot as plt
+
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=figsize, layout="constrained")
+    for k, (label, tr) in enumerate(traces.items()):
+        color = f"C{k}"
+        a1.plot(tr["t"], tr["pitch"], color=color, lw=1.2, label=label)
+        a2.plot(tr["t"], tr["roll"], color=color, lw=1.2, label=label)
+        ref = (paper or {}).get(label, {})
+        if "max_pitch" in ref:
+            a1.axhline(ref["max_pitch"], color=color, ls="--", lw=1, label=f"paper max {ref['max_pitch']:g}")
+        if "max_abs_roll" in ref:
+            for sign in (1.0, -1.0):
+                a2.axhline(sign * ref["max_abs_roll"], color=color, ls="--", lw=1,
+                           label=f"paper max |roll| {ref['max_abs_roll']:g}" if sign > 0 else None)
+    a1.set_ylabel("pitch, nose up [rad]")
+    a2.set_ylabel("roll [rad]")
+    for ax, t in ((a1, "pitch angle"), (a2, "roll angle")):
+        ax.set_xlabel("time [s]")
+        ax.set_title(t, fontsize="medium")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="x-small")
+    return fig
+
+
+def plot_arm_joints(trace: Mapping[str, np.ndarray], arms: Sequence[int] = (1, 3), *,
+                    phase_names: Sequence[str] = CLM_PHASES, title: str = "", figsize=(9.0, 5.6)):
+    """Swing, boom and elbow angles [rad] over time of two arms (indices 0..3 = LF, RF, LR,
+    RR; default RF and RR, as the paper's Fig. 14), one column per arm, with the CLM robot
+    phases shaded and labelled with the paper's phases A-F (`PAPER_PHASE`)."""
+    import matplotlib.pyplot as plt
+
+    t, q = trace["t"], trace["arm_q"]
+    spans = _phase_spans(t, np.asarray(trace["phase"]))
+    fig, axes = plt.subplots(3, len(arms), figsize=figsize, layout="constrained", sharex=True, squeeze=False)
+    for col, arm in enumerate(arms):
+        for row, joint in enumerate(("swing", "boom", "elbow")):
+            ax = axes[row, col]
+            for a, b, ph in spans:
+                ax.axvspan(a, b, color=f"C{ph}", alpha=0.12, lw=0)
+                if row == 0 and b - a > 0.04 * (t[-1] - t[0] + 1e-9):
+                    name = phase_names[ph] if ph < len(phase_names) else str(ph)
+                    ax.text(0.5 * (a + b), 1.02, PAPER_PHASE.get(name, name), transform=ax.get_xaxis_transform(),
+                            ha="center", va="bottom", fontsize="x-small")
+            ax.plot(t, q[:, arm, row], color="k", lw=1.1)
+            ax.set_ylabel(f"{ARM_LABELS[arm]} {joint} [rad]")
+            ax.grid(alpha=0.3)
+        axes[-1, col].set_xlabel("time [s]")
+    handles = [plt.Rectangle((0, 0), 1, 1, color=f"C{k}", alpha=0.3) for k in range(len(phase_names))]
+    fig.legend(handles, [f"{n} ({PAPER_PHASE.get(n, n)})" for n in phase_names], loc="outside lower center",
+               ncol=len(phase_names), fontsize="x-small")
+    if title:
+        fig.suptitle(title, fontsize="medium")
+    return fig
+
+
+def plot_arm_on_obstacle(trace: Mapping[str, np.ndarray], arm: int = 1, *, title: str = "", figsize=(9.0, 4.2)):
+    """One arm's swing, boom and elbow angles [rad] and its elbow torque [N m] over time
+    (the paper's Fig. 20: RF meets the block at t1, rides its top, is back on the ground
+    at t2), with the time its roller carried load on an obstacle top (>= OBSTACLE_MIN
+    above the floor) shaded."""
+    import matplotlib.pyplot as plt
+
+    t, q, tau = trace["t"], trace["arm_q"], trace["arm_tau"]
+    up = np.asarray(trace["roller_on"], bool)[:, arm] & (np.asarray(trace["roller_z"])[:, arm] > OBSTACLE_MIN)
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=figsize, layout="constrained", sharex=True)
+    for a, b, on in _phase_spans(t, up.astype(int)):
+        if on:
+            for ax in (a1, a2):
+                ax.axvspan(a, b, color="C3", alpha=0.15, lw=0)
+    for j, joint in enumerate(("swing", "boom", "elbow")):
+        a1.plot(t, q[:, arm, j], lw=1.1, label=joint)
+    a2.plot(t, tau[:, arm, 2], color="k", lw=1.0, label="elbow torque")
+    a1.set_ylabel(f"{ARM_LABELS[arm]} joint angles [rad]")
+    a2.set_ylabel(f"{ARM_LABELS[arm]} elbow torque [N m]")
+    for ax in (a1, a2):
+        ax.set_xlabel("time [s]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="x-small", title="shaded: roller on the obstacle top" if ax is a1 else None,
+                  title_fontsize="x-small")
+    if title:
+        fig.suptitle(title, fontsize="medium")
     return fig

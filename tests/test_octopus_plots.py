@@ -1,0 +1,74 @@
+"""OCTOPUS time-trace plots (the paper's Figs. 12-20): the trace extraction from recorded
+signals and the figures, on synthetic records (no simulation)."""
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np
+import pytest
+
+from jaxloco.robots.octopus import clm, plots, scenarios
+
+N_SUPPORT = len(scenarios.SUPPORT_BODIES)
+
+
+def _records(n=40):
+    """One run's records: standing level on four wheels, the RF roller lifted onto a 0.5 m
+    obstacle from sample 10 to 19, the phases WALK (0-14), PREPARE (15-24), CLIMB (25-)."""
+    t = np.arange(n)
+    contact = np.zeros((n, N_SUPPORT), bool)
+    contact[:, :4] = True  # the main crawler end wheels
+    contact[:, 8:12] = True  # the rollers
+    pts = np.zeros((n, N_SUPPORT, 3))
+    pts[:, :4, :2] = [[0.16, 0.25], [-0.16, 0.25], [0.16, -0.25], [-0.16, -0.25]]
+    pts[10:20, 9, 2] = 0.5  # RF on the obstacle top
+    arm_q = np.zeros((n, 12))
+    arm_q[:, 4] = 0.01 * t  # RF boom
+    arm_tau = np.zeros((n, 12))
+    arm_tau[10, 5] = 90.0  # RF elbow torque jump
+    phase = np.where(t < 15, clm.WALK, np.where(t < 25, clm.PREPARE, clm.CLIMB))
+    rpy = np.zeros((n, 3))
+    rpy[:, 1] = -0.002 * t  # nose up
+    return {"rpy": rpy[None], "contact": contact[None], "cog": np.zeros((1, n, 3)) + [0, 0, 0.27],
+            "contact_points": pts[None], "phase": phase[None], "arm_q": arm_q[None], "arm_tau": arm_tau[None]}, 0.5 * t
+
+
+def test_rollers_are_where_the_scenario_puts_them():
+    rollers = [b for b in scenarios.SUPPORT_BODIES if b.endswith("_roller")]
+    assert [scenarios.SUPPORT_BODIES.index(b) for b in rollers] == [8, 9, 10, 11]
+    assert plots.CLM_PHASES == clm.PHASE_NAMES
+    assert plots.OBSTACLE_MIN == scenarios.OBSTACLE_MIN
+
+
+def test_climb_trace_signals():
+    records, times = _records()
+    tr = plots.climb_trace(records, 0, times)
+    assert tr["arm_q"].shape == (40, 4, 3) and tr["arm_tau"].shape == (40, 4, 3)
+    np.testing.assert_allclose(tr["arm_q"][:, 1, 1], 0.01 * np.arange(40))  # RF boom
+    assert tr["arm_tau"][10, 1, 2] == 90.0
+    np.testing.assert_allclose(tr["pitch"], 0.002 * np.arange(40))
+    assert tr["roller_on"].shape == (40, 4) and np.all(tr["roller_z"][10:20, 1] == 0.5)
+    assert np.all(np.isfinite(tr["margin"]))  # four wheels and four rollers in contact
+
+
+def test_phase_spans():
+    t = np.arange(6) * 0.5
+    assert plots._phase_spans(t, np.array([0, 0, 1, 1, 1, 2])) == [(0.0, 1.0, 0), (1.0, 2.5, 1), (2.5, 3.0, 2)]
+
+
+def test_figures():
+    records, times = _records()
+    tr = plots.climb_trace(records, 0, times)
+    fig = plots.plot_arm_joints(tr, arms=(1, 3), title="RF and RR")
+    axes = fig.get_axes()
+    assert len(axes) == 6
+    labels = {t.get_text() for t in axes[0].texts}
+    assert {"A-C", "D", "E"} <= labels  # the paper's phases over WALK, PREPARE, CLIMB
+    fig = plots.plot_attitude_traces({"run": tr}, paper={"run": {"max_pitch": 0.59, "max_abs_roll": 0.25}})
+    assert len(fig.get_axes()) == 2
+    fig = plots.plot_arm_on_obstacle(tr, arm=1)
+    a1, a2 = fig.get_axes()
+    (span,) = [p for p in a1.patches]  # the roller on the obstacle top, samples 10-19
+    assert span.get_x() == pytest.approx(5.0) and span.get_x() + span.get_width() == pytest.approx(10.0)
+    assert max(a2.get_lines()[0].get_ydata()) == 90.0
