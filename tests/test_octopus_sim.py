@@ -49,8 +49,9 @@ def test_ccm_drives_at_commanded_speed_on_flat_ground():
 
 
 def test_ccm_climbs_150mm_and_fails_400mm():
-    """The automatic CCM policy climbs a 150 mm step; 400 mm is beyond the flippers (the
-    paper: crawler-only climbing < 250 mm, CCM success 0% on 400 mm)."""
+    """The automatic CCM policy climbs a 150 mm step; 400 mm is beyond the flippers even
+    when it tries harder (the paper: crawler-only climbing < 250 mm, CCM success 0% on
+    400 mm)."""
     sc = scenarios.make_scenario("step1", horizon_s=22.0, record_every=25)
     r = rollout(sc, scenarios.params_batch(2, height=np.array([0.15, 0.4]), distance=0.5), nthread=2)
     assert (r.status != "diverged").all()
@@ -64,4 +65,9 @@ def test_ccm_climbs_150mm_and_fails_400mm():
     assert {ccm.LOWER, ccm.PUSH, ccm.LEVEL} <= set(r.records["phase"][0].tolist())
     assert not high["success"] and high["status"] == "failed"
     assert high["final_x"] < 0.5  # stuck at the riser
+    # ... after trying: the flipper tips stayed below the edge, so the front flippers went
+    # up to their limit against the riser (RAISE), and the front could not climb its face
+    assert ccm.RAISE in r.records["phase"][1].tolist() and ccm.RAISE not in r.records["phase"][0].tolist()
+    assert r.records["flipper_q"][1, -1, :2].min() > P.FLIPPER_LIMIT - 0.1
+    assert high["max_pitch"] < 0.1
     assert P.CRAWLER_MAX_SPEED == pytest.approx(scenarios.PARAM_DEFAULTS["speed"])

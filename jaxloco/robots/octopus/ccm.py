@@ -22,6 +22,13 @@ Policy (angles [rad], flipper angle > 0 lifts the tip, see `model.py`; pitch > 0
     tipped over the edge onto the top), the rear flippers keep pushing for 2 s, then all
     flippers go back to 0 and the robot drives on; after `level_s` it starts a new
     APPROACH (front flippers raised again, new torque baseline) for the next terrace.
+  4 RAISE (trying harder, as the paper's operators did on the 400 mm step, where the
+    flipper tips stay below the edge): when LOWER has not pitched the robot beyond
+    `pitch_trigger` within `hook_s`, the front flippers turn up to their 85 deg limit
+    while the crawlers keep driving them against the riser, so that the front climbs the
+    riser face; once the pitch passes `pitch_hook` the flippers go down again (LOWER) to
+    hook over the edge, and PUSH follows as on a low step. On 400 mm this pitches the
+    robot up and it slides back or tips; it never reaches the top (paper: 0 %).
 The arm joints are held at `ARMS_STOWED`, as in the paper's CCM run: front arms in the
 zero pose (stretched forward, level, rollers 433 mm above the floor), rear arms lifted
 (boom raised 0.6 rad, pointing forward), clear of the ground while on flat floor. On a
@@ -29,7 +36,8 @@ step higher than ~430 mm, or pitched nose-down, the front rollers can touch the 
 
 Controller parameters (keys of the params dict, defaults in `PARAM_DEFAULTS`): speed,
 front_up, front_down, rear_push, lower_rate, settle_s, torque_trigger, pitch_trigger,
-pitch_push, pitch_level, level_s. The observation is the one built by
+pitch_push, pitch_level, level_s, hook_s, pitch_hook (every value default (ours): the
+paper's CCM was two operators' joysticks). The observation is the one built by
 `jaxloco.robots.octopus.scenarios` ("time", "quat", "flipper_q", "flipper_tau").
 """
 
@@ -41,8 +49,8 @@ import numpy as np
 from jaxloco.robots.octopus import params as P
 from jaxloco.sim.scenario import Controller
 
-APPROACH, LOWER, PUSH, LEVEL = 0, 1, 2, 3
-PHASE_NAMES = ("approach", "lower", "push", "level")
+APPROACH, LOWER, PUSH, LEVEL, RAISE = 0, 1, 2, 3, 4
+PHASE_NAMES = ("approach", "lower", "push", "level", "raise")
 CONTROL_DT = 0.02  # [s] 50 Hz, the paper's sampling frequency (scenarios use it)
 TORQUE_TAU = 0.2  # [s] time constant of the flipper torque low-pass filter
 
@@ -66,6 +74,8 @@ PARAM_DEFAULTS: dict[str, float] = {
     "pitch_push": 0.35,  # [rad] pitch that starts the rear flipper push
     "pitch_level": 0.05,  # [rad] pitch below which (after PUSH) the robot is on top
     "level_s": 3.0,  # [s] in LEVEL before approaching the next terrace
+    "hook_s": 3.0,  # [s] LOWER without pitching this long: the flipper tips are below the edge -> RAISE
+    "pitch_hook": 0.3,  # [rad] RAISE until the front has climbed the riser face this far, then LOWER
 }
 
 
@@ -109,8 +119,12 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
         nxt = jnp.where((nxt == LOWER) & (pitch > p["pitch_push"]), PUSH, nxt)
         nxt = jnp.where((nxt == PUSH) & (pitch < p["pitch_level"]), LEVEL, nxt)
         nxt = jnp.where((phase == LEVEL) & (t - s["t_phase"] > p["level_s"]), APPROACH, nxt)
+        below_edge = (phase == LOWER) & (t - s["t_phase"] > p["hook_s"]) & (pitch < p["pitch_trigger"])
+        nxt = jnp.where(below_edge, RAISE, nxt)
+        nxt = jnp.where((phase == RAISE) & (pitch > p["pitch_hook"]), LOWER, nxt)
         # flipper targets per phase (front l, front r, rear l, rear r)
         front = jnp.where(phase == APPROACH, p["front_up"], jnp.where(phase == LEVEL, 0.0, p["front_down"]))
+        front = jnp.where(phase == RAISE, P.FLIPPER_LIMIT, front)
         rear = jnp.where((phase == PUSH) | ((phase == LEVEL) & (t - s["t_phase"] < 2.0)), p["rear_push"], 0.0)
         target = jnp.stack([front, front, rear, rear])
         flip = _approach(s["flip"], target, p["lower_rate"], control_dt)
