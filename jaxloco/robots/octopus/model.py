@@ -83,7 +83,7 @@ FLIPPER_ARMATURE = 0.2
 CRAWLER_KV = 10000.0  # track velocity servo gain [N/(m/s)]
 CRAWLER_FORCE = 600.0  # traction limit per side [N]
 WHEEL_ARMATURE = 0.01
-ROLLER_DAMPING, ROLLER_ARMATURE = 0.01, 0.002
+ROLLER_DAMPING, ROLLER_ARMATURE = 0.05, 0.005  # [N m s/rad], [kg m^2] (`add_roller`)
 # touch site radius beyond its wheel / roller sphere [m]: MuJoCo counts a contact when its
 # point (mid-penetration, < 1 mm inside the sphere here) lies in the site; 10 mm covers
 # deep transient penetration. Only contacts of the site's own body count, so the sites of
@@ -334,14 +334,16 @@ def add_roller(parent: mujoco.MjsBody, arm: str, pos: list[float]) -> mujoco.Mjs
     broken during EPRA's slippage"), with its touch site. Before 3 Dec 2026 it hung on two
     nested hinges (forearm z, then y). Dragged over a floor (mu 0.8) with the forearm 45
     deg down and back, that roller slid at about mu N in both directions, where the ball
-    rolls at 0.4 % of mu N (`tests/test_octopus_model.py::test_roller_rolls_every_way`),
+    rolls at 2.4 % of mu N (`tests/test_octopus_model.py::test_roller_rolls_every_way`),
     so a placed arm whose boom turned dragged its roller and pushed the body (a model
-    artifact)."""
+    artifact). Bearing damping ROLLER_DAMPING and torsional contact friction (condim 4)
+    keep the free ball from spinning up: with 0.01 N m s/rad and no torsional friction
+    rollers reached the 100 rad/s divergence limit in 3 of 20 block runs. Default (ours)."""
     roller = parent.add_body(name=f"{arm}_roller", pos=pos)
     roller.add_joint(name=f"{arm}_roller", type=mujoco.mjtJoint.mjJNT_BALL, damping=ROLLER_DAMPING,
                      armature=ROLLER_ARMATURE)
     roller.add_geom(name=f"{arm}_roller", type=_SPHERE, size=[P.ROLLER_RADIUS, 0, 0], mass=P.MASS_ROLLER,
-                    rgba=[0.1, 0.1, 0.1, 1], **COLLIDE)
+                    rgba=[0.1, 0.1, 0.1, 1], **{**COLLIDE, "condim": 4})
     _touch_site(roller, f"{arm}_roller", P.ROLLER_RADIUS)
     return roller
 
