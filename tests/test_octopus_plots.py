@@ -66,7 +66,11 @@ def test_figures():
     labels = {t.get_text() for t in axes[0].texts}
     assert {"A-C", "D", "E"} <= labels  # the paper's phases over WALK, PREPARE, CLIMB
     fig = plots.plot_attitude_traces({"run": tr}, paper={"run": {"max_pitch": 0.59, "max_abs_roll": 0.25}})
-    assert len(fig.get_axes()) == 2
+    a1, a2 = fig.get_axes()
+    assert [ln.get_ydata()[0] for ln in a2.get_lines()[1:]] == [0.25, -0.25]  # the paper's |roll| at +-
+    fig = plots.plot_climb_traces({"run": tr}, paper={"run": {"max_pitch": 0.6, "min_margin": 0.15}})
+    a1, a2 = fig.get_axes()
+    assert a1.get_lines()[1].get_ydata()[0] == 0.6 and a2.get_lines()[1].get_ydata()[0] == 0.15
     fig = plots.plot_arm_on_obstacle(tr, arm=1)
     a1, a2 = fig.get_axes()
     (span,) = [p for p in a1.patches]  # the roller on the obstacle top, samples 10-19

@@ -87,31 +87,44 @@ def climb_trace(records: Mapping[str, Any], i: int, times: Any) -> dict[str, np.
     }
 
 
-def plot_climb_traces(traces: Mapping[str, Mapping[str, np.ndarray]],
-                      paper: Mapping[str, Mapping[str, float]] | None = None, *, figsize=(9.0, 3.4)):
-    """Nose-up pitch [rad] and stability margin [m] over time, one line per labelled run
-    (the paper's Figs. 12-13 compare CCM and CLM on the 400 mm step). paper: per label,
-    {"max_pitch": ..., "min_margin": ...} drawn as dashed lines of the run's colour."""
+def _pitch_and(traces: Mapping[str, Mapping[str, np.ndarray]], key: str, ylabel: str, titles: tuple[str, str],
+               paper: Mapping[str, Mapping[str, float]] | None, ref_lines, figsize):
+    """Nose-up pitch (left, with the paper's max pitch dashed) and signal `key` (right)
+    over time, one line per labelled run; `ref_lines(ax, ref, color)` draws the paper's
+    lines of the right panel."""
     import matplotlib.pyplot as plt
 
     fig, (a1, a2) = plt.subplots(1, 2, figsize=figsize, layout="constrained")
     for k, (label, tr) in enumerate(traces.items()):
         color = f"C{k}"
         a1.plot(tr["t"], tr["pitch"], color=color, lw=1.2, label=label)
-        a2.plot(tr["t"], tr["margin"], color=color, lw=1.2, label=label)
+        a2.plot(tr["t"], tr[key], color=color, lw=1.2, label=label)
         ref = (paper or {}).get(label, {})
         if "max_pitch" in ref:
             a1.axhline(ref["max_pitch"], color=color, ls="--", lw=1, label=f"paper max {ref['max_pitch']:g}")
-        if "min_margin" in ref:
-            a2.axhline(ref["min_margin"], color=color, ls="--", lw=1, label=f"paper min {ref['min_margin']:g}")
+        ref_lines(a2, ref, color)
     a1.set_ylabel("pitch, nose up [rad]")
-    a2.set_ylabel("stability margin [m]")
-    for ax, t in ((a1, "pitch angle (Fig. 12)"), (a2, "static stability margin (Fig. 13)")):
+    a2.set_ylabel(ylabel)
+    for ax, t in zip((a1, a2), titles):
         ax.set_xlabel("time [s]")
         ax.set_title(t, fontsize="medium")
         ax.grid(alpha=0.3)
         ax.legend(fontsize="x-small")
     return fig
+
+
+def plot_climb_traces(traces: Mapping[str, Mapping[str, np.ndarray]],
+                      paper: Mapping[str, Mapping[str, float]] | None = None, *, figsize=(9.0, 3.4)):
+    """Nose-up pitch [rad] and stability margin [m] over time, one line per labelled run
+    (the paper's Figs. 12-13 compare CCM and CLM on the 400 mm step). paper: per label,
+    {"max_pitch": ..., "min_margin": ...} drawn as dashed lines of the run's colour."""
+
+    def margin_line(ax, ref, color):
+        if "min_margin" in ref:
+            ax.axhline(ref["min_margin"], color=color, ls="--", lw=1, label=f"paper min {ref['min_margin']:g}")
+
+    return _pitch_and(traces, "margin", "stability margin [m]",
+                      ("pitch angle (Fig. 12)", "static stability margin (Fig. 13)"), paper, margin_line, figsize)
 
 
 def _phase_spans(t: np.ndarray, phase: np.ndarray) -> list[tuple[float, float, int]]:
@@ -127,28 +140,14 @@ def plot_attitude_traces(traces: Mapping[str, Mapping[str, np.ndarray]],
     """Nose-up pitch and roll [rad] over time, one line per labelled run (the paper's Figs.
     16 and 18, two terraces from the front and from the side). paper: per label,
     {"max_pitch": ..., "max_abs_roll": ...} drawn as dashed lines (roll at +-)."""
-    import matplotlib.pyplot as plt
 
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=figsize, layout="constrained")
-    for k, (label, tr) in enumerate(traces.items()):
-        color = f"C{k}"
-        a1.plot(tr["t"], tr["pitch"], color=color, lw=1.2, label=label)
-        a2.plot(tr["t"], tr["roll"], color=color, lw=1.2, label=label)
-        ref = (paper or {}).get(label, {})
-        if "max_pitch" in ref:
-            a1.axhline(ref["max_pitch"], color=color, ls="--", lw=1, label=f"paper max {ref['max_pitch']:g}")
+    def roll_lines(ax, ref, color):
         if "max_abs_roll" in ref:
             for sign in (1.0, -1.0):
-                a2.axhline(sign * ref["max_abs_roll"], color=color, ls="--", lw=1,
+                ax.axhline(sign * ref["max_abs_roll"], color=color, ls="--", lw=1,
                            label=f"paper max |roll| {ref['max_abs_roll']:g}" if sign > 0 else None)
-    a1.set_ylabel("pitch, nose up [rad]")
-    a2.set_ylabel("roll [rad]")
-    for ax, t in ((a1, "pitch angle"), (a2, "roll angle")):
-        ax.set_xlabel("time [s]")
-        ax.set_title(t, fontsize="medium")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize="x-small")
-    return fig
+
+    return _pitch_and(traces, "roll", "roll [rad]", ("pitch angle", "roll angle"), paper, roll_lines, figsize)
 
 
 def plot_arm_joints(trace: Mapping[str, np.ndarray], arms: Sequence[int] = (1, 3), *,
