@@ -27,8 +27,9 @@ Policy (angles [rad], flipper angle > 0 lifts the tip, see `model.py`; pitch > 0
     `pitch_trigger` within `hook_s`, the front flippers turn up to their 85 deg limit
     while the crawlers keep driving them against the riser, so that the front climbs the
     riser face; once the pitch passes `pitch_hook` the flippers go down again (LOWER) to
-    hook over the edge, and PUSH follows as on a low step. On 400 mm this pitches the
-    robot up and it slides back or tips; it never reaches the top (paper: 0 %).
+    hook over the edge, and PUSH follows as on a low step. On 400 mm the front does not
+    climb the face (the tracks slip against the riser, the pitch stays below 0.1 rad):
+    the robot never reaches the top (paper: 0 %).
 The arm joints are held at `ARMS_STOWED`, as in the paper's CCM run: front arms in the
 zero pose (stretched forward, level, rollers 433 mm above the floor), rear arms lifted
 (boom raised 0.6 rad, pointing forward), clear of the ground while on flat floor. On a
