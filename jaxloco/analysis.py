@@ -200,6 +200,8 @@ _BUILTIN: dict[str, str] = {
     "titan.walk": "jaxloco.robots.titan.sim_analysis:WALK",
     "snake.kv": "jaxloco.robots.snake.analysis:KV",
     "snake.reach": "jaxloco.robots.snake.sim_analysis:REACH",
+    "snake.table3": "jaxloco.robots.snake.table3:TABLE3",
+    "snake.contact": "jaxloco.robots.snake.contact:CONTACT",
 }
 _REGISTERED: dict[str, Analysis] = {}
 

@@ -168,7 +168,8 @@ def test_eq14_null_space_term(seed, sigma):
 # ------------------------------------------------------------------------ cost (19, 20)
 def _mujoco_support(model, data, phi, base, grounded):
     """From MuJoCo alone: the subtree COM of the root link and the support polygon of both
-    wheels of every grounded base pair (contact sites +- WHEEL_Y along the axle)."""
+    wheels of every grounded base pair (MuJoCo's wheel body centres, r below them along
+    the link z)."""
     qpos, _ = M.pose_qpos_ctrl(model, phi, base)
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
@@ -178,9 +179,8 @@ def _mujoco_support(model, data, phi, base, grounded):
     for i, pair in enumerate(P.BASE_PAIRS):
         if not grounded[i]:
             continue
-        c = data.site(f"pair{pair + 1}_contact").xpos
-        y = data.xmat[model.body(f"link{P.PAIR_LINKS[pair]}").id].reshape(3, 3)[:, 1]
-        pts += [c + P.WHEEL_Y * y, c - P.WHEEL_Y * y]
+        z = data.xmat[model.body(f"link{P.PAIR_LINKS[pair]}").id].reshape(3, 3)[:, 2]
+        pts += [data.body(f"wheel{pair + 1}_{side}").xpos - P.WHEEL_RADIUS * z for side in ("active", "passive")]
     return com, np.array(pts)
 
 
@@ -224,8 +224,8 @@ def test_center_of_mass_matches_mujoco(posture, mj):
 def test_cost_eq19_and_eq20_against_mujoco_and_scipy(posture, mj):
     """a2 = 0: V = phi^T K_V phi (Eq. 19). a2 > 0: V = a1 phi^T K_V phi + a2 / ||d||
     (Eq. 20), ||d|| over every side of the grounded wheels' support polygon, from
-    MuJoCo's COM and contact sites and scipy's hull, for every mode. The straight base has
-    collinear wheels along each side: one side each, not one per wheel gap."""
+    MuJoCo's COM and wheel bodies and scipy's hull, for every mode. The straight base has
+    collinear wheels along its sides: one side each, not one per wheel gap."""
     model, data = mj
     if POSTURES[posture] is None:
         base, phi = np.array([0.3, -0.2, 0.7]), P.INITIAL_PHI.copy()
@@ -243,8 +243,9 @@ def test_cost_eq19_and_eq20_against_mujoco_and_scipy(posture, mj):
         com, pts = _mujoco_support(model, data, phi, base, g)
         assert np.abs(pts[:, 2]).max() < 1e-9  # the wheels touch the ground
         d = _hull_line_distances(com[:2], pts[:, :2])
-        if posture == "straight":
-            assert len(d) == 4  # a rectangle, however many wheels lie on its long sides
+        if posture == "straight":  # collinear wheels (same track width) make one side, not one per gap
+            normals = np.round(ConvexHull(pts[:, :2]).equations[:, :2], 9)
+            assert len(d) == len(np.unique(normals, axis=0)) <= 6
         v20 = float(_COST(*args, C.ControlParams(kv=jnp.asarray(kv), a1=a1, a2=a2)))
         assert v20 == pytest.approx(a1 * joint + a2 / np.linalg.norm(d), rel=1e-9)
         # support_distances: the static margin is the distance to the nearest side when

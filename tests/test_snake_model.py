@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
+import pytest
 
 from jaxloco.robots.snake import kinematics as K
 from jaxloco.robots.snake import model as M
@@ -66,6 +67,38 @@ def test_straight_pose_dimensions_follow_table_1():
             assert d.geom_xpos[g][2] - np.abs(R[2]) @ m.geom_size[g] > 0.009 or (
                 m.geom_type[g] == mujoco.mjtGeom.mjGEOM_CAPSULE
             )
+
+
+def test_base_pairs_1_3_5_are_wider_with_a_battery_beside_the_passive_wheel():
+    """Sec. IV-A, reading (a) of `params`: the wheels of base pairs 1, 3, 5 (pairs 3, 5, 7
+    of the model) are farther apart than the others', and a battery sits in the space
+    between the link and the passive wheel, touching neither."""
+    m = M.load_model()
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("straight").id)
+    mujoco.mj_kinematics(m, d)
+    track = {i: d.body(f"wheel{i}_active").xpos[1] - d.body(f"wheel{i}_passive").xpos[1] for i in range(1, 10)}
+    wide = {int(k) + 1 for k in P.WIDE_PAIRS}
+    assert wide == {int(P.BASE_PAIRS[k]) + 1 for k in (0, 2, 4)} == {3, 5, 7}
+    assert min(track[i] for i in wide) > max(track[i] for i in set(track) - wide) + 0.015
+    for i in range(1, 10):
+        inner = 0.5 * track[i] - P.WHEEL_HALF_WIDTH  # the wheels' inner faces clear the links
+        assert inner > P.LINK_HALF[1]
+        if i in wide:
+            g = m.geom(f"battery{i}")
+            y = d.geom_xpos[g.id][1]
+            assert -inner < y - g.size[1] and y + g.size[1] < -P.LINK_HALF[1] + 1e-12  # passive (right) side
+            assert m.geom_contype[g.id] == 0
+            assert m.body_mass[g.bodyid[0]] == pytest.approx(P.LINK_MASS + P.BATTERY_MASS, abs=1e-12)
+
+
+def test_longer_pair_gaps_along_the_body_would_not_fit_table_1():
+    """Reading (b) of Sec. IV-A (longer gaps *between* pairs 1-2, 3-4, 5-6 along the body)
+    is not the model: Table I's nine 181 mm modules and the 90 mm gripper leave 10 mm of
+    its 1729 mm length, less than one battery (`params` docstring)."""
+    spare = P.SIZE_HWL[2] - P.N_MODULES * P.MODULE_LENGTH - P.GRIPPER_LENGTH
+    assert spare == pytest.approx(0.010, abs=1e-9)
+    assert 3 * 2 * P.BATTERY_HALF[0] > spare
 
 
 def test_initial_keyframe_is_sec_5a_posture_with_the_base_on_the_ground():

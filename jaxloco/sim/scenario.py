@@ -101,6 +101,20 @@ def friction_field(geom_ids: Any, key: str = "mu") -> ModelField:
     return ModelField("geom_friction", (ids, 0), lambda p: jnp.full(ids.shape, p[key]))
 
 
+def position_servo_fields(actuator_ids: Any, kp_key: str, kv_key: str) -> tuple[ModelField, ModelField]:
+    """The stiffness and damping of the position servos `actuator_ids` (MuJoCo's
+    position actuator: gainprm[0] = kp, biasprm[1] = -kp, biasprm[2] = -kv) set per
+    simulation to params[kp_key] [N m/rad] and params[kv_key] [N m s/rad]."""
+    ids = np.asarray(actuator_ids)
+    n = ids.shape[0]
+    bias_index = (np.concatenate([ids, ids]), np.repeat(np.array([1, 2]), n))
+    return (
+        ModelField("actuator_gainprm", (ids, 0), lambda p: jnp.full(n, p[kp_key])),
+        ModelField("actuator_biasprm", bias_index,
+                   lambda p: jnp.concatenate([jnp.full(n, -p[kp_key]), jnp.full(n, -p[kv_key])])),
+    )
+
+
 @dataclass(frozen=True)
 class DivergenceTest:
     """When a simulation counts as diverged: a non-finite state, a joint speed above

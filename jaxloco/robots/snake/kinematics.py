@@ -211,7 +211,7 @@ def constraint_matrices(
         Rs, _ = link_frames(to_head(w_), joints, params)
         _, contact, R = wheel_pairs(to_head(w_), joints, params)
         base = P.BASE_PAIRS
-        active = contact + (P.ACTIVE_SIDE * params.wheel_y) * R[:, :, 1]
+        active = contact + (P.ACTIVE_SIDE * pair_wheel_y(params, contact.dtype))[:, None] * R[:, :, 1]
         return contact[base], active[base], R[base], Rs[_BASE_LINK]
 
     _, _, R, R7 = geometry(w, phi)
@@ -351,8 +351,14 @@ def wheel_contacts(
     params = P.default_params() if params is None else params
     _, contact, R = wheel_pairs(w_h, joints, params)
     c, y = contact[P.BASE_PAIRS], R[P.BASE_PAIRS][:, :, 1]
-    d = P.ACTIVE_SIDE * params.wheel_y
+    d = (P.ACTIVE_SIDE * pair_wheel_y(params, c.dtype)[P.BASE_PAIRS])[:, None]
     return jnp.stack([c + d * y, c - d * y], axis=1)
+
+
+def pair_wheel_y(params: P.SnakeParams, dtype=None) -> Array:
+    """(9,) each pair's wheel centres from its axle midpoint [m] (`params.wheel_y`, a
+    scalar is the same for every pair)."""
+    return jnp.broadcast_to(jnp.asarray(params.wheel_y, dtype), (P.N_PAIRS,))
 
 
 def center_of_mass(
@@ -362,7 +368,8 @@ def center_of_mass(
 ) -> Array:
     """Whole-robot centre of mass (3,), world frame [m], with the masses of `params`
     (module docstring there; the same as the MJCF): each link's box centre l/2 behind
-    its frame, the 18 wheels at the axle ends, the gripper's centre on the head x axis."""
+    its frame, the 18 wheels at the axle ends, the batteries beside the wide pairs' passive
+    wheels, the gripper's centre on the head x axis."""
     params = P.default_params() if params is None else params
     Rs, ps = link_frames(w_h, joints, params)
     dt = ps.dtype
@@ -370,12 +377,14 @@ def center_of_mass(
     links = ps - 0.5 * l * Rs[:, :, 0]
     link_m = jnp.full(P.N_LINKS, P.LINK_MASS, dt).at[0].set(P.HEAD_MASS)
     axle, _, R = wheel_pairs(w_h, joints, params)
-    wheels = jnp.concatenate(
-        [axle + P.WHEEL_Y * R[:, :, 1], axle - P.WHEEL_Y * R[:, :, 1]]
-    )
+    y = jnp.asarray(P.PAIR_WHEEL_Y, dt)[:, None] * R[:, :, 1]
+    wheels = jnp.concatenate([axle + y, axle - y])
+    wide = np.asarray(P.WIDE_PAIRS)
+    batteries = axle[wide] - P.ACTIVE_SIDE * jnp.asarray(P.BATTERY_Y, dt) * R[wide][:, :, 1]
     grip_c = ps[0] + (P.GRIPPER_TIP - 0.5 * P.GRIPPER_LENGTH) * Rs[0][:, 0]
-    total = jnp.sum(link_m) + 2 * P.N_PAIRS * P.WHEEL_MASS + P.GRIPPER_MASS
+    total = jnp.sum(link_m) + 2 * P.N_PAIRS * P.WHEEL_MASS + len(wide) * P.BATTERY_MASS + P.GRIPPER_MASS
     moment = (
-        link_m @ links + P.WHEEL_MASS * jnp.sum(wheels, axis=0) + P.GRIPPER_MASS * grip_c
+        link_m @ links + P.WHEEL_MASS * jnp.sum(wheels, axis=0) + P.BATTERY_MASS * jnp.sum(batteries, axis=0)
+        + P.GRIPPER_MASS * grip_c
     )
     return moment / total

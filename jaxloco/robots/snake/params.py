@@ -37,12 +37,30 @@ Chosen values (not in the text):
     The head part has pairs at psi_1 and psi_2 (in the model, ignored by the kinematic
     model as the paper says: "active wheels of the head part are ignored").
   * Active wheel on the left (+y) of each pair, passive on the right (Fig. 4(b) shows
-    one of each, the side is not given). Track: wheel centres +-WHEEL_Y = +-77.5 mm, wheel
-    width 20 mm, so the wheels' outer faces are 175 mm apart = Table I width. The
-    175 mm height (camera, stored gripper) is not modelled: links are boxes 120 x 80 mm
-    in section centred on the axle line, 10 mm ground clearance when flat.
-  * Masses: gripper 87 g (Sec. IV-B), 18 wheels of 0.1 kg, links 2..18 0.45 kg each,
-    the head link the rest (0.463 kg, it carries the gripper's two joints): 10 kg.
+    one of each, the side is not given).
+  * Track widths (Sec. IV-A: "we increase the lengths between the wheels of the first,
+    third, and fifth pairs on the base part ... and batteries are relocated from the
+    head and tail to the generated spaces"; "batteries are installed for each passive
+    wheel"). Two readings: (a) the distance between the two wheels *of* pairs 1, 3, 5
+    (their track) is larger, the batteries sit between the link and the passive wheel;
+    (b) the distance between pairs 1-2, 3-4, 5-6 along the body is longer. We take (a):
+    (b) contradicts Table I, whose modules are all L = 181 mm long and whose 1729 mm
+    total length is already 9 L + the 90 mm gripper + 10 mm (`test_snake_model`
+    checks both); under (b) the three longer gaps would have to fit in those 10 mm.
+    So base pairs 1, 3, 5 (pairs 3, 5, 7 here, WIDE_PAIRS) have their wheel centres at
+    +-WIDE_WHEEL_Y = +-77.5 mm (wheel width 20 mm: outer faces 175 mm apart, Table I's
+    width); the other pairs at +-NARROW_WHEEL_Y = +-67.5 mm (outer faces 155 mm apart),
+    default (ours: the paper gives no number). A BATTERY_MASS = 0.2 kg box, default
+    (ours), 18 mm thick, sits in the 20 mm between the link and each wide pair's passive
+    wheel. The 175 mm height (camera, stored gripper) is not modelled: links are boxes
+    95 x 80 mm (W x H, ours) in section centred on the axle line, 10 mm ground clearance
+    when flat, 10 mm inside the narrow pairs' wheels. (A narrower track, 57.5 mm, left
+    the narrow pairs beside a wide one hovering 2-3 mm above the ground in the zigzag of
+    Sec. V-B; see scenarios.CONTACT_TOL.)
+  * Masses (10 kg, Table I): gripper 87 g (Sec. IV-B), 18 wheels of 0.1 kg, three
+    batteries of 0.2 kg, links 2..18 0.415 kg each, the head link the rest (0.458 kg,
+    it carries the gripper's two joints), default (ours) but the total and the
+    gripper.
   * Joint sign conventions: a positive yaw angle theta_i turns the front (head side)
     link to the left relative to the rear one; a positive pitch angle psi_i raises the
     front link (psi_3 = +110 deg raises the head part, Sec. IV-C3 and Fig. 4(a)).
@@ -51,7 +69,7 @@ Chosen values (not in the text):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import jax
 import jax.numpy as jnp
@@ -104,7 +122,11 @@ PAIR_OFFSETS = np.array(
     [0.0] * N_PITCH + [-TAIL_AXLE]
 )  # axle x in the carrying link's frame [m]
 BASE_PAIRS = np.arange(N_PITCH - N_PAIRS_BASE + 1, N_PAIRS)  # pairs 2..8 (0-based)
-WHEEL_Y = 0.0775  # [m] wheel centre from the axle midpoint
+WIDE_WHEEL_Y = 0.0775  # [m] wheel centre from the axle midpoint, pairs WIDE_PAIRS (Table I width)
+NARROW_WHEEL_Y = 0.0675  # [m] the other pairs, default (ours)
+WIDE_PAIRS = BASE_PAIRS[[0, 2, 4]]  # base pairs 1, 3, 5 (Sec. IV-A): pairs 3, 5, 7 here (0-based 2, 4, 6)
+PAIR_WHEEL_Y = np.where(np.isin(np.arange(N_PAIRS), WIDE_PAIRS), WIDE_WHEEL_Y, NARROW_WHEEL_Y)  # (9,) [m]
+WHEEL_Y = WIDE_WHEEL_Y  # [m] the widest track: the robot's half width less half a wheel
 WHEEL_HALF_WIDTH = 0.010  # [m]
 ACTIVE_SIDE = 1.0  # +1: the active wheel is the left one
 
@@ -114,10 +136,15 @@ GRIPPER_LENGTH = 0.090  # [m]
 GRIPPER_RADIUS = 0.025  # [m]
 GRIPPER_MASS = 0.087  # [kg]
 WHEEL_MASS = 0.1  # [kg]
-LINK_MASS = 0.45  # [kg] links 2..18
-HEAD_MASS = MASS - GRIPPER_MASS - 2 * N_PAIRS * WHEEL_MASS - (N_LINKS - 1) * LINK_MASS
-# = 0.463 kg: link 1 with the gripper's two rotational joints (Fig. 4(e), (f))
-LINK_HALF = (0.5 * LINK_LENGTH, 0.060, 0.040)  # link box half sizes [m]
+LINK_HALF_Y = 0.0475  # [m] half the links' width, default (ours)
+BATTERY_MASS = 0.2  # [kg] one per wide pair, on its passive side, default (ours)
+BATTERY_HALF = (0.025, 0.009, 0.030)  # battery box half sizes [m], between the link and the passive wheel
+BATTERY_Y = LINK_HALF_Y + BATTERY_HALF[1]  # [m] battery centre from the axle midpoint, passive side
+LINK_MASS = 0.415  # [kg] links 2..18
+HEAD_MASS = (MASS - GRIPPER_MASS - 2 * N_PAIRS * WHEEL_MASS - len(WIDE_PAIRS) * BATTERY_MASS
+             - (N_LINKS - 1) * LINK_MASS)
+# = 0.458 kg: link 1 with the gripper's two rotational joints (Fig. 4(e), (f))
+LINK_HALF = (0.5 * LINK_LENGTH, LINK_HALF_Y, 0.040)  # link box half sizes [m]
 
 # --- Table II: modes (rows sigma = 1..6) x base wheel pairs 1..7, True = grounded
 MODES = np.array(
@@ -144,7 +171,8 @@ class SnakeParams:
     wheel_radius: jax.Array = WHEEL_RADIUS  # r [m]
     gripper_tip: jax.Array = GRIPPER_TIP  # [m]
     tail_axle: jax.Array = TAIL_AXLE  # [m]
-    wheel_y: jax.Array = WHEEL_Y  # [m] active wheel centre from the axle midpoint
+    # (9,) [m] each pair's wheel centres from its axle midpoint (PAIR_WHEEL_Y)
+    wheel_y: jax.Array = field(default_factory=lambda: PAIR_WHEEL_Y.copy())
 
     def with_(self, **changes) -> SnakeParams:
         return replace(self, **changes)

@@ -84,7 +84,8 @@ vertical; it includes the designed inclination beta_1, 0.11 rad in mode 6), fell
 Params (`PARAM_DEFAULTS`, `params_batch`): mu, lift_height [m], mode (int 1..6, the
 initial mode: lifted wheels at t = 0, and the mode of `constant_controller`), rho_dot
 [rad/s] (`constant_controller`'s base wheel speed), x0, y0 [m], heading0 [rad] (initial
-base placement), fall_tilt [rad]; a controller's own keys are added with
+base placement), fall_tilt [rad], head_kp [N m/rad], head_kv [N m s/rad] (the head part's
+six position servos, per simulation; defaults: the model's); a controller's own keys are added with
 `params_batch(..., defaults=...)`.
 """
 
@@ -92,6 +93,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import jax
@@ -106,14 +108,16 @@ from jaxloco.robots.snake import params as P
 from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.data import SimData
-from jaxloco.sim.scenario import Controller, InitialState, Scenario, friction_field
+from jaxloco.sim.scenario import Controller, InitialState, Scenario, friction_field, position_servo_fields
 from jaxloco.sim.scenario import params_batch as sim_params_batch
 
 Array = jax.Array
 Policy = Callable[[Mapping[str, Any], Any, Any], tuple[Any, Array, Array, Array]]
 
 LIFT_HEIGHT = 0.02  # [m] default lift of a wheel pair (wheel lowest point above ground)
-CONTACT_TOL = 0.002  # [m] a wheel pair touches when its clearance is below this
+CONTACT_TOL = 0.003  # [m] a wheel pair touches when its clearance is below this. 3 mm: `lift_angles` places
+# axle midpoints and ignores the roll of a bent base, so in the zigzag of Sec. V-B a narrow pair beside a wide one
+# (params.WIDE_PAIRS) rests 2-2.5 mm above the ground while the wide pair's lower wheel carries it
 CONTROL_DT = 0.02  # [s] default control period (50 Hz)
 STATUSES = ("ok", "fell")
 
@@ -126,6 +130,8 @@ PARAM_DEFAULTS: dict[str, float] = {
     "y0": 0.0,  # [m]
     "heading0": 0.0,  # [rad] ... and heading of link 7
     "fall_tilt": 0.5,  # [rad] link 7 tilted more than this: fell
+    "head_kp": snake_model.KP,  # [N m/rad] stiffness of the head part's six servos (model.py)
+    "head_kv": snake_model.KV,  # [N m s/rad] their damping
 }
 INT_KEYS = ("mode",)
 
@@ -291,7 +297,8 @@ def state_geometry(qpos: Array, qvel: Array, params: P.SnakeParams | None = None
     joints, jvel = qpos[lay["joint_qpos"]], qvel[lay["joint_dof"]]
     spin = qvel[lay["wheel_dof"]]
     zero = jnp.zeros(6, dtype)
-    d = jnp.asarray(P.ACTIVE_SIDE * params.wheel_y, dtype)
+    wy = K.pair_wheel_y(params, dtype)  # (9,)
+    d = (P.ACTIVE_SIDE * wy)[:, None]
 
     def rel(q):  # in the head frame: pair contact points, active wheels' contacts, axes
         axle, contact, R = K.wheel_pairs(zero, q, params)
@@ -310,7 +317,7 @@ def state_geometry(qpos: Array, qvel: Array, params: P.SnakeParams | None = None
     axle = p_h + axle_rel @ R_h.T
     a_z = y_ax[:, 2]
     drop = params.wheel_radius * jnp.sqrt(jnp.clip(1.0 - a_z**2, 0.0, 1.0)) + P.WHEEL_HALF_WIDTH * jnp.abs(a_z)
-    centre_z = axle[:, 2][:, None] + params.wheel_y * jnp.stack([a_z, -a_z], -1)
+    centre_z = axle[:, 2][:, None] + wy[:, None] * jnp.stack([a_z, -a_z], -1)
     clearance = jnp.min(centre_z, -1) - drop
     Rs, ps = K.link_frames(zero, joints, params)
     R7, p7 = R_h @ Rs[_BASE_LINK], p_h + R_h @ ps[_BASE_LINK]
@@ -380,11 +387,28 @@ def constant_controller(phi: np.ndarray | None = None) -> Controller:
 
 
 # --------------------------------------------------------------------------- scenario
-def build_model() -> tuple[mujoco.MjModel, tr.Terrain]:
-    """The robot (`models/t2snake3.xml`) on flat ground (top face z = 0)."""
+@dataclass(frozen=True)
+class Fixture:
+    """Bodies added to the scene beside the ground (e.g. a force plate): `add(spec)` adds
+    them as mocap bodies named `bodies` (after the ground, so every other index stays);
+    `pose(params, dtype)` gives their positions (k, 3) and quaternions (k, 4) per
+    simulation; the MuJoCo sensors `sensors` (added by `add`) are recorded as
+    "fixture" (their readings concatenated)."""
+
+    add: Callable[[mujoco.MjSpec], None]
+    bodies: tuple[str, ...]
+    pose: Callable[[Mapping[str, Any], Any], tuple[Array, Array]]
+    sensors: tuple[str, ...] = ()
+
+
+def build_model(fixture: Fixture | None = None) -> tuple[mujoco.MjModel, tr.Terrain]:
+    """The robot (`models/t2snake3.xml`) on flat ground (top face z = 0), with the
+    fixture's bodies if given."""
     spec = snake_model.load_spec()
     terrain = tr.flat(half_extent=10.0, half_depth=0.5)
     terrain.add_to(spec, friction=(PARAM_DEFAULTS["mu"], 0.005, 0.0001))
+    if fixture is not None:
+        fixture.add(spec)
     return spec.compile(), terrain
 
 
@@ -394,13 +418,15 @@ def snake_scenario(
     controller: Controller | None = None,
     phi0: np.ndarray | None = None,
     record_every: int = 1,
+    fixture: Fixture | None = None,
 ) -> Scenario:
     """T² Snake-3 on flat ground for `horizon_s` seconds at the control period
     `control_dt` [s] (a multiple of the 2 ms physics step), recording every
     `record_every` control periods, driven by `controller` (default
     `constant_controller(phi0)`), starting in the posture phi0 (12,) (default
-    params.INITIAL_PHI, Sec. V-A) with the wheels of params["mode"] lifted."""
-    m, terrain = build_model()
+    params.INITIAL_PHI, Sec. V-A; a params entry "phi0" (12,) per simulation replaces
+    it) with the wheels of params["mode"] lifted; `fixture`: bodies beside the ground."""
+    m, terrain = build_model(fixture)
     phi0 = np.asarray(P.INITIAL_PHI if phi0 is None else phi0, float)
     controller = controller or constant_controller(phi0)
     substeps = max(1, round(control_dt / m.opt.timestep))
@@ -417,16 +443,23 @@ def snake_scenario(
                            for s in ("active", "passive")])
     sp = P.default_params()
     base_pairs = np.asarray(P.BASE_PAIRS)
+    fixture_rows = np.array([m.body_mocapid[m.body(b).id] for b in fixture.bodies]) if fixture else None
+    fixture_adr = np.concatenate([m.sensor_adr[m.sensor(n).id] + np.arange(m.sensor_dim[m.sensor(n).id])
+                                  for n in fixture.sensors]) if fixture and fixture.sensors else None
 
     def initial_state(p, key):
         dtype = jnp.result_type(p["lift_height"], float)
         pos, quat = terrain.place({"height": 0.0 * p["lift_height"]})
         full_pos = jnp.zeros((m.nmocap, 3), dtype).at[rows].set(pos)
         full_quat = jnp.zeros((m.nmocap, 4), dtype).at[rows].set(quat)
+        if fixture is not None:
+            f_pos, f_quat = fixture.pose(p, dtype)
+            full_pos, full_quat = full_pos.at[fixture_rows].set(f_pos), full_quat.at[fixture_rows].set(f_quat)
         grounded = mode_mask(p["mode"])
         lift = jnp.asarray(p["lift_height"], dtype)
-        ctrl = actuator_command(jnp.asarray(phi0, dtype), jnp.zeros(P.N_W, dtype), grounded, lift)
-        joints = joint_targets(jnp.asarray(phi0, dtype), grounded, lift)
+        start = jnp.asarray(p["phi0"] if "phi0" in p else phi0, dtype)
+        ctrl = actuator_command(start, jnp.zeros(P.N_W, dtype), grounded, lift)
+        joints = joint_targets(start, grounded, lift)
         base = jnp.stack([p["x0"], p["y0"], p["heading0"]]).astype(dtype)
         p_h, q_h = placed_head_pose(base, joints, grounded, lift, sp)
         qpos = jnp.asarray(m.qpos0, dtype).at[:3].set(p_h).at[3:7].set(q_h)
@@ -461,6 +494,7 @@ def snake_scenario(
             "phi_cmd": cmd[0],
             "rho_dot_cmd": cmd[1],
             "grounded_cmd": cmd[2],
+            **({"fixture": data.sensordata[fixture_adr]} if fixture_adr is not None else {}),
         }
 
     def summarize(p, r, final):
@@ -489,7 +523,8 @@ def snake_scenario(
         horizon=horizon,
         substeps=substeps,
         record_every=record_every,
-        model_fields=(friction_field(np.concatenate([ground, robot])),),
+        model_fields=(friction_field(np.concatenate([ground, robot])),
+                      *position_servo_fields(_actuator_ids()[0][:P.N_H], "head_kp", "head_kv")),
         statuses=STATUSES,
     )
 

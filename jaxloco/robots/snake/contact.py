@@ -1,0 +1,361 @@
+"""`snake.contact`: the contact forces of the head (Sec. V-C, Tables IV and V) in MuJoCo,
+with a force plate: one row per (posture, trial), the largest force along x, y and -z.
+
+The paper's experiment (Fig. 11): "the robot pushed the plate and the force sensor
+measured the contact force. We measured the maximum contact forces f_x, f_y, f_z along
+x, y, -z directions five times each by controlling the position of the head", in the
+postures of Fig. 12: the base straight or L-shaped, the head at z_h = 0.30-0.40 m and
+y_h = 0-0.2 m (`POSTURES`, the paper's roman numerals).
+
+Ours:
+  * the posture (`head_posture`): "by controlling the position of the head" read
+    literally: from the Sec. V-A head part (psi_3 at its SCP target 110 deg) on a
+    straight or L-shaped base (`L_SHAPE`: theta_6 = theta_7 = 45 deg, the tail half
+    turned to the right; the paper shows but does not give the L), the paper's
+    controller (Eq. 13, no null-space term) moves the head to (y_h, z_h), level and
+    facing +x, on the no-skid model. To move the head 0.1-0.2 m sideways it turns the
+    base (heading 0.54 / 1.03 rad, theta_4 0.8-1.0 rad): with psi_3 at 110 deg and a
+    level head facing +x, the head part alone does not reach y_h = 0.2 m;
+  * the plate (`PLATE_HALF`, a mocap body, MuJoCo `touch` sensor = the normal force on
+    it): PLATE_GAP beyond the gripper along the push direction, square to it (x: ahead
+    of the gripper tip; y: beside the gripper on the +y side; -z: under the gripper),
+    small enough that only the gripper reaches it;
+  * the push (the paper's feedforward control of the head, as in Table III): after
+    `settle` s on the servos, the head target moves `press` m into the plate from t =
+    1 s over `ramp` s and holds for `hold` s; f = the largest normal force on the plate
+    (averaged over 0.1 s) while the gripper first stays on it (`push_force`: once it
+    slides off, what hits the plate is no longer a push). The joint targets keep
+    integrating while the head is blocked, so the force grows until a servo or a wheel
+    gives out or the gripper slides off;
+  * trials: floor friction mu + U(-1, 1) mu_jitter and heading U(-1, 1)
+    heading_jitter from the row's seed (the plate and the push turn with the robot).
+
+`jaxloco sweep snake_contact`: postures (i)-(x) x 5 seeds; the summary prints mean ± SD of
+f_x, f_y, f_z beside the paper's and checks the paper's trends.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+from jaxloco.analysis import Analysis, Metric, Param, SpecError, Summary
+from jaxloco.robots.snake import control as C
+from jaxloco.robots.snake import experiments as E
+from jaxloco.robots.snake import kinematics as K
+from jaxloco.robots.snake import kinsim as S
+from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import scenarios as SC
+from jaxloco.robots.snake import sim_control as SCt
+from jaxloco.sim import terrain as tr
+from jaxloco.sim.scenario import Scenario, seed_jitter
+
+Array = jax.Array
+CONTROL_DT = 0.02  # [s]
+
+# Tables IV and V: posture -> (z_h [m], y_h [m], base part)
+POSTURES: dict[str, tuple[float, float, str]] = {
+    "i": (0.40, 0.0, "straight"), "ii": (0.35, 0.0, "straight"), "iii": (0.30, 0.0, "straight"),
+    "iv": (0.40, 0.0, "L"), "v": (0.35, 0.0, "L"), "vi": (0.30, 0.0, "L"),
+    "vii": (0.35, 0.1, "straight"), "viii": (0.35, 0.2, "straight"),
+    "ix": (0.35, 0.1, "L"), "x": (0.35, 0.2, "L"),
+}
+POSTURE_NAMES = tuple(POSTURES)
+# the paper's forces: posture -> ((f_x mean, SD), (f_y mean, SD), (f_z mean, SD)) [N]
+PAPER_FORCES: dict[str, tuple[tuple[float, float], ...]] = {
+    "i": ((16.9, 0.3), (5.71, 0.22), (15.7, 0.3)),
+    "ii": ((24.0, 1.1), (8.60, 0.20), (12.1, 0.1)),
+    "iii": ((30.4, 1.7), (9.72, 0.33), (10.1, 0.2)),
+    "iv": ((14.9, 0.3), (5.41, 0.36), (15.5, 0.2)),
+    "v": ((21.4, 0.5), (7.12, 0.48), (11.3, 0.2)),
+    "vi": ((26.3, 1.1), (9.94, 0.35), (10.3, 0.2)),
+    "vii": ((20.4, 0.4), (11.1, 0.5), (13.2, 0.2)),
+    "viii": ((15.0, 0.5), (10.1, 0.9), (15.5, 0.3)),
+    "ix": ((19.2, 1.1), (12.7, 0.6), (13.5, 0.4)),
+    "x": ((13.5, 0.5), (14.9, 1.1), (16.1, 0.2)),
+}
+DIRECTIONS = ("x", "y", "z")  # pushes along +x, +y, -z (the paper's "x, y, -z")
+PUSH = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]])  # in the base frame
+L_SHAPE = np.array([0.0, 0.0, math.pi / 4, math.pi / 4, 0.0, 0.0])  # theta_4..theta_9 [rad], ours
+PLATE_HALF = (0.004, 0.03, 0.05)  # [m] thickness, width, height (half sizes), ours
+POSTURE_RAMP = 4.0  # [s] the head's move from the Sec. V-A posture to a contact posture, ours
+PLATE_GAP = 0.03  # [m] from the gripper to the plate at the start (the head sags about 1 cm), ours
+TOUCH_MARGIN = 0.01  # [m] the touch site is the plate grown by this
+SMOOTH_RECORDS = 5  # control periods (0.1 s) the plate force is averaged over (`push_force`)
+GRIPPER_MID = P.GRIPPER_TIP - 0.5 * P.GRIPPER_LENGTH  # [m] the gripper's centre ahead of the head frame
+
+PARAMS = (
+    Param("posture", "ii", "the paper's posture (Tables IV-V): " + "; ".join(
+        f"{k}: z_h {z:g} m, y_h {y:g} m, {b}" for k, (z, y, b) in POSTURES.items()), kind="str",
+        choices=POSTURE_NAMES),
+    Param("press", 0.1, "how far the head target moves into the plate (default (ours))", "m", lo=0.0, hi=0.5),
+    Param("mu", SC.PARAM_DEFAULTS["mu"], "floor friction coefficient (default (ours))", "", lo=0.05, hi=3.0),
+    Param("mu_jitter", 0.1, "mu + U(-1, 1) x this, from the row's seed (default (ours))", "", lo=0.0, hi=1.0),
+    Param("heading_jitter", 0.05, "heading U(-1, 1) x this, from the row's seed (default (ours))", "rad",
+          lo=0.0, hi=3.2),
+    Param("ramp", 4.0, "duration of the head target's move into the plate (default (ours))", "s", lo=0.5,
+          hi=30.0, sweepable=False),
+    Param("hold", 3.0, "time the target is held in the plate after the ramp", "s", lo=0.0, hi=30.0,
+          sweepable=False),
+    Param("settle", SCt.SETTLE, "settling on the servos before the paper's clock starts", "s", lo=0.0, hi=20.0,
+          sweepable=False),
+    Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
+)
+METRICS = (
+    Metric("fx", "largest normal force of the head on the plate, pushing along +x", "N"),
+    Metric("fy", "largest normal force of the head on the plate, pushing along +y", "N"),
+    Metric("fz", "largest normal force of the head on the plate, pushing along -z", "N"),
+    Metric("z_h", "the posture's head height (Tables IV-V)", "m"),
+    Metric("y_h", "the posture's head offset to the left of the base line", "m"),
+    Metric("max_tilt", "largest tilt of the first base link over the three pushes", "rad"),
+    Metric("t_diverged", "time a push diverged (nan: none did)", "s"),
+)
+STATUSES = ("ok", "fell", "diverged")
+
+
+# ------------------------------------------------------------------------- postures
+@functools.lru_cache(maxsize=32)
+def head_posture(z_h: float, y_h: float, base: str) -> tuple[np.ndarray, np.ndarray]:
+    """(phi (12,) [rad], base (3,) = [x, y, heading] of link 7 [m, rad]) of a
+    contact-force posture: what the paper's controller makes of "controlling the
+    position of the head" on the no-skid model (`kinsim`, feedforward, fixing state,
+    the paper's K_V): from the Sec. V-A head part (psi_3 at its SCP target 110 deg) on
+    the straight or L-shaped (`L_SHAPE`) base, the head target moves to height z_h [m]
+    and y_h [m] to the left of the start, its attitude held (level, facing +x), over
+    POSTURE_RAMP s. SpecError if the head does not get there (5 mm, 0.02 rad)."""
+    if base not in ("straight", "L"):
+        raise SpecError(f"base: {base!r} is not 'straight' or 'L'")
+    with jax.enable_x64(True):
+        phi0 = np.concatenate([P.INITIAL_PHI[:P.N_H], L_SHAPE if base == "L" else np.zeros(P.N_B)])
+        phi0[P.SCP_INDEX] = P.SCP_TARGET
+        x0 = S.initial_state(jnp.asarray(phi0))
+        w0 = C.controlled_variable(S.point_pose(x0, point="head"), x0.phi)
+        delta = jnp.zeros(7).at[1].set(y_h).at[2].set(z_h - w0[2])
+        rec = _posture_rollout(x0, S.Target(w0, delta, jnp.float64(0.0), jnp.float64(POSTURE_RAMP)))
+        phi, base_pose, err = (np.asarray(rec[k][-1]) for k in ("phi", "base", "error"))
+    if np.abs(err[:3]).max() > 0.005 or np.abs(err[3:]).max() > 0.02:
+        raise SpecError(f"posture z_h {z_h:g} m, y_h {y_h:g} m, {base}: the head does not get there")
+    return phi, base_pose
+
+
+@jax.jit
+def _posture_rollout(x0, target):
+    steps = round((POSTURE_RAMP + 2.0) / CONTROL_DT)
+    config = S.RolloutConfig(steps=steps, dt=CONTROL_DT, point="head", feedback=False)
+    return S.rollout(x0, target, C.ControlParams(enter_ratio=2.0, k_eta=0.0), config)
+
+
+def plate_pose(phi: np.ndarray, base: np.ndarray, direction: int) -> tuple[np.ndarray, np.ndarray]:
+    """The plate's centre (3,) [m] and quaternion (4,) in the world for the posture phi
+    on the base pose `base` (link 7's x, y, heading) and the push `direction` (0 x, 1 y,
+    2 -z): PLATE_GAP beyond the gripper's surface (the head taken as level and facing
+    +x, as the posture holds it), its thin side along the push."""
+    with jax.enable_x64(True):
+        w = np.asarray(K.base_frame_pose(jnp.asarray(base, jnp.float64), jnp.asarray(phi)))
+    head = w[:3]
+    grip = head + np.array([GRIPPER_MID, 0.0, 0.0])  # the head is level and faces +x
+    t = PLATE_HALF[0]
+    if direction == 0:
+        centre, quat = head + np.array([P.GRIPPER_TIP + PLATE_GAP + t, 0.0, 0.0]), np.array([1.0, 0.0, 0.0, 0.0])
+    elif direction == 1:
+        centre = grip + np.array([0.0, P.GRIPPER_RADIUS + PLATE_GAP + t, 0.0])
+        quat = np.array([math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4)])  # thin along y
+    else:
+        centre = grip - np.array([0.0, 0.0, P.GRIPPER_RADIUS + PLATE_GAP + t])
+        quat = np.array([math.cos(math.pi / 4), 0.0, -math.sin(math.pi / 4), 0.0])  # thin along z
+    return centre, quat
+
+
+# ------------------------------------------------------------------------- the scene
+def _add_plate(spec: mujoco.MjSpec) -> None:
+    body = spec.worldbody.add_body(name="plate", mocap=True, pos=[5.0, 5.0, 1.0])
+    body.add_geom(name="plate", type=mujoco.mjtGeom.mjGEOM_BOX, size=list(PLATE_HALF),
+                  contype=tr.TERRAIN_CONTYPE, conaffinity=tr.TERRAIN_CONAFFINITY, rgba=[0.3, 0.5, 0.9, 1])
+    size = [h + TOUCH_MARGIN for h in PLATE_HALF]
+    body.add_site(name="plate_touch", type=mujoco.mjtGeom.mjGEOM_BOX, size=size, rgba=[0, 0, 0, 0])
+    spec.add_sensor(name="plate_touch", type=mujoco.mjtSensor.mjSENS_TOUCH, objtype=mujoco.mjtObj.mjOBJ_SITE,
+                    objname="plate_touch")
+
+
+def _plate_pose(p: Mapping[str, Any], dtype) -> tuple[Array, Array]:
+    return jnp.asarray(p["plate_pos"], dtype)[None], jnp.asarray(p["plate_quat"], dtype)[None]
+
+
+PLATE = SC.Fixture(add=_add_plate, bodies=("plate",), pose=_plate_pose, sensors=("plate_touch",))
+
+
+@functools.lru_cache(maxsize=4)
+def contact_scenario(ramp: float, hold: float, settle: float) -> Scenario:
+    """The flat-ground snake scenario with the force plate, the head driven by the
+    paper's feedforward task-space control (`sim_control.task_space_controller`)."""
+    horizon = settle + E.T_START + ramp + hold
+    return SC.snake_scenario(horizon, CONTROL_DT, SCt.task_space_controller(CONTROL_DT, "head", False),
+                             fixture=PLATE)
+
+
+def _rotate_z(v: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    c, s = np.cos(heading), np.sin(heading)
+    return np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], -1)
+
+
+def _quat_z_times(heading: np.ndarray, q: np.ndarray) -> np.ndarray:
+    c, s = np.cos(0.5 * heading), np.sin(0.5 * heading)
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    return np.stack([c * w - s * z, c * x - s * y, c * y + s * x, c * z + s * w], -1)
+
+
+def push_params(postures: np.ndarray, mu: np.ndarray, heading: np.ndarray, press: np.ndarray, ramp: float,
+                settle: float) -> dict[str, Any]:
+    """The simulation params of 3 n pushes (row-major: row i's x, y, -z pushes at 3 i,
+    3 i + 1, 3 i + 2) for n rows of postures, floor friction and heading [rad]."""
+    n = len(postures)
+    solved = [head_posture(*POSTURES[str(k)]) for k in postures]
+    phis, bases = np.stack([s[0] for s in solved]), np.stack([s[1] for s in solved])
+    pos, quat = np.zeros((n, 3, 3)), np.zeros((n, 3, 4))
+    for i in range(n):
+        for d in range(3):
+            pos[i, d], quat[i, d] = plate_pose(phis[i], bases[i], d)
+    h3 = np.repeat(heading, 3)  # the whole scene turns about the world origin
+    b3 = np.repeat(bases, 3, axis=0)
+    start = _rotate_z(np.concatenate([b3[:, :2], np.zeros((3 * n, 1))], -1), h3)
+    push = _rotate_z(np.tile(PUSH, (n, 1)), h3) * np.repeat(press, 3)[:, None]
+    params = SCt.params_batch(3 * n, mu=np.repeat(mu, 3), x0=start[:, 0], y0=start[:, 1], heading0=h3 + b3[:, 2],
+                              t0=settle + E.T_START, duration=ramp,
+                              d_x=push[:, 0], d_y=push[:, 1], d_z=push[:, 2])
+    params["phi0"] = np.repeat(phis, 3, axis=0)
+    params["plate_pos"] = _rotate_z(pos.reshape(-1, 3), h3)
+    params["plate_quat"] = _quat_z_times(h3, quat.reshape(-1, 4))
+    return params
+
+
+def make_batch_fn(fixed: Mapping[str, Any]):
+    """A host batch function: every row three pushes (x, y, -z) on the native backend."""
+    from jaxloco.sim.rollout import rollout
+
+    ramp, hold, settle = float(fixed["ramp"]), float(fixed["hold"]), float(fixed["settle"])
+    scenario = contact_scenario(ramp, hold, settle)
+    swept_names = [p.name for p in PARAMS if p.sweepable]
+
+    def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
+        n = keys.shape[0]
+        v = {k: np.asarray(swept[k]) if k in swept else np.full(n, fixed[k]) for k in swept_names}
+        postures = v["posture"].astype(str)
+        u = seed_jitter(keys, 2)  # mu, heading
+        mu = np.maximum(v["mu"].astype(float) + u[:, 0] * v["mu_jitter"].astype(float), 0.05)
+        heading = u[:, 1] * v["heading_jitter"].astype(float)
+        params = push_params(postures, mu, heading, v["press"].astype(float), ramp, settle)
+        params["key"] = np.repeat(np.asarray(keys, np.uint32), 3, axis=0)
+        res = rollout(scenario, params, backend="native", nthread=int(fixed["nthread"]))
+        force = np.array([push_force(f) for f in np.asarray(res.records["fixture"])[..., 0]]).reshape(n, 3)
+        tilt = np.asarray(res.metrics["max_tilt"], float).reshape(n, 3)
+        fell = np.asarray(res.metrics["fell"], bool).reshape(n, 3).any(-1)
+        diverged = np.asarray(res.diverged, bool).reshape(n, 3).any(-1)
+        t_div = np.asarray(res.t_diverged, float).reshape(n, 3)
+        return {
+            "fx": force[:, 0], "fy": force[:, 1], "fz": force[:, 2],
+            "z_h": np.array([POSTURES[k][0] for k in postures]), "y_h": np.array([POSTURES[k][1] for k in postures]),
+            "max_tilt": tilt.max(-1),
+            "t_diverged": np.where(np.isfinite(t_div).any(-1), np.nanmin(np.where(np.isfinite(t_div), t_div, np.inf),
+                                                                          -1), np.nan),
+            "status": np.where(diverged, 2, np.where(fell, 1, 0)),
+        }
+
+    return batch
+
+
+def push_force(force: np.ndarray, window: int = SMOOTH_RECORDS, on: float = 1.0, off: float = 0.5) -> float:
+    """The pushing force [N] of one push from the plate's normal force sampled every
+    control period: its moving average over `window` records (0.1 s: a force sensor's
+    bandwidth, not an impact's), largest during the first contact (from the first
+    average above `on` N until it falls below `off` N: the gripper slid off the plate,
+    and what hits the plate after that is not a push). 0 if it never touched."""
+    f = np.asarray(force, float)
+    smooth = np.convolve(f, np.ones(window) / window, mode="valid")
+    touching = np.flatnonzero(smooth > on)
+    if touching.size == 0:
+        return 0.0
+    start = touching[0]
+    lost = np.flatnonzero(smooth[start:] < off)
+    end = start + lost[0] if lost.size else smooth.size
+    return float(smooth[start:end].max())
+
+
+# ------------------------------------------------------------------------- summary
+def _mean_sd(x: np.ndarray) -> tuple[float, float]:
+    return float(np.mean(x)), float(np.std(x, ddof=1)) if x.size > 1 else 0.0
+
+
+def trends(means: Mapping[str, np.ndarray]) -> dict[str, bool]:
+    """The paper's trends (Sec. V-C) on mean forces per posture (f_x, f_y, f_z) [N]:
+    f_x falls as z_h grows (straight and L), f_x falls as y_h grows (straight and L), the
+    straight base beats the L in f_x at every (z_h, y_h), f_z hardly depends on the base
+    (within 15 % between straight and L)."""
+    fx = {k: m[0] for k, m in means.items()}
+    fz = {k: m[2] for k, m in means.items()}
+    pairs = (("i", "iv"), ("ii", "v"), ("iii", "vi"), ("vii", "ix"), ("viii", "x"))
+
+    def have(*ks):
+        return all(k in fx for k in ks)
+
+    out = {}
+    if have("i", "ii", "iii", "iv", "v", "vi"):
+        out["f_x falls as z_h grows"] = fx["iii"] > fx["ii"] > fx["i"] and fx["vi"] > fx["v"] > fx["iv"]
+    if have("ii", "vii", "viii", "v", "ix", "x"):
+        out["f_x falls as y_h grows"] = fx["ii"] > fx["vii"] > fx["viii"] and fx["v"] > fx["ix"] > fx["x"]
+    ps = [(a, b) for a, b in pairs if have(a, b)]
+    if ps:
+        out["straight beats L in f_x"] = all(fx[a] > fx[b] for a, b in ps)
+        out["f_z hardly depends on the base"] = all(abs(fz[a] - fz[b]) <= 0.15 * max(fz[a], fz[b]) for a, b in ps)
+    return out
+
+
+def summarize(table) -> Summary:
+    """Per posture: f_x, f_y, f_z mean ± SD over the trials beside the paper's, and the
+    paper's trends checked on our means."""
+    cols = {n: table.column(n).to_numpy(zero_copy_only=False) for n in table.column_names}
+    postures = cols["posture"].astype(str)
+    ok = cols["status"].astype(str) == "ok"
+    rows, means = [], {}
+    for k in POSTURE_NAMES:
+        sel = (postures == k) & ok
+        if not np.any(postures == k):
+            continue
+        z, y, base = POSTURES[k]
+        ours = [_mean_sd(cols[f][sel].astype(float)) if sel.any() else (math.nan, 0.0) for f in ("fx", "fy", "fz")]
+        means[k] = np.array([m for m, _ in ours])
+        paper = PAPER_FORCES[k]
+        cells = [f"{m:.1f} ± {s:.1f} / {pm:g} ± {ps:g}" for (m, s), (pm, ps) in zip(ours, paper, strict=True)]
+        within = all(abs(m - pm) <= 0.25 * pm for (m, _), (pm, _) in zip(ours, paper, strict=True))
+        rows.append((f"({k})", f"{z:.2f}", f"{y:.1f}", base, f"{int(sel.sum())}/{int((postures == k).sum())}",
+                     *cells, "yes" if within else "no"))
+    notes = [f"{name}: {'holds' if held else 'does not hold'}" for name, held in trends(means).items()]
+    return Summary(
+        title="T² Snake-3 contact forces of the head (Tables IV-V), force plate in MuJoCo, the paper's feedforward "
+              "control",
+        columns=("posture", "z_h [m]", "y_h [m]", "base", "trials ok", "f_x [N] ours / paper", "f_y [N] ours / paper",
+                 "f_z [N] ours / paper", "all within 25 %"),
+        rows=tuple(rows),
+        notes=("largest normal force on the plate over each push, mean ± SD over the trials; paper: Tanaka et al. "
+               "2019, Tables IV-V (5 trials)", *notes),
+    )
+
+
+CONTACT = Analysis(
+    name="snake.contact",
+    doc="T² Snake-3 contact forces of the head on a force plate (Sec. V-C, Tables IV-V) in MuJoCo: one row per "
+        "(posture, trial) with the largest f_x, f_y, f_z, the paper's beside.",
+    params=PARAMS,
+    metrics=METRICS,
+    make_batch_fn=make_batch_fn,
+    statuses=STATUSES,
+    summarize=summarize,
+    x64=True,
+    executor="host",
+)
