@@ -10,7 +10,8 @@ Prints two tables:
   2. Joint-limit avoidance (Figs. 8-10) from the zigzag posture: recovery time (every
      base joint below 70 % of its limit), V, the gripper tip's largest errors, the
      smallest static margin, the footprint area at the end and the order in which the
-     base joints leave their limits, for the paper's K_V, Eq. 20 (a2 = 100) and, with
+     base joints leave their limits (MuJoCo rows: the head controlled and measured, as in
+     the paper's Fig. 9), for the paper's K_V, Eq. 20 (a2 = 100) and, with
      --tuned, the values of a `jaxloco tune snake_kv_tune` run.
 """
 
@@ -65,6 +66,13 @@ def _metrics(recs: dict[str, np.ndarray], i: int) -> dict[str, float]:
     return {k: float(v) for k, v in E.limit_metrics(r).items()}
 
 
+def release_order(times: np.ndarray) -> str:
+    """The base joints by the time they left the limit, first first ("9 8 ..." is the
+    paper's tail-to-head order)."""
+    left = [j for j in np.argsort(times, kind="stable") if np.isfinite(times[j])]
+    return " ".join(f"{4 + j}" for j in left) or "-"
+
+
 def limit_table(tuned: dict[str, float] | None) -> None:
     rows = _rows(tuned)
     fixed = A.KV.defaults()
@@ -82,18 +90,21 @@ def limit_table(tuned: dict[str, float] | None) -> None:
     print(f"\nJoint-limit avoidance from the zigzag posture, {E.LIMIT_HORIZON:g} s (kinematic {t_kin:.1f} s, "
           f"MuJoCo {n} runs {t_mj:.1f} s); paper: V decreases, the joints leave the limits, head error about "
           "30 mm / 0.1 rad")
-    print("| setting | sim | recovery [s] | V0 -> final V | max tip error [mm] | max att. error [rad] "
-          "| min margin [mm] | footprint at end [m^2] | base joints theta_4..9 below 70 % at [s] |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("(errors of the controlled point: the gripper tip in the kinematic rows (snake.kv), the head in the MuJoCo "
+          "rows, as the paper's Fig. 9 plots w_h; the paper sees theta_9 .. theta_4 leave the limits in that order, "
+          "tail to head)")
+    print("| setting | sim | recovery [s] | V0 -> final V | max pos. error [mm] | max att. error [rad] "
+          "| min margin [mm] | footprint at end [m^2] | base joints theta_4..9 below 70 % at [s] | order left |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for i, (label, _) in enumerate(rows):
         print(f"| {label} | kinematic | {kin['recovery_time'][i]:.1f} | {kin['V0'][i]:.1f} -> {kin['final_V'][i]:.1f} "
               f"| {1e3 * kin['max_pos_error'][i]:.1f} | {kin['max_att_error'][i]:.3f} | {1e3 * kin['min_margin'][i]:.0f} "
-              f"| {kin['final_area'][i]:.3f} | - |")
+              f"| {kin['final_area'][i]:.3f} | - | - |")
         m = _metrics(recs, i)
         order = E.release_times(recs["t"][i], recs["phi"][i])
         print(f"| {label} | MuJoCo | {m['recovery_time']:.1f} | {m['V0']:.1f} -> {m['final_V']:.1f} "
               f"| {1e3 * m['max_pos_error']:.1f} | {m['max_att_error']:.3f} | {1e3 * m['min_margin']:.0f} | - "
-              f"| {' '.join(f'{x:.1f}' for x in order)} |")
+              f"| {' '.join(f'{x:.1f}' for x in order)} | {release_order(order)} |")
     print(f"MuJoCo: status {list(res.status)}, largest side slip {np.asarray(res.metrics['max_slip']).round(3)} m/s, "
           f"largest base tilt {np.asarray(res.metrics['max_tilt']).round(3)} rad")
 

@@ -20,8 +20,8 @@ from jaxloco import runtime
 
 runtime.configure(x64=True, cache_dir=True)
 
-from jaxloco.robots.snake import experiments as E  # noqa: E402
-from jaxloco.robots.snake import table3 as T3  # noqa: E402
+from jaxloco.robots.snake import experiments as E
+from jaxloco.robots.snake import table3 as T3
 
 DEFAULT_KPS = (30.0, 100.0, 200.0, 400.0, 600.0)
 

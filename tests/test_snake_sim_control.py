@@ -41,8 +41,9 @@ def test_accuracy_feedback_converges_feedforward_keeps_the_servo_error(accuracy)
 def test_joint_limit_avoidance_in_mujoco():
     """Figs. 8-10, 8 s: the cost V decreases, the commanded modes follow the schedule
     (sigma = 1 for t < 2 s, then 2, 3, ... every Delta T = 1 s), the measured wheel
-    contacts follow the commanded modes, the robot does not fall and the gripper tip
-    stays within 0.1 m / 0.3 rad of where it was (paper: about 30 mm / 0.1 rad)."""
+    contacts follow the commanded modes, the robot does not fall and the head (the
+    controlled point, as in the paper's Fig. 9) stays within 0.1 m / 0.3 rad of where it
+    was (paper: about 30 mm / 0.1 rad)."""
     res, recs = SCT.run_joint_limit(n=1, horizon=8.0)
     assert res.status[0] == "ok"
     t, V, sigma = recs["t"][0], recs["V"][0], recs["sigma"][0]

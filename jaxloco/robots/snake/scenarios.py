@@ -457,7 +457,7 @@ def snake_scenario(
             full_pos, full_quat = full_pos.at[fixture_rows].set(f_pos), full_quat.at[fixture_rows].set(f_quat)
         grounded = mode_mask(p["mode"])
         lift = jnp.asarray(p["lift_height"], dtype)
-        start = jnp.asarray(p["phi0"] if "phi0" in p else phi0, dtype)
+        start = jnp.asarray(p.get("phi0", phi0), dtype)
         ctrl = actuator_command(start, jnp.zeros(P.N_W, dtype), grounded, lift)
         joints = joint_targets(start, grounded, lift)
         base = jnp.stack([p["x0"], p["y0"], p["heading0"]]).astype(dtype)

@@ -166,44 +166,47 @@ def run_accuracy(feedback: bool = False, mu: float = 1.0, control_dt: float = 0.
 # ------------------------------------------------------------ Figs. 8-10 in MuJoCo
 def run_joint_limit(overrides: Mapping[str, Any] | None = None, n: int = 1, horizon: float = E.LIMIT_HORIZON,
                     feedback: bool = False, control_dt: float = 0.02, mu: float = 1.0, settle: float = SETTLE,
-                    progress: bool = False) -> tuple[RolloutResult, dict[str, np.ndarray]]:
-    """Sec. V-B in MuJoCo: the zigzag posture, gripper tip held, fixing state until
-    2 s then switching every Delta T (params overrides, batch of n), after `settle` s of
-    settling with the null-space term off (the paper's clock starts then: switch_at is
+                    progress: bool = False, point: str = "head") -> tuple[RolloutResult, dict[str, np.ndarray]]:
+    """Sec. V-B in MuJoCo: the zigzag posture, the controlled point (`point`: "head", as
+    in the paper's Fig. 9, which plots w_h; "tip" for the gripper tip) held, fixing state
+    until 2 s then switching every Delta T (params overrides, batch of n), after `settle` s
+    of settling with the null-space term off (the paper's clock starts then: switch_at is
     counted from it). Returns the rollout and `limit_records` from the paper's t = 0."""
     phi0 = E.zigzag_phi()
-    ctrl = task_space_controller(control_dt, "tip", feedback)
+    ctrl = task_space_controller(control_dt, point, feedback)
     sc = SC.snake_scenario(settle + horizon, control_dt, ctrl, phi0=phi0)
     over = {"switch_at": E.SWITCH_AT, "psi3_target": P.SCP_TARGET, "mu": mu, **(overrides or {})}
     over["switch_at"] = np.asarray(over["switch_at"], float) + settle
     over["hold_until"] = settle
     params = params_batch(n, **over)
     res = rollout(sc, params, progress=progress)
-    return res, limit_records(res, params, settle)
+    return res, limit_records(res, params, settle, point)
 
 
-def _limit_signals_one(p, wt_i, phi_i, g_i, tgt):
+def _limit_signals_one(p, wt_i, phi_i, g_i, tgt, point):
     """Task error, V and static margin over one simulation's records."""
     cp = control_params(p)
     err = jax.vmap(lambda a: C.task_error(a, tgt))(wt_i)
-    V = jax.vmap(lambda w, f, g: C.cost(w, f, g, cp))(wt_i[:, :6], phi_i, g_i)
-    w_h = jax.vmap(lambda w: K.point_to_head(w, "tip"))(wt_i[:, :6])
+    V = jax.vmap(lambda w, f, g: C.cost(w, f, g, cp, point=point))(wt_i[:, :6], phi_i, g_i)
+    w_h = jax.vmap(lambda w: K.point_to_head(w, point))(wt_i[:, :6])
     margin = jax.vmap(lambda h, f, g: C.support_distances(h, f, g)[2])(w_h, phi_i, g_i)
     return err, V, margin
 
 
-_limit_signals = jax.jit(jax.vmap(_limit_signals_one))
+_limit_signals = jax.jit(jax.vmap(_limit_signals_one, in_axes=(0, 0, 0, 0, 0, None)), static_argnums=5)
 
 
-def limit_records(res: RolloutResult, params: Mapping[str, Array], settle: float = 0.0) -> dict[str, np.ndarray]:
+def limit_records(res: RolloutResult, params: Mapping[str, Array], settle: float = 0.0,
+                  point: str = "head") -> dict[str, np.ndarray]:
     """Records of a MuJoCo joint-limit rollout in `kinsim.rollout`'s layout (batch
-    first) from t = settle on (t counted from there): t, w (measured tip pose), phi
-    (measured), error (tip pose and psi_3 against the target: the tip pose measured at
-    t = settle, psi_3 -> psi3_target; angles wrapped), V (Eq. 19 / 20 at the measured pose),
+    first) from t = settle on (t counted from there): t, w (measured pose of the
+    controlled point `point`, "head" or "tip"), phi (measured), error (that pose and psi_3
+    against the target: the pose measured at t = settle, psi_3 -> psi3_target; angles
+    wrapped), V (Eq. 19 / 20 at the measured pose),
     margin (static margin of the commanded mode's support polygon at the measured
     posture), limit_ratio, sigma (the commanded mode), slip (lateral wheel slip)."""
     keep = res.times >= settle - 1e-9
-    tip = np.asarray(res.records["tip"])[:, keep]
+    tip = np.asarray(res.records[point])[:, keep]
     phi = np.asarray(res.records["phi"])[:, keep]
     grounded = np.asarray(res.records["grounded_cmd"])[:, keep]
     times = res.times[keep] - settle
@@ -215,7 +218,7 @@ def limit_records(res: RolloutResult, params: Mapping[str, Array], settle: float
 
     p = {k: jnp.asarray(v) for k, v in params.items()}
     err, V, margin = _limit_signals(p, jnp.asarray(wt), jnp.asarray(phi), jnp.asarray(grounded),
-                                    jnp.asarray(target[:, 0]))
+                                    jnp.asarray(target[:, 0]), point)
     modes = np.asarray(P.MODES)
     sigma = 1 + np.argmax(np.all(grounded[..., None, :] == modes, axis=-1), axis=-1)
     t = np.broadcast_to(times, (n, times.size))

@@ -161,8 +161,8 @@ def summarize(table) -> Summary:
         columns=("target", "source (trials)", *(f"{c} [{u}]" for c, u in zip(COMPONENTS, UNITS, strict=True)),
                  "error %"),
         rows=tuple(rows),
-        notes=("mean ± SD over the trials that did not fall or diverge; paper: Tanaka et al. 2019, Table III "
-               "(5 trials each)",),
+        notes=(("mean ± SD over the trials that did not fall or diverge; paper: Tanaka et al. 2019, Table III "
+                "(5 trials each)"),),
     )
 
 
