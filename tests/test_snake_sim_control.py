@@ -67,3 +67,18 @@ def test_joint_limit_avoidance_in_mujoco():
     assert base[-1] < base[0] - 0.15
     m = E.limit_metrics({k: jnp.asarray(v[0]) for k, v in recs.items() if k != "slip"})
     assert float(m["min_margin"]) > 0.02
+
+
+def test_predictive_selection_in_mujoco_holds_one_candidate_mode_per_slot():
+    """The MuJoCo controller with `predictive.Prediction`: after the fixing state (2 s) the
+    first Delta T = 1 s slot holds one of the modes 2..6, chosen by the look-ahead; the
+    robot stays up and the head within 0.1 m."""
+    from jaxloco.robots.snake import predictive as PR
+
+    res, recs = SCT.run_joint_limit(n=1, horizon=3.2, settle=0.5, prediction=PR.Prediction(horizon_s=0.1))
+    assert res.status[0] == "ok"
+    t, sigma = recs["t"][0], recs["sigma"][0]
+    assert np.all(sigma[t < E.SWITCH_AT - 0.03] == 1)
+    slot = (t > E.SWITCH_AT + 0.03) & (t < E.SWITCH_AT + 0.97)  # the first Delta T slot
+    assert np.unique(sigma[slot]).size == 1 and sigma[slot][0] in PR.CANDIDATES
+    assert np.abs(recs["error"][0][:, :3]).max() < 0.1

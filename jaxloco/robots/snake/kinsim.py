@@ -31,6 +31,7 @@ Targets: w~_d(t) = w~_0 + delta s(t) with a smooth step s from `t0` over `durati
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import jax
@@ -152,8 +153,12 @@ def rollout(
     config: RolloutConfig = RolloutConfig(),
     plant: PlantParams = PlantParams(),
     params: P.SnakeParams | None = None,
+    choose: Callable[[SnakeState, Array], Array] | None = None,
 ) -> dict[str, Array]:
-    """Closed loop from x0 for `config.steps` periods: records (n, ...) of
+    """Closed loop from x0 for `config.steps` periods. `choose` (optional): in the
+    switching state, at the start of every Delta T slot, choose(state the controller
+    sees, t) -> the mode for the slot, instead of the next mode of cp.mode_order
+    (`predictive.chooser`: the paper's "optimal mode" of its ref. [21]). Records (n, ...) of
     t [s], w (6,) and psi3 of the plant, w_h (6,), base (3,), phi (12,), error (7,)
     (plant w~ - w~_d, angles wrapped), ctrl_error (7,) (what the controller saw), V
     (the cost at the plant state, Eq. 19/20), sigma, switching, margin (static
@@ -171,10 +176,16 @@ def rollout(
     lim = jnp.asarray(C.PHI_LIMITS, dtype)
 
     def step(carry, k):
-        truth, est, mode, phi_cmd = carry
+        truth, est, mode, phi_cmd, chosen, last_slot = carry
         t = k * dt
         seen = truth if config.feedback else est
         mode, sigma = C.update_mode(t, seen.phi, mode, cp)
+        if choose is not None:
+            slot = jnp.floor((t - mode.t_enter) / cp.delta_t + 1e-9).astype(jnp.int32)
+            fresh = mode.switching & (slot != last_slot)
+            picked = jax.lax.cond(fresh, lambda: jnp.asarray(choose(seen, t), jnp.int32), lambda: chosen)
+            sigma = jnp.where(mode.switching, picked, sigma).astype(jnp.int32)
+            chosen, last_slot = picked, jnp.where(mode.switching, slot, -1)
         grounded = C.grounded_of(sigma)
         wd, wd_dot = target.at(t)
         w_seen, mats_seen = aug(seen, grounded)
@@ -204,11 +215,12 @@ def rollout(
             "limit_ratio": C.limit_ratio(truth.phi),
         }
         truth_next, _ = integrate(truth, u, mats_true, dt, params, point)
-        return (truth_next, est_next, mode, phi_cmd), rec
+        return (truth_next, est_next, mode, phi_cmd, chosen, last_slot), rec
 
     mode0 = C.initial_mode_state(dtype)
     ks = jnp.arange(config.steps)
-    _, recs = jax.lax.scan(step, (x0, x0, mode0, x0.phi), ks.astype(dtype))
+    carry0 = (x0, x0, mode0, x0.phi, jnp.asarray(cp.fixed_mode, jnp.int32), jnp.asarray(-1, jnp.int32))
+    _, recs = jax.lax.scan(step, carry0, ks.astype(dtype))
     if config.record_every > 1:
         recs = jax.tree_util.tree_map(lambda r: r[:: config.record_every], recs)
     return recs

@@ -38,6 +38,7 @@ from jaxloco.robots.snake import experiments as E
 from jaxloco.robots.snake import kinematics as K
 from jaxloco.robots.snake import kinsim as S
 from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import predictive as PR
 from jaxloco.robots.snake import scenarios as SC
 from jaxloco.sim.rollout import RolloutResult, rollout
 from jaxloco.sim.scenario import Controller
@@ -87,9 +88,12 @@ def control_params(p: Mapping[str, Array]) -> C.ControlParams:
     )
 
 
-def task_space_controller(control_dt: float, point: str = "tip", feedback: bool = False) -> Controller:
+def task_space_controller(control_dt: float, point: str = "tip", feedback: bool = False,
+                          prediction: PR.Prediction | None = None) -> Controller:
     """The Eq. 12 controller as a `jaxloco.sim` controller (module docstring); `point`:
-    the controlled point ("tip": the gripper tip, "head": w_h of Sec. V-A)."""
+    the controlled point ("tip": the gripper tip, "head": w_h of Sec. V-A);
+    `prediction`: in the switching state, each Delta T slot's mode is the best look-ahead
+    (`predictive.mode_scores` from the controller's view) instead of the fixed order."""
     dt = float(control_dt)
 
     def seen_pose(obs):
@@ -104,7 +108,8 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
         wt0 = wt0.at[6].set(jnp.where(jnp.isfinite(p["psi3_target"]), p["psi3_target"], wt0[6]))
         delta = jnp.stack([jnp.asarray(p[k], dtype) for k in DELTA_KEYS])
         target = S.Target(wt0, delta, jnp.asarray(p["t0"], dtype), jnp.asarray(p["duration"], dtype))
-        return {"est": est, "target": target, "mode": C.initial_mode_state(dtype), "phi_cmd": obs["phi"]}
+        return {"est": est, "target": target, "mode": C.initial_mode_state(dtype), "phi_cmd": obs["phi"],
+                "chosen": jnp.asarray(1, jnp.int32), "slot": jnp.asarray(-1, jnp.int32)}
 
     def policy(p, s, obs):
         t = obs["time"]
@@ -116,6 +121,16 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
         else:
             w, phi = S.point_pose(est, point=point), est.phi
         mode, sigma = C.update_mode(t, phi, s["mode"], cp)
+        chosen, slot = s["chosen"], s["slot"]
+        if prediction is not None:
+            b = obs["base"]  # link 7's measured pose; the estimate's without feedback
+            view = S.SnakeState(jnp.stack([b[0], b[1], b[5]]) if feedback else est.base, phi, est.rho)
+            k = jnp.floor((t - mode.t_enter) / cp.delta_t + 1e-9).astype(jnp.int32)
+            fresh = mode.switching & (k != slot)
+            pick = PR.chooser(s["target"], cp, dt, point, prediction)
+            chosen = jax.lax.cond(fresh, lambda: jnp.asarray(pick(view, t), jnp.int32), lambda: chosen)
+            sigma = jnp.where(mode.switching, chosen, sigma).astype(jnp.int32)
+            slot = jnp.where(mode.switching, k, -1)
         grounded = C.grounded_of(sigma)
         wd, wd_dot = s["target"].at(t)
         mats = K.augmented_matrices(w, phi, grounded, point=point)
@@ -125,7 +140,7 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
         rho_dot = jnp.clip(terms.u[P.N_PHI :], -p["wheel_speed_max"], p["wheel_speed_max"])
         if not feedback:
             est, _ = S.integrate(est, terms.u, mats, jnp.asarray(dt, phi.dtype), None, point)
-        state = {"est": est, "target": s["target"], "mode": mode, "phi_cmd": phi_cmd}
+        state = {"est": est, "target": s["target"], "mode": mode, "phi_cmd": phi_cmd, "chosen": chosen, "slot": slot}
         return state, phi_cmd, rho_dot, grounded
 
     return SC.make_controller(init, policy, name=f"task_space_{'fb' if feedback else 'ff'}_{point}")
@@ -166,14 +181,15 @@ def run_accuracy(feedback: bool = False, mu: float = 1.0, control_dt: float = 0.
 # ------------------------------------------------------------ Figs. 8-10 in MuJoCo
 def run_joint_limit(overrides: Mapping[str, Any] | None = None, n: int = 1, horizon: float = E.LIMIT_HORIZON,
                     feedback: bool = False, control_dt: float = 0.02, mu: float = 1.0, settle: float = SETTLE,
-                    progress: bool = False, point: str = "head") -> tuple[RolloutResult, dict[str, np.ndarray]]:
+                    progress: bool = False, point: str = "head", prediction: PR.Prediction | None = None
+                    ) -> tuple[RolloutResult, dict[str, np.ndarray]]:
     """Sec. V-B in MuJoCo: the zigzag posture, the controlled point (`point`: "head", as
     in the paper's Fig. 9, which plots w_h; "tip" for the gripper tip) held, fixing state
     until 2 s then switching every Delta T (params overrides, batch of n), after `settle` s
     of settling with the null-space term off (the paper's clock starts then: switch_at is
     counted from it). Returns the rollout and `limit_records` from the paper's t = 0."""
     phi0 = E.zigzag_phi()
-    ctrl = task_space_controller(control_dt, point, feedback)
+    ctrl = task_space_controller(control_dt, point, feedback, prediction)
     sc = SC.snake_scenario(settle + horizon, control_dt, ctrl, phi0=phi0)
     over = {"switch_at": E.SWITCH_AT, "psi3_target": P.SCP_TARGET, "mu": mu, **(overrides or {})}
     over["switch_at"] = np.asarray(over["switch_at"], float) + settle
