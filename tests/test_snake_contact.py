@@ -106,3 +106,18 @@ def test_summary_has_the_papers_forces_and_checks_the_trends():
     flipped = pa.table({"posture": names, "status": ["ok"] * len(names), "fx": paper[::-1, 0], "fy": paper[:, 1],
                         "fz": paper[:, 2]})
     assert any(t.endswith("does not hold") for t in CT.summarize(flipped).notes[1:])
+
+
+def test_contact_force_plot_has_ours_and_the_papers_bars():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from jaxloco.robots.snake import plots
+
+    table = pa.table({"posture": ["i", "i", "ii"], "status": ["ok", "ok", "fell"], "fx": [1.0, 3.0, 9.0],
+                      "fy": [1.0, 1.0, 1.0], "fz": [2.0, 2.0, 2.0]})
+    fig = plots.plot_contact_forces(table)
+    ax = fig.axes[0]
+    heights = [p.get_height() for p in ax.patches]
+    assert heights[0] == 2.0 and np.isnan(heights[1])  # ours: (i) the mean of the ok trials, (ii) none ok
+    assert heights[2:] == [CT.PAPER_FORCES["i"][0][0], CT.PAPER_FORCES["ii"][0][0]]

@@ -5,6 +5,7 @@ the `snake.kv` sweep and recorded kinematic runs.
     plot_limit_runs(runs)             gripper-tip errors, mode sigma and cost V over time (Fig. 9)
     plot_base_joints(runs)            base yaw joints theta_4..theta_9 over time with their limits (Fig. 10)
     plot_accuracy(errors, paper)      Table III: error of the changed component per target [%]
+    plot_contact_forces(table)        Tables IV-V: f_x, f_y, f_z per posture, ours beside the paper's
 
 `runs` maps a label to the records of one `kinsim.rollout` (arrays over time, e.g. a
 slice of the vmapped `analysis.run_one` records): t [s], phi (12 joints), error (7: tip
@@ -23,7 +24,7 @@ import numpy as np
 
 from jaxloco.plots import column, heatmap
 
-__all__ = ["plot_accuracy", "plot_base_joints", "plot_kv_maps", "plot_limit_runs", "rows_where"]
+__all__ = ["plot_accuracy", "plot_base_joints", "plot_contact_forces", "plot_kv_maps", "plot_limit_runs", "rows_where"]
 
 
 def plot_kv_maps(table: Any, *, where: np.ndarray | None = None, paper: Mapping[str, float] | None = None,
@@ -133,6 +134,35 @@ def plot_accuracy(errors: Mapping[str, Sequence[float]], names: Sequence[str], *
     ax.set_title("relative position accuracy (Table III)", fontsize="medium")
     ax.grid(alpha=0.3, axis="y")
     ax.legend(fontsize="small")
+    return fig
+
+
+def plot_contact_forces(table: Any, *, figsize=(10.0, 3.2)):
+    """Tables IV-V as bars: f_x, f_y, f_z [N] per posture, ours (mean ± SD over the `ok`
+    trials of a `snake.contact` table) beside the paper's (mean ± SD), one panel per
+    force."""
+    import matplotlib.pyplot as plt
+
+    from jaxloco.robots.snake import contact as CT
+
+    postures = np.asarray(column(table, "posture")).astype(str)
+    ok = np.asarray(column(table, "status")).astype(str) == "ok"
+    names = [k for k in CT.POSTURE_NAMES if np.any(postures == k)]
+    x = np.arange(len(names))
+    fig, axes = plt.subplots(1, 3, figsize=figsize, layout="constrained", sharey=True)
+    for j, (ax, force) in enumerate(zip(axes, ("fx", "fy", "fz"), strict=True)):
+        vals = np.asarray(column(table, force), float)
+        ours = [vals[(postures == k) & ok] for k in names]
+        mean = [v.mean() if v.size else np.nan for v in ours]
+        sd = [v.std(ddof=1) if v.size > 1 else 0.0 for v in ours]
+        ax.bar(x - 0.2, mean, 0.4, yerr=sd, label="ours", color="C0", capsize=2)
+        ax.bar(x + 0.2, [CT.PAPER_FORCES[k][j][0] for k in names], 0.4, yerr=[CT.PAPER_FORCES[k][j][1] for k in names],
+               label="paper", color="C3", capsize=2)
+        ax.set_xticks(x, [f"({k})" for k in names], fontsize="small")
+        ax.set_title(f"f_{force[1]} [N]", fontsize="medium")
+        ax.grid(alpha=0.3, axis="y")
+    axes[0].legend(fontsize="small")
+    fig.suptitle("contact forces of the head (Tables IV-V): ours on a MuJoCo force plate, paper", fontsize="medium")
     return fig
 
 
