@@ -54,8 +54,9 @@ from jaxloco.robots.snake import kinsim as S
 from jaxloco.robots.snake import params as P
 from jaxloco.robots.snake import scenarios as SC
 from jaxloco.robots.snake import sim_control as SCt
+from jaxloco.robots.snake import trials as TR
 from jaxloco.sim import terrain as tr
-from jaxloco.sim.scenario import Scenario, seed_jitter
+from jaxloco.sim.scenario import Scenario
 
 Array = jax.Array
 CONTROL_DT = 0.02  # [s]
@@ -100,18 +101,12 @@ PARAMS = (
         f"{k}: z_h {z:g} m, y_h {y:g} m, {b}" for k, (z, y, b) in POSTURES.items()), kind="str",
         choices=POSTURE_NAMES),
     Param("press", 0.1, "how far the head target moves into the plate (default (ours))", "m", lo=0.0, hi=0.5),
-    Param("mu", FLOOR_MU, "floor friction coefficient (default (ours), from Table IV: see FLOOR_MU)", "", lo=0.05,
-          hi=3.0),
-    Param("mu_jitter", 0.1, "mu + U(-1, 1) x this, from the row's seed (default (ours))", "", lo=0.0, hi=1.0),
-    Param("heading_jitter", 0.05, "heading U(-1, 1) x this, from the row's seed (default (ours))", "rad",
-          lo=0.0, hi=3.2),
+    *TR.trial_params(FLOOR_MU),
     Param("ramp", 4.0, "duration of the head target's move into the plate (default (ours))", "s", lo=0.5,
           hi=30.0, sweepable=False),
     Param("hold", 3.0, "time the target is held in the plate after the ramp", "s", lo=0.0, hi=30.0,
           sweepable=False),
-    Param("settle", SCt.SETTLE, "settling on the servos before the paper's clock starts", "s", lo=0.0, hi=20.0,
-          sweepable=False),
-    Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
+    *TR.RUN_PARAMS,
 )
 METRICS = (
     Metric("fx", "largest normal force of the head on the plate, pushing along +x", "N"),
@@ -122,7 +117,7 @@ METRICS = (
     Metric("max_tilt", "largest tilt of the first base link over the three pushes", "rad"),
     Metric("t_diverged", "time a push diverged (nan: none did)", "s"),
 )
-STATUSES = ("ok", "fell", "diverged")
+STATUSES = TR.STATUSES
 
 
 # ------------------------------------------------------------------------- postures
@@ -252,9 +247,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
         n = keys.shape[0]
         v = {k: np.asarray(swept[k]) if k in swept else np.full(n, fixed[k]) for k in swept_names}
         postures = v["posture"].astype(str)
-        u = seed_jitter(keys, 2)  # mu, heading
-        mu = np.maximum(v["mu"].astype(float) + u[:, 0] * v["mu_jitter"].astype(float), 0.05)
-        heading = u[:, 1] * v["heading_jitter"].astype(float)
+        mu, heading = TR.perturbed(v, keys)
         params = push_params(postures, mu, heading, v["press"].astype(float), ramp, settle)
         params["key"] = np.repeat(np.asarray(keys, np.uint32), 3, axis=0)
         res = rollout(scenario, params, backend="native", nthread=int(fixed["nthread"]))
@@ -269,7 +262,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
             "max_tilt": tilt.max(-1),
             "t_diverged": np.where(np.isfinite(t_div).any(-1), np.nanmin(np.where(np.isfinite(t_div), t_div, np.inf),
                                                                           -1), np.nan),
-            "status": np.where(diverged, 2, np.where(fell, 1, 0)),
+            "status": TR.status(diverged, fell),
         }
 
     return batch

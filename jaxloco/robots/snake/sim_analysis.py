@@ -57,6 +57,7 @@ from jaxloco.robots.snake import model as snake_model
 from jaxloco.robots.snake import params as P
 from jaxloco.robots.snake import scenarios as SC
 from jaxloco.robots.snake import sim_control as SCt
+from jaxloco.robots.snake import trials as TR
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.scenario import Controller, InitialState, Scenario
 
@@ -269,8 +270,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
         out = {k: np.asarray(x, float) for k, x in m.items()}
         out["max_slip"] = np.asarray(result.metrics["max_slip"], float)
         out["t_diverged"] = result.t_diverged
-        fell = np.asarray(result.metrics["fell"], bool)
-        out["status"] = np.where(result.diverged, 2, np.where(fell, 1, 0))
+        out["status"] = TR.status(result.diverged, result.metrics["fell"])
         return out
 
     return batch

@@ -37,7 +37,8 @@ from jaxloco.robots.snake import experiments as E
 from jaxloco.robots.snake import model as snake_model
 from jaxloco.robots.snake import scenarios as SC
 from jaxloco.robots.snake import sim_control as SCt
-from jaxloco.sim.scenario import Scenario, seed_jitter
+from jaxloco.robots.snake import trials as TR
+from jaxloco.sim.scenario import Scenario
 
 TARGETS = E.ACCURACY_NAMES  # ("x", "y", "z", "alpha", "beta", "gamma")
 COMPONENTS = ("dx", "dy", "dz", "dalpha", "dbeta", "dgamma")
@@ -47,21 +48,15 @@ CONTROL_DT = 0.02  # [s]
 PARAMS = (
     Param("target", "x", "the component of w_h changed (Table III row): x 0.2 m, y 0.1 m, z -0.1 m, "
           "alpha pi/2, beta -pi/6, gamma pi/4", kind="str", choices=TARGETS),
-    Param("mu", SC.PARAM_DEFAULTS["mu"], "floor friction coefficient (default (ours): the paper gives none)", "",
-          lo=0.05, hi=3.0),
-    Param("mu_jitter", 0.1, "mu + U(-1, 1) x this, from the row's seed (default (ours))", "", lo=0.0, hi=1.0),
-    Param("heading_jitter", 0.05, "initial heading U(-1, 1) x this, from the row's seed (default (ours))", "rad",
-          lo=0.0, hi=3.2),
+    *TR.trial_params(SC.PARAM_DEFAULTS["mu"]),
     Param("head_kp", snake_model.KP, "stiffness of the head part's six servos (model.py: chosen from Table III)",
           "N m/rad", lo=1.0, hi=1e4),
     Param("head_kv", snake_model.KV, "damping of the head part's six servos", "N m s/rad", lo=0.0, hi=1e3),
     Param("ramp", E.RAMP, "duration of the target's change (default (ours): the paper gives none)", "s",
           lo=0.5, hi=30.0, sweepable=False),
-    Param("settle", SCt.SETTLE, "settling on the servos before the paper's clock starts", "s", lo=0.0, hi=20.0,
-          sweepable=False),
     Param("feedback", 0, "0: the paper's feedforward control (Sec. IV-C2); 1: the simulated head pose fed back "
           "(Fig. 7(b))", "", kind="int", lo=0, hi=1, sweepable=False),
-    Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
+    *TR.RUN_PARAMS,
 )
 
 METRICS = (
@@ -70,9 +65,9 @@ METRICS = (
     Metric("error", "|changed component - target| / |target| (Table III's 'Error')", "%"),
     Metric("max_slip", "largest lateral slip of a grounded base wheel pair", "m/s"),
     Metric("max_roll_slip", "largest rolling slip of a grounded base active wheel", "m/s"),
-    Metric("t_diverged", "time the simulation diverged (nan: it did not)", "s"),
+    TR.T_DIVERGED,
 )
-STATUSES = ("ok", "fell", "diverged")
+STATUSES = TR.STATUSES
 
 
 @functools.lru_cache(maxsize=4)
@@ -104,9 +99,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
     def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
         n = keys.shape[0]
         v = {k: np.asarray(swept[k]) if k in swept else np.full(n, fixed[k]) for k in swept_names}
-        u = seed_jitter(keys, 2)  # mu, heading
-        mu = np.maximum(v["mu"].astype(float) + u[:, 0] * v["mu_jitter"].astype(float), 0.05)
-        heading = u[:, 1] * v["heading_jitter"].astype(float)
+        mu, heading = TR.perturbed(v, keys)
         params = SCt.params_batch(n, mu=mu, heading0=heading, t0=t0, duration=ramp,
                                   head_kp=v["head_kp"].astype(float), head_kv=v["head_kv"].astype(float),
                                   **target_deltas(v["target"]))
@@ -120,8 +113,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
         out["max_slip"] = np.asarray(res.metrics["max_slip"], float)
         out["max_roll_slip"] = np.asarray(res.metrics["max_roll_slip"], float)
         out["t_diverged"] = res.t_diverged
-        fell = np.asarray(res.metrics["fell"], bool)
-        out["status"] = np.where(res.diverged, 2, np.where(fell, 1, 0))
+        out["status"] = TR.status(res.diverged, res.metrics["fell"])
         return out
 
     return batch
