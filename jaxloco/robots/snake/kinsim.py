@@ -50,12 +50,14 @@ WHEEL_SPEED_MAX = 6.0  # [rad/s] MX-28AR (55 rpm), as `model.WHEEL_SPEED`
 @jax.tree_util.register_dataclass
 @dataclass(frozen=True)
 class Target:
-    """w~_d(t) = w0 + delta * s((t - t0) / duration), s a smooth step 0 -> 1."""
+    """w~_d(t) = w0 + delta * s((t - t0) / duration), s a smooth step 0 -> 1; or a script
+    of K such steps, delta (K, 7), t0 (K,), duration (K,), summed (an operator's
+    joystick commands as a time series)."""
 
     w0: Array  # (7,) [w (6), psi_3]
-    delta: Array  # (7,)
-    t0: Array = 1.0  # [s]
-    duration: Array = 4.0  # [s]
+    delta: Array  # (7,) or (K, 7)
+    t0: Array = 1.0  # [s], or (K,)
+    duration: Array = 4.0  # [s], or (K,)
 
     def at(self, t: Array) -> tuple[Array, Array]:
         """(w~_d (7,), w~_d_dot (7,)) at time t."""
@@ -63,6 +65,8 @@ class Target:
         s = tau - jnp.sin(2 * jnp.pi * tau) / (2 * jnp.pi)
         inside = (t > self.t0) & (t < self.t0 + self.duration)
         s_dot = jnp.where(inside, (1.0 - jnp.cos(2 * jnp.pi * tau)) / self.duration, 0.0)
+        if jnp.ndim(self.delta) == 2:  # a script: the steps add up
+            return self.w0 + jnp.sum(s[:, None] * self.delta, 0), jnp.sum(s_dot[:, None] * self.delta, 0)
         return self.w0 + self.delta * s, self.delta * s_dot
 
 

@@ -387,18 +387,34 @@ def constant_controller(phi: np.ndarray | None = None) -> Controller:
 
 
 # --------------------------------------------------------------------------- scenario
+def _with_fixture_ctrl(controller: Controller, fixture: Fixture) -> Controller:
+    """The controller with the fixture's actuators' ctrl appended to its command."""
+
+    def step(p, state, obs):
+        state, ctrl = controller.step(p, state, obs)
+        extra = jnp.asarray(fixture.ctrl(p, obs["time"]), ctrl.dtype)
+        return state, jnp.concatenate([ctrl, extra])
+
+    return Controller(init=controller.init, step=step, name=controller.name)
+
+
 @dataclass(frozen=True)
 class Fixture:
-    """Bodies added to the scene beside the ground (e.g. a force plate): `add(spec)` adds
-    them as mocap bodies named `bodies` (after the ground, so every other index stays);
-    `pose(params, dtype)` gives their positions (k, 3) and quaternions (k, 4) per
-    simulation; the MuJoCo sensors `sensors` (added by `add`) are recorded as
-    "fixture" (their readings concatenated)."""
+    """Bodies added to the scene beside the ground (e.g. a force plate, a gripper's
+    object): `add(spec)` adds them after the ground, so every other index stays; those
+    named `bodies` are mocap bodies and `pose(params, dtype)` gives their positions
+    (k, 3) and quaternions (k, 4) per simulation (free bodies start where `add` put
+    them); the MuJoCo sensors `sensors` (added by `add`) are recorded as "fixture" (their
+    readings concatenated); the actuators `actuators` (added by `add`, after the robot's)
+    get `ctrl(params, time)` appended to the controller's command."""
 
     add: Callable[[mujoco.MjSpec], None]
     bodies: tuple[str, ...]
     pose: Callable[[Mapping[str, Any], Any], tuple[Array, Array]]
     sensors: tuple[str, ...] = ()
+    # actuators `add` appends after the robot's, and their ctrl (k,) from (params, time [s])
+    actuators: tuple[str, ...] = ()
+    ctrl: Callable[[Mapping[str, Any], Array], Array] | None = None
 
 
 def build_model(fixture: Fixture | None = None) -> tuple[mujoco.MjModel, tr.Terrain]:
@@ -429,6 +445,8 @@ def snake_scenario(
     m, terrain = build_model(fixture)
     phi0 = np.asarray(P.INITIAL_PHI if phi0 is None else phi0, float)
     controller = controller or constant_controller(phi0)
+    if fixture is not None and fixture.actuators:
+        controller = _with_fixture_ctrl(controller, fixture)
     substeps = max(1, round(control_dt / m.opt.timestep))
     ctrl_dt = substeps * m.opt.timestep
     horizon = max(record_every, round(horizon_s / ctrl_dt))
@@ -443,7 +461,7 @@ def snake_scenario(
                            for s in ("active", "passive")])
     sp = P.default_params()
     base_pairs = np.asarray(P.BASE_PAIRS)
-    fixture_rows = np.array([m.body_mocapid[m.body(b).id] for b in fixture.bodies]) if fixture else None
+    fixture_rows = np.array([m.body_mocapid[m.body(b).id] for b in fixture.bodies], int) if fixture else None
     fixture_adr = np.concatenate([m.sensor_adr[m.sensor(n).id] + np.arange(m.sensor_dim[m.sensor(n).id])
                                   for n in fixture.sensors]) if fixture and fixture.sensors else None
 
@@ -459,6 +477,8 @@ def snake_scenario(
         lift = jnp.asarray(p["lift_height"], dtype)
         start = jnp.asarray(p.get("phi0", phi0), dtype)
         ctrl = actuator_command(start, jnp.zeros(P.N_W, dtype), grounded, lift)
+        if fixture is not None and fixture.actuators:
+            ctrl = jnp.concatenate([ctrl, jnp.asarray(fixture.ctrl(p, jnp.zeros((), dtype)), dtype)])
         joints = joint_targets(start, grounded, lift)
         base = jnp.stack([p["x0"], p["y0"], p["heading0"]]).astype(dtype)
         p_h, q_h = placed_head_pose(base, joints, grounded, lift, sp)

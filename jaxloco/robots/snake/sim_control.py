@@ -106,8 +106,12 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
         w0 = S.point_pose(est, point=point) if not feedback else seen_pose(obs)
         wt0 = C.controlled_variable(w0, obs["phi"])
         wt0 = wt0.at[6].set(jnp.where(jnp.isfinite(p["psi3_target"]), p["psi3_target"], wt0[6]))
-        delta = jnp.stack([jnp.asarray(p[k], dtype) for k in DELTA_KEYS])
-        target = S.Target(wt0, delta, jnp.asarray(p["t0"], dtype), jnp.asarray(p["duration"], dtype))
+        if "script_delta" in p:  # an operator's script: K smooth steps (`kinsim.Target`)
+            target = S.Target(wt0, jnp.asarray(p["script_delta"], dtype), jnp.asarray(p["script_t0"], dtype),
+                              jnp.asarray(p["script_duration"], dtype))
+        else:
+            delta = jnp.stack([jnp.asarray(p[k], dtype) for k in DELTA_KEYS])
+            target = S.Target(wt0, delta, jnp.asarray(p["t0"], dtype), jnp.asarray(p["duration"], dtype))
         return {"est": est, "target": target, "mode": C.initial_mode_state(dtype), "phi_cmd": obs["phi"],
                 "chosen": jnp.asarray(1, jnp.int32), "slot": jnp.asarray(-1, jnp.int32)}
 
