@@ -1,6 +1,7 @@
 """T² Snake-3's application experiments (Sec. V-D) in MuJoCo, driven by a scripted
-operator: picking up a T-joint pipe (Fig. 13) and rotating a gate valve. (Opening a door
-with a knob, Fig. 14, is not built yet.)
+operator: picking up a T-joint pipe (Fig. 13), rotating a gate valve, and opening a door
+with a knob (Fig. 14), where a base yaw joint reaches its limit and mode switching frees
+it.
 
 The operator (the paper's joystick commands as a time series): `kinsim.Target` with a
 script of smooth steps of the gripper tip's pose and the SCP psi_3 (the controlled
@@ -30,6 +31,18 @@ the joint at the gripper's base; our gripper joints are fixed, so the head rolls
 III's alpha motion). The membrane's wrap is the contact's torsional friction
 (VALVE_TORSION, ours). Measured: the valve turns 1.29 rad for the 1.57 rad roll, the tip
 within 21 mm; without the grip the pressed gripper still turns it 0.97 rad.
+
+Opening the door (`door_script`, `run_door`): the tip holds the knob of a door (hinge
+0.35 m to its right, opening towards the robot only, ours) and pulls it along the
+door's arc in four 3 s steps to 1.2 rad, yawing with the door (Sec. V-D 3). At about 5 s
+theta_4 and theta_5 reach their limits and the robot stalls (Fig. 14 d): without help
+the gripper loses the knob and the door swings back. With the operator's recovery
+(`door_recovery_script`, DOOR_SWITCH: the pull pauses after the first step while the
+switching state runs modes 2..6, Fig. 14 e) both joints leave their limits within about
+8 s, the tip held within about 6 cm, and the pull resumes: the door opens to about
+0.95 rad (0.25-0.45 rad without the recovery).
+Later the base reaches a limit again (Fig. 14 f shows a second stall), and the tip error
+grows to 18 cm by the end; more than 30 mm throughout the recovery.
 """
 
 from __future__ import annotations
@@ -77,6 +90,13 @@ VALVE_SCRIPT = (
     (4.0, 4.0, (0.0, 0.0, 0.0, math.pi / 2, 0.0, 0.0, 0.0)),  # roll the gripper by 90 deg
 )
 VALVE_GRIP_AT = 3.5  # [s]
+# the door (ours): knob radius, hinge to knob [m], panel half sizes (thickness, width, height) [m], the angles
+# the operator pulls it open to [rad]
+KNOB_RADIUS = 0.02
+DOOR_RADIUS = 0.35
+DOOR_HALF = (0.01, 0.25, 0.3)
+DOOR_ANGLES = (0.3, 0.6, 0.9, 1.2)
+DOOR_GRIP_AT = 1.5  # [s]
 VALVE_HORIZON = 10.0  # [s]
 
 
@@ -131,6 +151,40 @@ def _add_valve(spec: mujoco.MjSpec) -> None:
     _add_gripper(spec)
 
 
+def _add_door(spec: mujoco.MjSpec) -> None:
+    """A door facing the gripper (its panel in the y-z plane beyond the tip) on a vertical
+    hinge DOOR_RADIUS to the tip's right, a knob (sphere) touching the tip, the door's
+    angle recorded (`door_angle`), and the gripper."""
+    tip = initial_tip()
+    knob = np.array([tip[0] + KNOB_RADIUS + 0.002, tip[1], tip[2]])
+    hinge = [float(knob[0] + KNOB_RADIUS + DOOR_HALF[0]), float(knob[1] - DOOR_RADIUS), 0.0]
+    door = spec.worldbody.add_body(name="door", pos=hinge)
+    door.add_joint(name="door", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1], damping=0.2, frictionloss=0.05,
+                   range=[0.0, 2.0], limited=mujoco.mjtLimited.mjLIMITED_TRUE)  # the frame: it opens towards the robot
+    door.add_geom(name="door", type=mujoco.mjtGeom.mjGEOM_BOX, size=[DOOR_HALF[0], DOOR_HALF[1], DOOR_HALF[2]],
+                  pos=[0.0, DOOR_HALF[1], DOOR_HALF[2] + 0.01], mass=1.0, rgba=[0.55, 0.4, 0.25, 1], **OBJECT)
+    door.add_geom(name="knob", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[KNOB_RADIUS, 0, 0],
+                  pos=[float(knob[0] - hinge[0]), DOOR_RADIUS, float(knob[2])], mass=0.05, rgba=STEEL, **OBJECT)
+    spec.add_sensor(name="door_angle", type=mujoco.mjtSensor.mjSENS_JOINTPOS, objtype=mujoco.mjtObj.mjOBJ_JOINT,
+                    objname="door")
+    _add_gripper(spec)
+
+
+def door_script(angles=DOOR_ANGLES, t_start: float = 2.0, duration: float = 3.0, pause_after: int | None = None,
+                pause: float = 0.0) -> tuple:
+    """The operator's door script: press the knob, then pull it along the door's arc in
+    steps to the door angles `angles` [rad], yawing the gripper with the door so that it
+    stays perpendicular to it (Sec. V-D 3), one step every `duration` s from t_start;
+    after step `pause_after` (0-based) the operator waits `pause` s (to switch modes)."""
+    steps, prev, t = [(0.5, 1.0, (0.005, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))], 0.0, t_start
+    for k, a in enumerate(angles):
+        d = (-DOOR_RADIUS * (math.sin(a) - math.sin(prev)), DOOR_RADIUS * (math.cos(a) - math.cos(prev)), 0.0, 0.0, 0.0,
+             a - prev, 0.0)
+        steps.append((t, duration, d))
+        prev, t = a, t + duration + (pause if k == pause_after else 0.0)
+    return tuple(steps)
+
+
 def _grip(p: Any, t: Any) -> Any:
     return jnp.atleast_1d(jnp.where(t >= p["grip_at"], 1.0, 0.0))
 
@@ -139,6 +193,7 @@ def _no_mocap(p: Any, dtype: Any) -> tuple[Any, Any]:
     return jnp.zeros((0, 3), dtype), jnp.zeros((0, 4), dtype)
 
 
+DOOR = SC.Fixture(add=_add_door, bodies=(), pose=_no_mocap, sensors=("door_angle",), actuators=("gripper",), ctrl=_grip)
 PIPE = SC.Fixture(add=_add_pipe, bodies=(), pose=_no_mocap, sensors=("pipe_pos",), actuators=("gripper",), ctrl=_grip)
 VALVE = SC.Fixture(add=_add_valve, bodies=(), pose=_no_mocap, sensors=("valve_angle",), actuators=("gripper",),
                    ctrl=_grip)
@@ -201,4 +256,31 @@ def run_valve(n: int = 1, grip_at: float = VALVE_GRIP_AT, **overrides) -> tuple[
     max_err, final_err = _tip_errors(res, VALVE_SCRIPT)
     roll = np.unwrap(tip[..., 3], axis=-1)
     return res, {"valve_turn": angle[:, -1] - angle[:, 0], "roll": roll[:, -1] - roll[:, 0], "max_tip_error": max_err,
+                 "final_tip_error": final_err}
+
+
+# the operator's recovery (ours): the door stalls at about 5 s (theta_4, theta_5 at their limits); the operator
+# stops pulling after the first step, switches modes for DOOR_PAUSE s, then pulls on
+DOOR_SWITCH = (4.5, 12.5)  # [s] switching state from, until
+DOOR_PAUSE = 8.0  # [s]
+
+
+def door_recovery_script() -> tuple:
+    """`door_script` with the operator's pause after the first step (DOOR_SWITCH)."""
+    return door_script(pause_after=0, pause=DOOR_PAUSE)
+
+
+def run_door(n: int = 1, switch_at: Any = np.inf, script=None, grip_at: float = DOOR_GRIP_AT, horizon: float = 16.0,
+             **overrides) -> tuple[RolloutResult, dict[str, np.ndarray]]:
+    """Opening the door (Sec. V-D 3, Fig. 14): the tip holds the knob and pulls it along
+    the door's arc (`door_script`); `switch_at` [s]: the operator's command to the
+    switching state (mode switching from then on). Returns the rollout and (door_angle
+    [rad] at the end, door_max [rad] the widest it opened, max_tip_error, final_tip_error
+    [m])."""
+    script = door_script() if script is None else script
+    params = script_params(script, grip_at, n, switch_at=switch_at, **overrides)
+    res = rollout(operation_scenario(DOOR, horizon), params, backend="native")
+    angle = np.asarray(res.records["fixture"])[..., 0]
+    max_err, final_err = _tip_errors(res, script)
+    return res, {"door_angle": angle[:, -1], "door_max": angle.max(-1), "max_tip_error": max_err,
                  "final_tip_error": final_err}

@@ -58,6 +58,7 @@ PARAM_DEFAULTS: dict[str, float] = {
     "mode_order": 0,  # row of control.MODE_ORDERS
     "fixed_mode": 1,
     "switch_at": float("inf"),  # [s]
+    "switch_until": float("inf"),  # [s] the operator's command back to the fixing state
     "enter_ratio": 2.0,  # automatic switching off
     "exit_ratio": 0.9,
     "wheel_speed_max": S.WHEEL_SPEED_MAX,  # [rad/s]
@@ -83,6 +84,7 @@ def control_params(p: Mapping[str, Array]) -> C.ControlParams:
         mode_order=jnp.asarray(C.MODE_ORDERS)[jnp.asarray(p["mode_order"]).astype(jnp.int32)],
         fixed_mode=jnp.asarray(p["fixed_mode"]).astype(jnp.int32),
         switch_at=p["switch_at"],
+        switch_until=p["switch_until"],
         enter_ratio=p["enter_ratio"],
         exit_ratio=p["exit_ratio"],
     )
