@@ -1,4 +1,5 @@
-"""A thin, batched, differentiable QP layer over qpax.
+"""A batched, differentiable QP layer: a primal-dual interior-point method in plain XLA
+operations, laid out across the batch.
 
 Problem (one instance; batch with `jax.vmap` or `solve_batch`)::
 
@@ -16,36 +17,45 @@ c = max(max|D Q D|, |D q|_inf, 1e-12). Multipliers are mapped back
 `complementarity` are measured on that scaled problem, so `tol` is a relative,
 unit-free tolerance. A row with h_i = +inf is treated as disabled.
 
-Fixed iterations. qpax's `solve_qp` stops when its KKT residual is below
-`solver_tol`; the layer passes a negative `solver_tol`, which can never be met, so
-every instance runs exactly `iterations` predictor-corrector iterations (qpax's
-while-loop then has a data-independent trip count, and no batch member's result
-depends on the others). qpax's own `converged` flag is not used.
+Method (`_ipm`). The equalities are eliminated once per instance: a Householder QR of
+A^T = [Y N] [R; 0] gives the minimum-norm point x0 = Y R^-T b and an orthonormal basis
+N (n, n - m) of A's null space, so x = x0 + N u and the QP in u has only inequalities
+(k = n - m unknowns; 8 for the leg-grope step QP of 17 variables). On it runs
+Mehrotra's predictor-corrector for exactly `iterations` iterations: each factorizes
+the k x k normal matrix N^T Q N + (G N)^T (Z/S) (G N) once (an unrolled Cholesky) and
+solves with it twice. An iterate that has converged to rounding level, or whose step
+is not finite, is kept as it is, so running more iterations never harms. y follows from
+stationarity, y = -R^-1 Y^T (Q x + q + G^T z). All arrays carry the batch as their
+last axis and every operation is elementwise or a short reduction over the small
+problem axes, so XLA runs one vectorized loop over the batch per step (no LAPACK
+custom calls, no batched tiny matrix products); under `jax.vmap` of `solve` the
+kernel receives the whole batch at once (`jax.custom_batching.custom_vmap`). No batch
+member's result depends on the others.
 
 The ok flag. `ok` is True iff everything is finite and all three scaled residuals
-are <= `tol`. Infeasible problems (qpax then yields NaN or a diverging iterate),
-unbounded ones, non-finite inputs and ones that simply did not converge in
-`iterations` get ``ok=False``; their `x`, `y`, `z` and `objective` are zeros and
-their residual fields hold the residuals of the last iterate (the largest finite
-float where those are not finite), so a near miss can be told from a failure.
-No output is ever NaN. Non-finite inputs are swapped for a harmless dummy problem
-before the solve, with `jnp.where` on both sides, so no NaN enters the computation.
+are <= `tol`. Infeasible problems (whose iterates then diverge), unbounded ones,
+non-finite inputs, an A without full row rank (a pivot of its QR below ~sqrt(eps) / 100
+of its normalized rows) and ones that simply did not converge in `iterations` get
+``ok=False``; their `x`, `y`, `z` and `objective` are zeros and their residual fields
+hold the residuals of the last iterate (the largest finite float where those are not
+finite), so a near miss can be told from a failure. No output is ever NaN.
+Non-finite inputs are swapped for a harmless dummy problem before the solve, with
+`jnp.where` on both sides, so no NaN enters the computation.
 
-Precision: tol=1e-6 suits float64 (25 iterations reach ~1e-9 on the quadruped QP).
-In float32 pass tol ~1e-4: qpax floors s and z at sqrt(eps) ~ 3e-4 in every
-iteration, so float32 residuals stall near 2e-5.
+Precision: tol=1e-6 suits float64 (20-25 iterations reach ~1e-10 on the quadruped QP).
+In float32 pass tol ~1e-4.
 
-Requirements inherited from qpax (violations give ok=False, not a wrong answer):
-A must have full row rank, and Q + G^T G must be positive definite, i.e. every
-direction without curvature (such as a margin variable) must appear in some
-inequality row; qpax factorizes both with Cholesky.
+Requirements (violations give ok=False, not a wrong answer): A must have full row rank,
+and N^T Q N + (G N)^T (G N) must be positive definite, i.e. every direction without
+curvature (such as a margin variable) must appear in some inequality row.
 
 Gradients (``differentiable=True``): reverse mode only (`jax.grad`, `jax.vjp`; not
 `jax.jvp`). `x`, `y`, `z` and `objective` are differentiable with respect to all of
 Q, q, A, b, G, h by implicit differentiation of the KKT conditions at the returned
-point (OptNet's formulas; the adjoint system is solved unreduced with an LU, which
-is ~1e-7 accurate against finite differences, and is our own because qpax's
-`solve_qp_primal` differentiates a relaxed point and gets dL/dG wrong). This is the
+point (OptNet's formulas). The adjoint system [[Q, A^T, G^T], [A, 0, 0], [G, 0, -S/Z]]
+is solved in A's null space with the same reduction as the forward pass, followed by
+two steps of iterative refinement against the unreduced system (the reduced matrix has
+condition ~1e10 at the solution; refinement recovers the lost digits). This is the
 exact derivative when the solution is strictly complementary (every active row has
 z_i > 0) and the active rows together with A are linearly independent (LICQ). At
 degenerate points (duplicated active rows, weakly active rows) the adjoint system
@@ -58,7 +68,8 @@ member of a vmapped batch contributes exactly zero (never NaN) to a gradient.
 With ``differentiable=False`` all outputs are wrapped in `stop_gradient`.
 
 Batching: `solve_batch(...)` vmaps `solve` over a leading axis (arrays without it are
-shared), or write ``jax.vmap(functools.partial(solve, iterations=25, tol=1e-6))``.
+shared), or write ``jax.vmap(functools.partial(solve, iterations=25, tol=1e-6))``;
+any batch size runs in one call.
 """
 
 from __future__ import annotations
@@ -68,7 +79,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import qpax
+from jax.custom_batching import custom_vmap
 
 __all__ = ["QPSolution", "solve", "solve_batch"]
 
@@ -85,25 +96,340 @@ class QPSolution(NamedTuple):
     iterations: jax.Array  # () int32, interior-point iterations run
 
 
-def _residuals(Q, q, A, b, G, h, x, y, z):
-    slack = h - G @ x
-    primal = jnp.maximum(jnp.max(jnp.abs(A @ x - b), initial=0.0), jnp.max(-slack, initial=0.0))
-    dual = jnp.max(jnp.abs(Q @ x + q + A.T @ y + G.T @ z), initial=0.0)
-    comp = jnp.max(jnp.abs(z * slack), initial=0.0)
-    return primal, dual, comp
+# --- batch-last dense kernels: every array is (..., B); Python loops run over the
+# --- small problem axes only, so each line is one vectorized loop over the batch.
+
+def _mv(M, v):
+    """M v for M (r, c, B), v (c, B) -> (r, B)."""
+    return jnp.sum(M * v[None], axis=1)
+
+
+def _mtv(M, v):
+    """M^T v for M (r, c, B), v (r, B) -> (c, B)."""
+    return jnp.sum(M * v[:, None], axis=0)
+
+
+def _mm(M, N):
+    """M N for M (r, c, B), N (c, d, B) -> (r, d, B)."""
+    return jnp.sum(M[:, :, None] * N[None], axis=1)
+
+
+def _mtm(M, N):
+    """M^T N for M (r, c, B), N (r, d, B) -> (c, d, B)."""
+    return jnp.sum(M[:, :, None] * N[:, None, :], axis=0)
+
+
+def _chol(H, tiny):
+    """Unrolled Cholesky of H (k, k, B): lower factor as rows of (B,) entries, and the
+    inverse diagonal. Pivots are floored at `tiny` (a singular H gives a finite factor)."""
+    k = H.shape[0]
+    L = [[None] * k for _ in range(k)]
+    inv = [None] * k
+    for j in range(k):
+        d = H[j, j]
+        for l in range(j):
+            d = d - L[j][l] * L[j][l]
+        d = jnp.sqrt(jnp.maximum(d, tiny))
+        L[j][j], inv[j] = d, 1.0 / d
+        for i in range(j + 1, k):
+            e = H[i, j]
+            for l in range(j):
+                e = e - L[i][l] * L[j][l]
+            L[i][j] = e * inv[j]
+    return L, inv
+
+
+def _chol_solve(fac, r):
+    """x with L L^T x = r, r (k, B)."""
+    L, inv = fac
+    k = len(inv)
+    w = [None] * k
+    for i in range(k):
+        e = r[i]
+        for l in range(i):
+            e = e - L[i][l] * w[l]
+        w[i] = e * inv[i]
+    x = [None] * k
+    for i in reversed(range(k)):
+        e = w[i]
+        for l in range(i + 1, k):
+            e = e - L[l][i] * x[l]
+        x[i] = e * inv[i]
+    return jnp.stack(x)
+
+
+def _householder(At):
+    """QR of At = A^T (n, m, B), m <= n: the orthonormal n x n factor as columns
+    [Y (n, m, B) | N (n, n - m, B)] and R's diagonal-and-above (m, m, B)."""
+    n, m = At.shape[0], At.shape[1]
+    M = At
+    vs, betas = [], []
+    for j in range(m):
+        v = M[j:, j]
+        norm = jnp.sqrt(jnp.sum(v * v, axis=0))
+        alpha = jnp.where(v[0] >= 0, -norm, norm)
+        u = v.at[0].add(-alpha)
+        unorm2 = jnp.sum(u * u, axis=0)
+        beta = jnp.where(unorm2 > 0, 2.0 / jnp.where(unorm2 > 0, unorm2, 1.0), 0.0)
+        # apply I - beta u u^T to the trailing rows of M
+        proj = jnp.sum(u[:, None] * M[j:], axis=0)  # (m, B)
+        M = M.at[j:].add(-beta * u[:, None] * proj[None])
+        vs.append(u)
+        betas.append(beta)
+    R = M[:m]
+    # accumulate Qfull = H_0 H_1 ... H_{m-1} applied to the identity, right to left
+    Qf = jnp.broadcast_to(jnp.eye(n, dtype=At.dtype)[:, :, None], (n, n, At.shape[-1]))
+    for j in reversed(range(m)):
+        u, beta = vs[j], betas[j]
+        proj = jnp.sum(u[:, None] * Qf[j:], axis=0)  # (n, B)
+        Qf = Qf.at[j:].add(-beta * u[:, None] * proj[None])
+    return Qf[:, :m], Qf[:, m:], R
+
+
+def _tri_upper_solve_t(R, b):
+    """x with R^T x = b (R upper (m, m, B), b (m, B))."""
+    m = R.shape[0]
+    x = []
+    for i in range(m):
+        e = b[i]
+        for l in range(i):
+            e = e - R[l, i] * x[l]
+        x.append(e / R[i, i])
+    return jnp.stack(x) if m else b
+
+
+def _tri_upper_solve(R, b):
+    """x with R x = b (R upper (m, m, B), b (m, B))."""
+    m = R.shape[0]
+    x = [None] * m
+    for i in reversed(range(m)):
+        e = b[i]
+        for l in range(i + 1, m):
+            e = e - R[i, l] * x[l]
+        x[i] = e / R[i, i]
+    return jnp.stack(x) if m else b
+
+
+def _eliminate(A, b, rank_tol):
+    """Null-space reduction of A x = b (A (m, n, B)): (Y, N, R with safe pivots, x0, full_rank)."""
+    Y, N, R = _householder(jnp.swapaxes(A, 0, 1))
+    m = A.shape[0]
+    diag = jnp.stack([R[i, i] for i in range(m)]) if m else jnp.ones((1,) + b.shape[1:], A.dtype)
+    full_rank = jnp.all(jnp.abs(diag) > rank_tol, axis=0)
+    if m:
+        safe = jnp.where(full_rank, diag, 1.0)
+        R = R.at[jnp.arange(m), jnp.arange(m)].set(safe)
+    x0 = _mv(Y, _tri_upper_solve_t(R, b))
+    return Y, N, R, x0, full_rank
+
+
+def _polish(P, c, Gr, hr, u, s, z, tiny):
+    """Refine an interior-point iterate by solving the KKT system of its active set
+    (rows with z > s) as equalities; kept only where it lowers the worst residual
+    (reduced, batch-last: P (k, k, B), c (k, B), Gr (p, k, B), hr (p, B))."""
+    dtype = c.dtype
+    delta = jnp.finfo(dtype).eps ** 0.4
+    k = c.shape[0]
+    act = z > s
+    w = jnp.where(act, 1.0 / delta, 0.0)
+    eye = jnp.eye(k, dtype=dtype)[:, :, None]
+    fac = _chol(P + delta * eye + _mtm(Gr, w[:, None] * Gr), tiny)
+    up, zp = u, jnp.where(act, z, 0.0)
+    for _ in range(POLISH):  # iterative refinement of the regularized KKT solve
+        r1 = -c - _mv(P, up) - _mtv(Gr, zp)
+        r2 = jnp.where(act, hr - _mv(Gr, up), 0.0)
+        du = _chol_solve(fac, r1 + _mtv(Gr, w * r2))
+        up = up + du
+        zp = zp + jnp.where(act, (_mv(Gr, du) - r2) / delta, 0.0)
+
+    def worst(u, z, slack):
+        rd = jnp.max(jnp.abs(_mv(P, u) + c + _mtv(Gr, z)), axis=0)
+        gap = hr - _mv(Gr, u)
+        rp = jnp.max(jnp.maximum(-gap, 0.0), axis=0)
+        return jnp.maximum(jnp.maximum(rd, rp), jnp.max(jnp.abs(z * jnp.maximum(gap, slack)), axis=0))
+
+    better = (worst(up, zp, 0.0) <= worst(u, z, 0.0)) & jnp.all(zp >= 0, axis=0)
+    better = better & jnp.all(jnp.isfinite(up), axis=0) & jnp.all(jnp.isfinite(zp), axis=0)
+    return jnp.where(better, up, u), jnp.where(better, zp, z)
+
+
+def _max_step(v, dv):
+    """Largest a in [0, 1] with v + a dv >= 0 (v > 0), per batch member."""
+    ratio = jnp.where(dv < 0, -v / jnp.where(dv < 0, dv, -1.0), jnp.inf)
+    return jnp.minimum(1.0, jnp.min(ratio, axis=0))
+
+
+REFINE = 0
+STOP_EXP = 0.7
+POLISH = 3
+ADJOINT_REFINE = 3
+
+
+def _ipm(Q, q, A, b, G, h, *, iterations):
+    """Mehrotra predictor-corrector on the null-space-reduced QP (batch-last arrays:
+    Q (n, n, B), q (n, B), A (m, n, B), b (m, B), G (p, n, B), h (p, B)).
+    Returns x (n, B), y (m, B), z (p, B), s (p, B) and full_rank (B,)."""
+    dtype = q.dtype
+    eps = jnp.finfo(dtype).eps
+    tiny = jnp.finfo(dtype).tiny ** 0.5
+    p = h.shape[0]
+    Y, N, R, x0, full_rank = _eliminate(A, b, jnp.sqrt(eps) * 0.01)
+    P = _mtm(N, _mm(Q, N))  # (k, k, B)
+    c = _mtv(N, _mv(Q, x0) + q)  # (k, B)
+    Gr = _mm(G, N)  # (p, k, B)
+    hr = h - _mv(G, x0)
+
+    def factor(w):
+        return _chol(P + _mtm(Gr, w[:, None] * Gr), tiny)
+
+    # initial point (as CVXOPT's coneqp): least squares with unit weights, then shifted
+    u = _chol_solve(factor(jnp.ones_like(hr)), _mtv(Gr, hr) - c)
+    s = hr - _mv(Gr, u)
+    s = jnp.where(jnp.min(s, axis=0) > 0, s, s + 1.0 - jnp.min(s, axis=0))
+    z = -(hr - _mv(Gr, u))
+    z = jnp.where(jnp.min(z, axis=0) > 0, z, z + 1.0 - jnp.min(z, axis=0))
+    stop = eps ** STOP_EXP  # converged well enough for the polish: keep the iterate
+
+    def body(_, state):
+        u, s, z = state
+        rd = _mv(P, u) + c + _mtv(Gr, z)
+        rp = _mv(Gr, u) + s - hr
+        sz = s * z
+        mu = jnp.sum(sz, axis=0) / p
+        done = jnp.maximum(jnp.max(jnp.abs(rd), axis=0), jnp.max(jnp.abs(rp), axis=0))
+        done = jnp.maximum(done, jnp.max(sz, axis=0)) <= stop
+        fac = factor(z / s)
+
+        def newton(r1, r2, r3):
+            # P du + Gr^T dz = r1, Gr du + ds = r2, z ds + s dz = r3
+            du = _chol_solve(fac, r1 - _mtv(Gr, (r3 - z * r2) / s))
+            ds = r2 - _mv(Gr, du)
+            return du, ds, (r3 - z * ds) / s
+
+        def direction(rc, refine):
+            du, ds, dz = newton(-rd, -rp, -rc)
+            for _ in range(refine):  # the reduced matrix loses digits as Z/S grows: refine
+                e1 = -rd - _mv(P, du) - _mtv(Gr, dz)
+                e2 = -rp - _mv(Gr, du) - ds
+                e3 = -rc - z * ds - s * dz
+                eu, es, ez = newton(e1, e2, e3)
+                du, ds, dz = du + eu, ds + es, dz + ez
+            return du, ds, dz
+
+        du, ds, dz = direction(sz, 0)
+        a = jnp.minimum(_max_step(s, ds), _max_step(z, dz))
+        mu_aff = jnp.sum((s + a * ds) * (z + a * dz), axis=0) / p
+        sigma = jnp.clip(mu_aff / mu, 0.0, 1.0) ** 3
+        du, ds, dz = direction(sz + ds * dz - sigma * mu, REFINE)
+        a = 0.99 * jnp.minimum(_max_step(s, ds), _max_step(z, dz))
+        new = (u + a * du, s + a * ds, z + a * dz)
+        finite = jnp.all(jnp.isfinite(new[0]), axis=0) & jnp.all(jnp.isfinite(new[1]) & jnp.isfinite(new[2]), axis=0)
+        keep = done | ~finite
+        return tuple(jnp.where(keep, o, nw) for o, nw in zip(state, new))
+
+    u, s, z = jax.lax.fori_loop(0, iterations, body, (u, s, z))
+    u, z = _polish(P, c, Gr, hr, u, s, z, tiny)
+    x = x0 + _mv(N, u)
+    g = _mv(Q, x) + q + _mtv(G, z)
+    y = -_tri_upper_solve(R, _mtv(Y, g))
+    return x, y, z, s, full_rank
+
+
+def _fwd_kernel(Q, q, A, b, G, h, *, iterations, tol):
+    """`_ipm` plus the scaled residuals and the ok flag (batch-last)."""
+    x, y, z, s, full_rank = _ipm(Q, q, A, b, G, h, iterations=iterations)
+    slack = h - _mv(G, x)
+    primal = jnp.maximum(jnp.max(jnp.abs(_mv(A, x) - b), axis=0, initial=0.0),
+                         jnp.max(-slack, axis=0, initial=0.0))
+    dual = jnp.max(jnp.abs(_mv(Q, x) + q + _mtv(A, y) + _mtv(G, z)), axis=0, initial=0.0)
+    comp = jnp.max(jnp.abs(z * slack), axis=0, initial=0.0)
+    ok = (jnp.maximum(jnp.maximum(primal, dual), comp) <= tol) & full_rank
+    ok = ok & jnp.all(jnp.isfinite(s), axis=0) & jnp.all(z >= 0, axis=0)
+    big = jnp.finfo(x.dtype).max
+    primal, dual, comp = (jnp.where(jnp.isfinite(r), r, big) for r in (primal, dual, comp))
+    x, y, z = (jnp.where(ok, v, 0.0) for v in (x, y, z))
+    s = jnp.where(ok, s, 1.0)  # safe slack for the adjoint solve of a bad instance
+    return x, y, z, s, primal, dual, comp, ok
+
+
+def _adjoint_kernel(Q, A, G, h, x, z, ok, gx, gy, gz):
+    """(dx, dy, w) solving [[Q, A^T, G^T], [A, 0, 0], [G, 0, -S/Z]] (dx, dy, w) = -(gx, gy, gz)
+    at the returned point (batch-last; S = slack h - G x, and w_i = 0 where z_i = 0).
+    The solve uses S/Z floored at delta = eps^0.4 (so the reduced matrix stays well
+    conditioned) and iterative refinement against the exact system. A bad instance
+    gets a dummy well-posed system and zero right-hand side."""
+    n, m = Q.shape[0], A.shape[0]
+    dtype = Q.dtype
+    eye = jnp.eye(n, dtype=dtype)[:, :, None]
+    Q = jnp.where(ok, Q, eye)
+    A = jnp.where(ok, A, eye[:m])
+    G = jnp.where(ok, G, 0.0)
+    z = jnp.where(ok, z, 1.0)
+    s = jnp.where(ok, jnp.maximum(h - _mv(G, x), 0.0), 1.0)
+    gx, gy, gz = (jnp.where(ok, g, 0.0) for g in (gx, gy, gz))
+    delta = jnp.finfo(dtype).eps ** 0.4
+    live = z > 0
+    zsafe = jnp.where(live, z, 1.0)
+    W = jnp.where(live, z / jnp.maximum(s, delta * zsafe), 0.0)  # floored S/Z, inverted
+    D = s / zsafe  # exact S/Z on live rows
+    Y, N, R, _, _ = _eliminate(A, jnp.zeros_like(gy), jnp.asarray(0.0, dtype))
+    P = _mtm(N, _mm(Q, N))
+    Gr = _mm(G, N)
+    fac = _chol(P + _mtm(Gr, W[:, None] * Gr), jnp.finfo(dtype).tiny ** 0.5)
+
+    def hess(v):
+        return _mv(Q, v) + _mtv(G, W * _mv(G, v))
+
+    def kkt(a, bb, c):
+        rhs = a + _mtv(G, W * c)
+        xp = _mv(Y, _tri_upper_solve_t(R, bb))
+        dx = xp + _mv(N, _chol_solve(fac, _mtv(N, rhs - hess(xp))))
+        dy = _tri_upper_solve(R, _mtv(Y, rhs - hess(dx)))
+        return dx, dy, W * (_mv(G, dx) - c)
+
+    a, bb, c = -gx, -gy, -gz
+    dx, dy, w = kkt(a, bb, c)
+    for _ in range(ADJOINT_REFINE):  # iterative refinement against the exact system
+        r1 = a - (_mv(Q, dx) + _mtv(A, dy) + _mtv(G, w))
+        r2 = bb - _mv(A, dx)
+        r3 = jnp.where(live, c - (_mv(G, dx) - D * w), 0.0)
+        ex, ey, ew = kkt(r1, r2, r3)
+        dx, dy, w = dx + ex, dy + ey, w + ew
+    return dx, dy, w
+
+
+def _per_instance(kernel):
+    """One-instance form of a batch-last kernel; under `jax.vmap` it runs the kernel once
+    on the whole batch (moved to the last axis) instead of batching its operations."""
+
+    @custom_vmap
+    def one(*args):
+        out = kernel(*(a[..., None] for a in args))
+        return tuple(o[..., 0] for o in out)
+
+    @one.def_vmap
+    def rule(axis_size, in_batched, *args):
+        moved = [jnp.moveaxis(a, 0, -1) if bat else jnp.broadcast_to(a[..., None], a.shape + (axis_size,))
+                 for a, bat in zip(args, in_batched)]
+        out = tuple(jnp.moveaxis(o, -1, 0) for o in kernel(*moved))
+        return out, (True,) * len(out)
+
+    return one
+
+
+@functools.lru_cache(maxsize=None)
+def _forward_fn(iterations, tol):
+    return _per_instance(functools.partial(_fwd_kernel, iterations=iterations, tol=tol))
+
+
+_adjoint = _per_instance(_adjoint_kernel)
 
 
 def _forward(data, iterations, tol):
-    """Run qpax for exactly `iterations` steps; return sanitized iterate, residuals, ok."""
-    Q, q, A, b, G, h = data
-    x, s, z, y, _, iters = qpax.solve_qp(Q, q, A, b, G, h, solver_tol=-1.0, max_iter=iterations)
-    res = _residuals(Q, q, A, b, G, h, x, y, z)
-    ok = (jnp.max(jnp.stack(res)) <= tol) & jnp.all(jnp.isfinite(s)) & jnp.all(z >= 0)
-    big = jnp.finfo(x.dtype).max
-    res = tuple(jnp.where(jnp.isfinite(r), r, big) for r in res)
-    x, y, z = (jnp.where(ok, v, 0.0) for v in (x, y, z))
-    s = jnp.where(ok, s, 1.0)  # safe slack for the adjoint solve of a bad instance
-    return (x, y, z, s, *res, ok, jnp.asarray(iters, jnp.int32))
+    """Run the interior-point method for exactly `iterations` steps: sanitized iterate,
+    residuals, ok and the iteration count."""
+    out = _forward_fn(iterations, tol)(*data)
+    return (*out, jnp.asarray(iterations, jnp.int32))
 
 
 @functools.partial(jax.custom_vjp, nondiff_argnums=(6, 7))
@@ -114,30 +440,13 @@ def _solve_diff(Q, q, A, b, G, h, iterations, tol):
 def _solve_diff_fwd(Q, q, A, b, G, h, iterations, tol):
     out = _forward((Q, q, A, b, G, h), iterations, tol)
     x, y, z, s, *_, ok, _ = out
-    return out, (Q, A, G, x, y, z, s, ok)
+    return out, (Q, A, G, h, x, y, z, ok)
 
 
 def _solve_diff_bwd(iterations, tol, saved, cts):
     del iterations, tol
-    Q, A, G, x, y, z, s, ok = saved
-    n, m, p = x.shape[0], y.shape[0], z.shape[0]
-    gx, gy, gz = (jnp.where(ok, g, 0.0) for g in cts[:3])
-    # A bad instance gets a well-posed dummy system (and zero right-hand side).
-    Qb = jnp.where(ok, Q, jnp.eye(n, dtype=Q.dtype))
-    Ab = jnp.where(ok, A, jnp.eye(m, n, dtype=A.dtype))
-    Gb = jnp.where(ok, G, 0.0)
-    zb = jnp.where(ok, z, 1.0)
-    # Adjoint of the KKT system at the returned point, K^T (dx, dy, dz) = -(gx, gy, gz):
-    # K^T = [[Q, A^T, G^T Z], [A, 0, 0], [G, 0, -S]]. Solved unreduced (LU): the reduced
-    # form with Q + G^T (Z/S) G has condition ~1e10 at the solution and loses ~5 digits.
-    zeros = functools.partial(jnp.zeros, dtype=x.dtype)
-    K = jnp.block([
-        [Qb, Ab.T, Gb.T * zb[None, :]],
-        [Ab, zeros((m, m)), zeros((m, p))],
-        [Gb, zeros((p, m)), -jnp.diag(s)],
-    ])
-    sol = jnp.linalg.solve(K, -jnp.concatenate([gx, gy, gz]))
-    dx, dy, w = sol[:n], sol[n:n + m], zb * sol[n + m:]  # w = Z dz
+    Q, A, G, h, x, y, z, ok = saved
+    dx, dy, w = _adjoint(Q, A, G, h, x, z, ok, *cts[:3])
     grads = (
         0.5 * (jnp.outer(dx, x) + jnp.outer(x, dx)),
         dx,
@@ -153,7 +462,7 @@ _solve_diff.defvjp(_solve_diff_fwd, _solve_diff_bwd)
 
 
 def _row_norms(M):
-    norms = jnp.linalg.norm(M, axis=1)
+    norms = jnp.sqrt(jnp.sum(M * M, axis=1))
     return jnp.where(norms > 0, norms, 1.0)
 
 
@@ -205,7 +514,7 @@ def solve(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: float = 
     x = jnp.where(ok, d * xs, 0.0)
     y = jnp.where(ok, c * ys / ra, 0.0)
     z = jnp.where(ok, c * zs / rg, 0.0)
-    objective = jnp.where(ok, 0.5 * x @ Q @ x + q @ x, 0.0)
+    objective = jnp.where(ok, jnp.sum(x * (0.5 * jnp.sum(Q * x[None, :], axis=1) + q)), 0.0)
     sol = QPSolution(x, y, z, primal, dual, comp, objective, ok, iters)
     return sol if differentiable else jax.tree_util.tree_map(jax.lax.stop_gradient, sol)
 
@@ -219,9 +528,9 @@ def solve_batch(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: fl
 
     Each of Q, q, A, b, G, h, x_scale may carry the batch axis (shape (B, ...)) or not
     (shared by all members; at least one must carry it). Returns a batched QPSolution.
-    `sequential=True` solves one instance at a time, so every LAPACK call has batch 1:
-    with jaxlib 0.10.x on CPU, batched LAPACK kernels (Cholesky/triangular solves, used
-    by qpax) can deadlock XLA's CPU thread pool; the sequential form avoids them.
+    Any batch size runs in one call (the solver uses no LAPACK custom calls);
+    `sequential=True` solves one instance at a time (same results, much slower; kept
+    for comparison and for memory-bound uses).
     """
     fn = functools.partial(solve, iterations=iterations, tol=tol, differentiable=differentiable)
     args = [jnp.asarray(v) for v in (Q, q, A, b, G, h, 1.0 if x_scale is None else x_scale)]
