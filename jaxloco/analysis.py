@@ -202,6 +202,7 @@ _BUILTIN: dict[str, str] = {
     "snake.reach": "jaxloco.robots.snake.sim_analysis:REACH",
     "snake.table3": "jaxloco.robots.snake.table3:TABLE3",
     "snake.contact": "jaxloco.robots.snake.contact:CONTACT",
+    "snake.operations": "jaxloco.robots.snake.operations_analysis:OPERATIONS",
 }
 _REGISTERED: dict[str, Analysis] = {}
 

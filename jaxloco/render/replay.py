@@ -338,6 +338,29 @@ def titan_walk(row: Row) -> Replay:
                             camera={"azimuth": 135.0, "elevation": -25.0, "distance": 14.0})
 
 
+def snake_operation(row: Row) -> Replay:
+    """`snake.operations`: an operation of T² Snake-3 (Sec. V-D), captioned with the mode
+    state, the tip's distance from the operator's intended position and the object."""
+    import mujoco
+
+    from jaxloco.robots.snake import params as P
+
+    name = str(row.values["operation"])
+    fixture = {"pick": ("pipe height", "m", 2), "valve": ("valve", "rad", 0), "door": ("door", "rad", 0)}[name]
+
+    def caption(row: Row, records: Mapping[str, np.ndarray]) -> list[str]:
+        error = 1000 * np.linalg.norm(np.asarray(records["tip"])[:, :3] - np.asarray(records["intent"])[:, :3], axis=-1)
+        switching = np.any(np.asarray(records["grounded_cmd"]) != np.asarray(P.MODES[0], bool), axis=-1)
+        thing = np.asarray(records["fixture"])[:, fixture[2]]
+        return [f"{name}  {'switching modes' if s else 'fixing state'}  tip error {e:.0f} mm  {fixture[0]} {a:.2f} "
+                f"{fixture[1]}" for s, e, a in zip(switching, error, thing)]
+
+    replay = simulated_replay(row, ("success", "max_tip_error", "stalls"), caption,
+                              camera={"azimuth": 215.0, "elevation": -20.0, "distance": 1.8})
+    replay.track_body = mujoco.mj_name2id(replay.model, mujoco.mjtObj.mjOBJ_BODY, "link1")
+    return replay
+
+
 def generic_host(row: Row) -> Replay:
     """Any other host analysis that runs a `jaxloco.sim` rollout: its first three metrics."""
     return simulated_replay(row)
@@ -352,6 +375,7 @@ REPLAYS: dict[str, str] = {
     "octopus.paper": "jaxloco.render.replay:octopus_step_climb",
     "leggrope.fragile_walk": "jaxloco.render.replay:leggrope_fragile_walk",
     "titan.walk": "jaxloco.render.replay:titan_walk",
+    "snake.operations": "jaxloco.render.replay:snake_operation",
 }
 NO_REPLAY: dict[str, str] = {
     "octopus.terrain_classification": "a row is a Monte-Carlo set of static postures, not a motion",

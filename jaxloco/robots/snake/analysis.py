@@ -215,9 +215,9 @@ def summarize(table) -> Summary:
                  "margin [mm]", "loss"),
         rows=tuple(rows),
         notes=(
-            "ok = base joints below recover_ratio of their limits within the horizon and gripper-tip error "
-            "<= 30 mm / 0.1 rad (the paper's Fig. 9 figures); ok rows first by recovery time, then the rest by "
-            "loss; margin = smallest static margin [mm]",
+            ("ok = base joints below recover_ratio of their limits within the horizon and gripper-tip error "
+             "<= 30 mm / 0.1 rad (the paper's Fig. 9 figures); ok rows first by recovery time, then the rest by "
+             "loss; margin = smallest static margin [mm]"),
             "paper K_V = diag(15, 0.015, 15, 0.015, 15, 0.015, 9.6, 4.8, 2.4, 1.2, 0.6, 0.3), k_eta = 0.1 (ours)",
         ),
     )

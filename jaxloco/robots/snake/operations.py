@@ -49,6 +49,8 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import jax
@@ -58,6 +60,7 @@ import numpy as np
 
 from jaxloco.robots.snake import kinematics as K
 from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import predictive as PR
 from jaxloco.robots.snake import scenarios as SC
 from jaxloco.robots.snake import sim_control as SCt
 from jaxloco.sim.rollout import RolloutResult, rollout
@@ -97,6 +100,7 @@ DOOR_RADIUS = 0.35
 DOOR_HALF = (0.01, 0.25, 0.3)
 DOOR_ANGLES = (0.3, 0.6, 0.9, 1.2)
 DOOR_GRIP_AT = 1.5  # [s]
+DOOR_TIP_BEHIND = 2 * KNOB_RADIUS + 0.002 + DOOR_HALF[0]  # [m] the gripper tip's distance in front of the hinge line
 VALVE_HORIZON = 10.0  # [s]
 
 
@@ -174,12 +178,18 @@ def door_script(angles=DOOR_ANGLES, t_start: float = 2.0, duration: float = 3.0,
                 pause: float = 0.0) -> tuple:
     """The operator's door script: press the knob, then pull it along the door's arc in
     steps to the door angles `angles` [rad], yawing the gripper with the door so that it
-    stays perpendicular to it (Sec. V-D 3), one step every `duration` s from t_start;
+    stays perpendicular to it (Sec. V-D 3): the tip moves on the circle about the hinge
+    that it would follow held rigidly to the door, one step every `duration` s from t_start;
     after step `pause_after` (0-based) the operator waits `pause` s (to switch modes)."""
     steps, prev, t = [(0.5, 1.0, (0.005, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))], 0.0, t_start
+    tip = np.array([-DOOR_TIP_BEHIND, DOOR_RADIUS])  # the tip from the hinge (x, y) at angle 0
+
+    def turned(a):
+        return np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]]) @ tip
+
     for k, a in enumerate(angles):
-        d = (-DOOR_RADIUS * (math.sin(a) - math.sin(prev)), DOOR_RADIUS * (math.cos(a) - math.cos(prev)), 0.0, 0.0, 0.0,
-             a - prev, 0.0)
+        dx, dy = turned(a) - turned(prev)
+        d = (float(dx), float(dy), 0.0, 0.0, 0.0, a - prev, 0.0)
         steps.append((t, duration, d))
         prev, t = a, t + duration + (pause if k == pause_after else 0.0)
     return tuple(steps)
@@ -199,11 +209,12 @@ VALVE = SC.Fixture(add=_add_valve, bodies=(), pose=_no_mocap, sensors=("valve_an
                    ctrl=_grip)
 
 
-@functools.lru_cache(maxsize=4)
-def operation_scenario(fixture: SC.Fixture, horizon: float) -> Scenario:
+@functools.lru_cache(maxsize=8)
+def operation_scenario(fixture: SC.Fixture, horizon: float, prediction: PR.Prediction | None = None) -> Scenario:
     """The flat-ground snake scenario with an operation's objects and the gripper, the
-    tip under the paper's feedforward task-space control."""
-    return SC.snake_scenario(horizon, CONTROL_DT, SCt.task_space_controller(CONTROL_DT, "tip", False),
+    tip under the paper's feedforward task-space control (`prediction`: the switching
+    state's modes chosen by look-ahead, `predictive`, instead of the fixed order)."""
+    return SC.snake_scenario(horizon, CONTROL_DT, SCt.task_space_controller(CONTROL_DT, "tip", False, prediction),
                              fixture=fixture)
 
 
@@ -226,43 +237,93 @@ def script_target(t: np.ndarray, w0: np.ndarray, script) -> np.ndarray:
     return out
 
 
-def _tip_errors(res: RolloutResult, script) -> tuple[np.ndarray, np.ndarray]:
-    tip = np.asarray(res.records["tip"])
-    want = np.stack([script_target(res.times, tip[i, 0], script) for i in range(tip.shape[0])])
-    err = np.linalg.norm(tip[..., :3] - want[..., :3], axis=-1)
+def tip_errors(res: RolloutResult) -> tuple[np.ndarray, np.ndarray]:
+    """(largest, final) distance [m] (n,) of the tip from the operator's intended tip
+    position (`operator`: the tip seen at t = 0 plus the script's change so far)."""
+    err = np.linalg.norm(np.asarray(res.records["tip"])[..., :3] - np.asarray(res.records["intent"])[..., :3], axis=-1)
     return err.max(-1), err[:, -1]
 
 
-def run_pick(n: int = 1, grip_at: float = PICK_GRIP_AT, **overrides) -> tuple[RolloutResult, dict[str, np.ndarray]]:
-    """The pick-up, n runs: the rollout and (pipe_lift [m]: the pipe's height gained at
-    the end; max_tip_error, final_tip_error [m]: the measured tip's distance from the
-    script's, the tip measured at t = 0 as the script's start)."""
-    res = rollout(operation_scenario(PIPE, PICK_HORIZON), script_params(PICK_SCRIPT, grip_at, n, **overrides),
-                  backend="native")
+def switching_record(res: RolloutResult) -> np.ndarray:
+    """(n, T) bool: the commanded mode is not the fixing state's mode 1 (the switching
+    state runs modes 2..6, Table II)."""
+    return np.any(np.asarray(res.records["grounded_cmd"]) != np.asarray(P.MODES[0], bool), axis=-1)
+
+
+def _pick_measures(res: RolloutResult) -> dict[str, np.ndarray]:
     pipe = np.asarray(res.records["fixture"])  # (n, T, 3)
-    max_err, final_err = _tip_errors(res, PICK_SCRIPT)
-    return res, {"pipe_lift": pipe[:, -1, 2] - pipe[:, 0, 2], "max_tip_error": max_err, "final_tip_error": final_err}
+    return {"pipe_lift": pipe[:, -1, 2] - pipe[:, 0, 2]}
 
 
-def run_valve(n: int = 1, grip_at: float = VALVE_GRIP_AT, **overrides) -> tuple[RolloutResult, dict[str, np.ndarray]]:
-    """Rotating the gate valve (Sec. V-D 2): push the soft gripper onto the handwheel,
-    harden, roll the gripper by 90 deg. Returns the rollout and (valve_turn [rad]: the
-    handwheel's angle at the end, roll [rad]: the tip's roll gained, max_tip_error,
-    final_tip_error [m] as `run_pick`)."""
-    res = rollout(operation_scenario(VALVE, VALVE_HORIZON), script_params(VALVE_SCRIPT, grip_at, n, **overrides),
-                  backend="native")
+def _valve_measures(res: RolloutResult) -> dict[str, np.ndarray]:
     angle = np.asarray(res.records["fixture"])[..., 0]
-    tip = np.asarray(res.records["tip"])
-    max_err, final_err = _tip_errors(res, VALVE_SCRIPT)
-    roll = np.unwrap(tip[..., 3], axis=-1)
-    return res, {"valve_turn": angle[:, -1] - angle[:, 0], "roll": roll[:, -1] - roll[:, 0], "max_tip_error": max_err,
-                 "final_tip_error": final_err}
+    roll = np.unwrap(np.asarray(res.records["tip"])[..., 3], axis=-1)
+    return {"valve_turn": angle[:, -1] - angle[:, 0], "roll": roll[:, -1] - roll[:, 0]}
+
+
+def _door_measures(res: RolloutResult) -> dict[str, np.ndarray]:
+    angle = np.asarray(res.records["fixture"])[..., 0]
+    return {"door_angle": angle[:, -1], "door_max": angle.max(-1)}
+
+
+@dataclass(frozen=True)
+class Operation:
+    """One of the paper's operations: the objects and gripper (`fixture`), the run's
+    length [s], the operator's script and when the gripper hardens [s], and what is
+    measured on the rollout (`measures(result) -> {name: (n,)}`)."""
+
+    name: str
+    fixture: SC.Fixture
+    horizon: float
+    script: tuple
+    grip_at: float
+    measures: Callable[[RolloutResult], dict[str, np.ndarray]]
 
 
 # the operator's recovery (ours): the door stalls at about 5 s (theta_4, theta_5 at their limits); the operator
 # stops pulling after the first step, switches modes for DOOR_PAUSE s, then pulls on
 DOOR_SWITCH = (4.5, 12.5)  # [s] switching state from, until
 DOOR_PAUSE = 8.0  # [s]
+DOOR_HORIZON = 40.0  # [s] the script's 14 s and the operator's pauses at the stalls
+
+OPERATIONS: dict[str, Operation] = {
+    "pick": Operation("pick", PIPE, PICK_HORIZON, PICK_SCRIPT, PICK_GRIP_AT, _pick_measures),
+    "valve": Operation("valve", VALVE, VALVE_HORIZON, VALVE_SCRIPT, VALVE_GRIP_AT, _valve_measures),
+    "door": Operation("door", DOOR, DOOR_HORIZON, door_script(), DOOR_GRIP_AT, _door_measures),
+}
+
+
+def measure(operation: Operation, res: RolloutResult) -> dict[str, np.ndarray]:
+    """The operation's measures and the tip errors (`tip_errors`) of a rollout (n,)."""
+    max_err, final_err = tip_errors(res)
+    return {**operation.measures(res), "max_tip_error": max_err, "final_tip_error": final_err}
+
+
+def run_operation(name: str, n: int = 1, script=None, grip_at: Any = None, horizon: float | None = None,
+                  prediction: PR.Prediction | None = None, **overrides) -> tuple[RolloutResult, dict[str, np.ndarray]]:
+    """n runs of operation `name` (OPERATIONS) on native MuJoCo, its script and grip time
+    unless given, params `overrides` (scalars or (n,)), the switching state's modes
+    predicted if `prediction` is given: the rollout and `measure`."""
+    op = OPERATIONS[name]
+    params = script_params(op.script if script is None else script, op.grip_at if grip_at is None else grip_at, n,
+                           **overrides)
+    res = rollout(operation_scenario(op.fixture, op.horizon if horizon is None else horizon, prediction), params,
+                  backend="native")
+    return res, measure(op, res)
+
+
+def run_pick(n: int = 1, grip_at: Any = PICK_GRIP_AT, **overrides) -> tuple[RolloutResult, dict[str, np.ndarray]]:
+    """The pick-up, n runs: the rollout and (pipe_lift [m]: the pipe's height gained at
+    the end; max_tip_error, final_tip_error [m]: `tip_errors`)."""
+    return run_operation("pick", n, grip_at=grip_at, **overrides)
+
+
+def run_valve(n: int = 1, grip_at: Any = VALVE_GRIP_AT, **overrides) -> tuple[RolloutResult, dict[str, np.ndarray]]:
+    """Rotating the gate valve (Sec. V-D 2): push the soft gripper onto the handwheel,
+    harden, roll the gripper by 90 deg. Returns the rollout and (valve_turn [rad]: the
+    handwheel's angle at the end, roll [rad]: the tip's roll gained, max_tip_error,
+    final_tip_error [m] as `run_pick`)."""
+    return run_operation("valve", n, grip_at=grip_at, **overrides)
 
 
 def door_recovery_script() -> tuple:
@@ -270,17 +331,11 @@ def door_recovery_script() -> tuple:
     return door_script(pause_after=0, pause=DOOR_PAUSE)
 
 
-def run_door(n: int = 1, switch_at: Any = np.inf, script=None, grip_at: float = DOOR_GRIP_AT, horizon: float = 16.0,
+def run_door(n: int = 1, switch_at: Any = np.inf, script=None, grip_at: Any = DOOR_GRIP_AT, horizon: float = 16.0,
              **overrides) -> tuple[RolloutResult, dict[str, np.ndarray]]:
     """Opening the door (Sec. V-D 3, Fig. 14): the tip holds the knob and pulls it along
-    the door's arc (`door_script`); `switch_at` [s]: the operator's command to the
-    switching state (mode switching from then on). Returns the rollout and (door_angle
-    [rad] at the end, door_max [rad] the widest it opened, max_tip_error, final_tip_error
-    [m])."""
-    script = door_script() if script is None else script
-    params = script_params(script, grip_at, n, switch_at=switch_at, **overrides)
-    res = rollout(operation_scenario(DOOR, horizon), params, backend="native")
-    angle = np.asarray(res.records["fixture"])[..., 0]
-    max_err, final_err = _tip_errors(res, script)
-    return res, {"door_angle": angle[:, -1], "door_max": angle.max(-1), "max_tip_error": max_err,
-                 "final_tip_error": final_err}
+    the door's arc (`door_script`); `switch_at` [s]: a command to the switching state
+    (mode switching from then on; the operator model's own command is `operator_enter`).
+    Returns the rollout and (door_angle [rad] at the end, door_max [rad] the widest it
+    opened, max_tip_error, final_tip_error [m])."""
+    return run_operation("door", n, script=script, grip_at=grip_at, horizon=horizon, switch_at=switch_at, **overrides)

@@ -257,7 +257,7 @@ def placed_head_pose(
     grounded = jnp.asarray(grounded, bool)
     _, beta1 = lift_angles(grounded, lift_height, joints[P.N_H + 2 * np.arange(P.N_B)], params)
     h1 = jnp.where(grounded[0], 0.0, jnp.asarray(lift_height, dtype))
-    Rs, ps = K.link_frames(jnp.zeros(6, dtype), joints, params)
+    _, ps = K.link_frames(jnp.zeros(6, dtype), joints, params)
     # link 7 relative to the head: the product of the joint rotations before it
     q_rel = jnp.asarray([1.0, 0.0, 0.0, 0.0], dtype)
     for k in range(_BASE_LINK):
@@ -500,6 +500,8 @@ def snake_scenario(
             cmd = (c["phi_target"], c["rho_dot"], c["grounded"])
         else:
             cmd = (jnp.zeros(P.N_PHI, dtype), jnp.zeros(P.N_W, dtype), jnp.zeros(P.N_W, bool))
+        policy = c.get("policy") if isinstance(c, dict) else None
+        intent = {"intent": policy["intent"]} if isinstance(policy, dict) and "intent" in policy else {}
         return {
             "head": obs["head"],
             "tip": obs["tip"],
@@ -515,6 +517,7 @@ def snake_scenario(
             "rho_dot_cmd": cmd[1],
             "grounded_cmd": cmd[2],
             **({"fixture": data.sensordata[fixture_adr]} if fixture_adr is not None else {}),
+            **intent,  # the operator's intended pose of the controlled point (`operator`), if the controller has one
         }
 
     def summarize(p, r, final):

@@ -21,7 +21,9 @@ gains and schedule of `ControlParams` (K_V from the four numbers of
 `control.kv_diagonal`), the wheels' speed limit, and the target: w~_d(t) = w~(0) +
 delta s(t) (`kinsim.Target`) with w~(0) the controlled variable at t = 0 and delta =
 (d_x, d_y, d_z, d_roll, d_pitch, d_yaw, d_psi3) [m, rad]; `psi3_target` (if finite)
-replaces the SCP's start value.
+replaces the SCP's start value. The target passes through the teleoperator model
+(`operator`: joystick correction of the seen position error, pausing the script and
+commanding the switching state at a joint limit), off by default.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from jaxloco.robots.snake import control as C
 from jaxloco.robots.snake import experiments as E
 from jaxloco.robots.snake import kinematics as K
 from jaxloco.robots.snake import kinsim as S
+from jaxloco.robots.snake import operator as OP
 from jaxloco.robots.snake import params as P
 from jaxloco.robots.snake import predictive as PR
 from jaxloco.robots.snake import scenarios as SC
@@ -62,11 +65,13 @@ PARAM_DEFAULTS: dict[str, float] = {
     "enter_ratio": 2.0,  # automatic switching off
     "exit_ratio": 0.9,
     "wheel_speed_max": S.WHEEL_SPEED_MAX,  # [rad/s]
+    "joint_speed_max": float("inf"),  # [rad/s] u scaled down so that no joint is commanded faster (inf: off)
     "t0": E.T_START,  # [s] the target starts to change
     "duration": E.RAMP,  # [s] ... over this time
     **{k: 0.0 for k in DELTA_KEYS},
     "psi3_target": float("nan"),  # [rad] SCP target (nan: hold its start value)
     "hold_until": 0.0,  # [s] no null-space motion (k_eta = 0) before this time (settling)
+    **OP.PARAM_DEFAULTS,  # the teleoperator (`operator`): off by default
 }
 
 
@@ -114,8 +119,10 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
         else:
             delta = jnp.stack([jnp.asarray(p[k], dtype) for k in DELTA_KEYS])
             target = S.Target(wt0, delta, jnp.asarray(p["t0"], dtype), jnp.asarray(p["duration"], dtype))
+        seen0 = seen_pose(obs)
         return {"est": est, "target": target, "mode": C.initial_mode_state(dtype), "phi_cmd": obs["phi"],
-                "chosen": jnp.asarray(1, jnp.int32), "slot": jnp.asarray(-1, jnp.int32)}
+                "chosen": jnp.asarray(1, jnp.int32), "slot": jnp.asarray(-1, jnp.int32),
+                "operator": OP.initial_state(seen0), "intent": seen0}
 
     def policy(p, s, obs):
         t = obs["time"]
@@ -126,6 +133,11 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
             w, phi = seen_pose(obs), obs["phi"]
         else:
             w, phi = S.point_pose(est, point=point), est.phi
+        op, command = OP.step(s["operator"], s["target"], t, seen_pose(obs), OP.base_limit_ratio(obs["phi"]), dt,
+                              p["operator_gain"], p["operator_limit"], p["operator_enter"], p["operator_exit"],
+                              p["operator_min_switch"])
+        cp = cp.with_(switch_at=jnp.where(command.switching, -jnp.inf, cp.switch_at),
+                      switch_until=jnp.where(command.switching, jnp.inf, cp.switch_until))
         mode, sigma = C.update_mode(t, phi, s["mode"], cp)
         chosen, slot = s["chosen"], s["slot"]
         if prediction is not None:
@@ -133,23 +145,34 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
             view = S.SnakeState(jnp.stack([b[0], b[1], b[5]]) if feedback else est.base, phi, est.rho)
             k = jnp.floor((t - mode.t_enter) / cp.delta_t + 1e-9).astype(jnp.int32)
             fresh = mode.switching & (k != slot)
-            pick = PR.chooser(s["target"], cp, dt, point, prediction)
+            held = S.Target(command.wd, jnp.zeros_like(command.wd))  # the target held while switching
+            pick = PR.chooser(held, cp, dt, point, prediction)
             chosen = jax.lax.cond(fresh, lambda: jnp.asarray(pick(view, t), jnp.int32), lambda: chosen)
             sigma = jnp.where(mode.switching, chosen, sigma).astype(jnp.int32)
             slot = jnp.where(mode.switching, k, -1)
         grounded = C.grounded_of(sigma)
-        wd, wd_dot = s["target"].at(t)
+        wd, wd_dot = command.wd, command.wd_dot
         mats = K.augmented_matrices(w, phi, grounded, point=point)
         terms = C.control_terms(w, phi, wd, wd_dot, grounded, cp, None, point, mats)
         lim = jnp.asarray(C.PHI_LIMITS, phi.dtype)
-        phi_cmd = jnp.clip(s["phi_cmd"] + dt * terms.u[: P.N_PHI], -lim, lim)
-        rho_dot = jnp.clip(terms.u[P.N_PHI :], -p["wheel_speed_max"], p["wheel_speed_max"])
+        u = terms.u * speed_scale(terms.u[: P.N_PHI], p["joint_speed_max"])
+        phi_cmd = jnp.clip(s["phi_cmd"] + dt * u[: P.N_PHI], -lim, lim)
+        rho_dot = jnp.clip(u[P.N_PHI :], -p["wheel_speed_max"], p["wheel_speed_max"])
         if not feedback:
-            est, _ = S.integrate(est, terms.u, mats, jnp.asarray(dt, phi.dtype), None, point)
-        state = {"est": est, "target": s["target"], "mode": mode, "phi_cmd": phi_cmd, "chosen": chosen, "slot": slot}
+            est, _ = S.integrate(est, u, mats, jnp.asarray(dt, phi.dtype), None, point)
+        state = {"est": est, "target": s["target"], "mode": mode, "phi_cmd": phi_cmd, "chosen": chosen, "slot": slot,
+                 "operator": op, "intent": command.intent}
         return state, phi_cmd, rho_dot, grounded
 
     return SC.make_controller(init, policy, name=f"task_space_{'fb' if feedback else 'ff'}_{point}")
+
+
+def speed_scale(phi_dot: Array, limit: Array) -> Array:
+    """The factor (<= 1) that brings the fastest commanded joint speed of phi_dot (12,)
+    [rad/s] down to `limit` [rad/s]: the whole input u is scaled, so its direction (the
+    task-space motion and the constraints it satisfies) is kept."""
+    fastest = jnp.max(jnp.abs(phi_dot))
+    return jnp.where(fastest > limit, limit / jnp.maximum(fastest, 1e-12), 1.0)
 
 
 def params_batch(n: int = 1, **overrides) -> dict[str, Array]:
