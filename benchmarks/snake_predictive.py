@@ -1,14 +1,16 @@
 """T² Snake-3: predictive mode selection against the paper's fixed order on the
 joint-limit experiment (Sec. V-B, Figs. 8-10), in the kinematic simulation.
 
-    python benchmarks/snake_predictive.py [--horizon 30] [--mujoco]
+    python benchmarks/snake_predictive.py [--horizon 30] [--mujoco] [--door]
 
 From the zigzag posture (base yaw joints at +-1.1 rad), gripper tip held, fixing state
 for 2 s then switching every Delta T = 1 s: the paper's order (2, 3, ..., 6), the
 reverse order and `predictive.chooser` at look-ahead horizons 0.5 and 1 s. Prints the
 recovery time (every base joint below 70 % of its limit), V, the largest tip errors, the
 modes chosen and the compute per switch (one `mode_scores` call, jit-compiled, the
-median of 20).
+median of 20). `--mujoco`: the joint-limit runs in MuJoCo; `--door`: opening the door
+(`operations`, Sec. V-D 3) with the teleoperator model switching at the stalls, fixed
+order against predicted, without and with the operator's correction (about 8 minutes).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ runtime.configure(x64=True, cache_dir=True)
 from jaxloco.robots.snake import control as C
 from jaxloco.robots.snake import experiments as E
 from jaxloco.robots.snake import kinsim as S
+from jaxloco.robots.snake import operations as O
 from jaxloco.robots.snake import predictive as PR
 from jaxloco.robots.snake import sim_control as SCT
 
@@ -62,6 +65,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--horizon", type=float, default=E.LIMIT_HORIZON)
     ap.add_argument("--mujoco", action="store_true", help="also the MuJoCo runs (about 3 minutes)")
+    ap.add_argument("--door", action="store_true", help="also the door in MuJoCo (about 8 minutes)")
     args = ap.parse_args()
     rows = [("paper order 2..6", 0, None), ("reverse order 6..2", 1, None),
             ("predictive, 0.5 s", 0, PR.Prediction(horizon_s=0.5)), ("predictive, 1 s", 0, PR.Prediction())]
@@ -82,6 +86,8 @@ def main() -> None:
     print("(wall: the whole run with compilation; compute per switch: five look-ahead rollouts, compiled)")
     if args.mujoco:
         mujoco_rows(args.horizon)
+    if args.door:
+        door_rows()
 
 
 def mujoco_rows(horizon: float) -> None:
@@ -103,6 +109,27 @@ def mujoco_rows(horizon: float) -> None:
         print(f"| {label} ({res.status[0]}) | {m['recovery_time']:.1f} | {m['V0']:.1f} -> {m['final_V']:.2f} | "
               f"{1e3 * m['max_pos_error']:.1f} | {m['max_att_error']:.3f} | {wall:.0f} | "
               f"{' '.join(f'{x:.1f}' for x in order)} |")
+
+
+def door_rows() -> None:
+    """Opening the door (`operations.run_operation("door")`, 40 s) with the teleoperator
+    switching modes at a base joint's limit (enter 0.97, exit 0.8, at least 5 s), the
+    paper's fixed order against the predicted modes, operator gain 0 and 1 /s."""
+    print("\nOpening the door in MuJoCo, 40 s, the operator switching at the stalls")
+    print("| selection | operator gain [1/s] | door max [rad] | door at the end [rad] | max tip error [mm] | "
+          "final tip error [mm] | time switching [s] | wall [s] |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    gains = np.array([0.0, 1.0])
+    for label, pred in (("paper order 2..6", None), ("predictive, 1 s", PR.Prediction())):
+        t = time.perf_counter()
+        res, m = O.run_operation("door", 2, prediction=pred, operator_gain=gains, operator_enter=0.97)
+        wall = time.perf_counter() - t
+        switching = O.switching_record(res).sum(-1) * (res.times[1] - res.times[0])
+        for i, g in enumerate(gains):
+            print(f"| {label} | {g:g} | {m['door_max'][i]:.2f} | {m['door_angle'][i]:.2f} | "
+                  f"{1e3 * m['max_tip_error'][i]:.0f} | {1e3 * m['final_tip_error'][i]:.0f} | {switching[i]:.1f} | "
+                  f"{wall:.0f} |")
+    print("(wall: both runs of a row together, with compilation)")
 
 
 if __name__ == "__main__":

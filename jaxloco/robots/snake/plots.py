@@ -6,6 +6,7 @@ the `snake.kv` sweep and recorded kinematic runs.
     plot_base_joints(runs)            base yaw joints theta_4..theta_9 over time with their limits (Fig. 10)
     plot_accuracy(errors, paper)      Table III: error of the changed component per target [%]
     plot_contact_forces(table)        Tables IV-V: f_x, f_y, f_z per posture, ours beside the paper's
+    plot_operations(table)            Sec. V-D: each operation's goal and tip error per operator gain
 
 `runs` maps a label to the records of one `kinsim.rollout` (arrays over time, e.g. a
 slice of the vmapped `analysis.run_one` records): t [s], phi (12 joints), error (7: tip
@@ -24,7 +25,8 @@ import numpy as np
 
 from jaxloco.plots import column, heatmap
 
-__all__ = ["plot_accuracy", "plot_base_joints", "plot_contact_forces", "plot_kv_maps", "plot_limit_runs", "rows_where"]
+__all__ = ["plot_accuracy", "plot_base_joints", "plot_contact_forces", "plot_kv_maps", "plot_limit_runs",
+           "plot_operations", "rows_where"]
 
 
 def plot_kv_maps(table: Any, *, where: np.ndarray | None = None, paper: Mapping[str, float] | None = None,
@@ -163,6 +165,46 @@ def plot_contact_forces(table: Any, *, figsize=(10.0, 3.2)):
         ax.grid(alpha=0.3, axis="y")
     axes[0].legend(fontsize="small")
     fig.suptitle("contact forces of the head (Tables IV-V): ours on a MuJoCo force plate, paper", fontsize="medium")
+    return fig
+
+
+def plot_operations(table: Any, *, figsize=(10.0, 3.2)):
+    """The `snake.operations` table: per operation and operator gain, the goal reached
+    (the measure over its success threshold: pipe lift / 0.05 m, valve turn / 75 % of 90
+    deg, door opening / 1.0 rad; 1 = just reached) and the largest tip error [mm] against
+    the 30 mm bound; bars the mean over the trials, dots each trial."""
+    import matplotlib.pyplot as plt
+
+    from jaxloco.robots.snake import operations_analysis as OA
+
+    ops = column(table, "operation").astype(str)
+    gains = column(table, "operator_gain").astype(float)
+    goal = {"pick": ("pipe_lift", OA.PICK_LIFT_MIN), "valve": ("valve_turn", OA.VALVE_TURN_MIN),
+            "door": ("door_max", OA.DOOR_OPEN_MIN)}
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=figsize, layout="constrained")
+    names = [n for n in OA.NAMES if np.any(ops == n)]
+    levels = np.unique(gains)
+    width = 0.8 / max(len(levels), 1)
+    for j, g in enumerate(levels):
+        for i, name in enumerate(names):
+            sel = (ops == name) & (gains == g)
+            if not sel.any():
+                continue
+            key, threshold = goal[name]
+            x = i + (j - (len(levels) - 1) / 2) * width
+            reached = column(table, key)[sel].astype(float) / threshold
+            error = 1e3 * column(table, "max_tip_error")[sel].astype(float)
+            color = f"C{j}"
+            for ax, v in ((a1, reached), (a2, error)):
+                ax.bar(x, np.nanmean(v), width * 0.9, color=color, alpha=0.6,
+                       label=f"operator gain {g:g} /s" if i == 0 else None)
+                ax.plot(np.full(v.size, x), v, ".", color="k", ms=3)
+    a1.axhline(1.0, color="k", lw=0.8, ls="--")
+    a2.axhline(1e3 * OA.TIP_BOUND, color="k", lw=0.8, ls="--")
+    for ax, title in ((a1, "goal reached (measure / success threshold)"), (a2, "largest tip error [mm] (30 mm dashed)")):
+        ax.set_xticks(range(len(names)), names)
+        ax.set_title(title, fontsize=9)
+    a1.legend(fontsize=8)
     return fig
 
 
