@@ -10,5 +10,9 @@ IV-C5), `kinsim` (the pure-JAX kinematic closed loop), `experiments` (Sec. V-A a
 as data and metrics), `analysis` (sweep analysis `snake.kv`), `tuning` (tune objective
 `snake.kv`), `model` (the MJCF `models/t2snake3.xml`), `scenarios` (the MuJoCo
 scenario and wheel lifting), `sim_control` (the controller and the experiments in
-MuJoCo).
+MuJoCo), `table3` and `contact` (Tables III-V in MuJoCo, analyses `snake.table3`,
+`snake.contact`), `operator` (the teleoperator model), `operations` (the pipe, the valve
+and the door of Sec. V-D), `operations_analysis` (analysis `snake.operations`),
+`predictive` (predictive mode selection), `trials` (the perturbed trials' parameters),
+`sim_analysis` and `mjx_tuning` (`snake.reach` and its MJX gain objective), `plots`.
 """
