@@ -99,43 +99,92 @@ class QPSolution(NamedTuple):
 # --- batch-last dense kernels: every array is (..., B); Python loops run over the
 # --- small problem axes only, so each line is one vectorized loop over the batch.
 
+def _fold(op, items):
+    """op-reduction of a list of arrays, written as a chain of elementwise ops (XLA fuses
+    it into one loop over the batch; a reduce over a leading axis runs much slower)."""
+    return functools.reduce(op, items)
+
+
+def _over0(op, v, empty):
+    """op-reduction over the leading axis of v (empty: the value for no rows)."""
+    if v.shape[0] == 0:
+        return jnp.full(v.shape[1:], empty, v.dtype)
+    return _fold(op, [v[i] for i in range(v.shape[0])])
+
+
+def _sum0(v):
+    return _over0(jnp.add, v, 0)
+
+
+def _max0(v):
+    return _over0(jnp.maximum, v, 0)  # used on |.| and residuals: 0 for no rows
+
+
+def _min0(v):
+    return _over0(jnp.minimum, v, jnp.inf)
+
+
+def _all0(v):
+    return _over0(jnp.logical_and, v, True)
+
+
 def _mv(M, v):
     """M v for M (r, c, B), v (c, B) -> (r, B)."""
-    return jnp.sum(M * v[None], axis=1)
+    return _fold(jnp.add, [M[:, j] * v[j] for j in range(M.shape[1])])
 
 
 def _mtv(M, v):
     """M^T v for M (r, c, B), v (r, B) -> (c, B)."""
-    return jnp.sum(M * v[:, None], axis=0)
+    return _fold(jnp.add, [M[i] * v[i] for i in range(M.shape[0])])
 
 
 def _mm(M, N):
     """M N for M (r, c, B), N (c, d, B) -> (r, d, B)."""
-    return jnp.sum(M[:, :, None] * N[None], axis=1)
+    return _fold(jnp.add, [M[:, j][:, None] * N[j][None] for j in range(M.shape[1])])
 
 
 def _mtm(M, N):
     """M^T N for M (r, c, B), N (r, d, B) -> (c, d, B)."""
-    return jnp.sum(M[:, :, None] * N[:, None, :], axis=0)
+    return _fold(jnp.add, [M[i][:, None] * N[i][None] for i in range(M.shape[0])])
+
+
+_barrier = jax.lax.optimization_barrier
+
+
+def _normal(P, Gr, w, shift=0.0):
+    """Lower triangle of P + shift I + Gr^T diag(w) Gr as nested lists of (B,) entries
+    (P (k, k, B), Gr (p, k, B), w (p, B)); materialized once (else XLA recomputes its
+    entries inside every column of the factorization)."""
+    k = P.shape[0]
+    wG = w[:, None] * Gr
+    H = [[P[i, j] + _sum0(Gr[:, i] * wG[:, j]) + (shift if i == j else 0.0) for j in range(i + 1)]
+         for i in range(k)]
+    return _barrier(H)
 
 
 def _chol(H, tiny):
-    """Unrolled Cholesky of H (k, k, B): lower factor as rows of (B,) entries, and the
+    """Unrolled Cholesky of a symmetric H given as its lower triangle (nested lists of
+    (B,) entries, H[i][j] for j <= i): lower factor as rows of (B,) entries, and the
     inverse diagonal. Pivots are floored at `tiny` (a singular H gives a finite factor)."""
-    k = H.shape[0]
+    k = len(H)
     L = [[None] * k for _ in range(k)]
     inv = [None] * k
     for j in range(k):
-        d = H[j, j]
+        d = H[j][j]
         for l in range(j):
             d = d - L[j][l] * L[j][l]
         d = jnp.sqrt(jnp.maximum(d, tiny))
         L[j][j], inv[j] = d, 1.0 / d
         for i in range(j + 1, k):
-            e = H[i, j]
+            e = H[i][j]
             for l in range(j):
                 e = e - L[i][l] * L[j][l]
             L[i][j] = e * inv[j]
+        # materialize each column: otherwise XLA recomputes it inside every later one
+        col = _barrier([L[i][j] for i in range(j, k)] + [inv[j]])
+        for i in range(j, k):
+            L[i][j] = col[i - j]
+        inv[j] = col[-1]
     return L, inv
 
 
@@ -148,42 +197,45 @@ def _chol_solve(fac, r):
         e = r[i]
         for l in range(i):
             e = e - L[i][l] * w[l]
-        w[i] = e * inv[i]
+        w[i] = _barrier(e * inv[i])
     x = [None] * k
     for i in reversed(range(k)):
         e = w[i]
         for l in range(i + 1, k):
             e = e - L[l][i] * x[l]
-        x[i] = e * inv[i]
+        x[i] = _barrier(e * inv[i])
     return jnp.stack(x)
 
 
 def _householder(At):
-    """QR of At = A^T (n, m, B), m <= n: the orthonormal n x n factor as columns
-    [Y (n, m, B) | N (n, n - m, B)] and R's diagonal-and-above (m, m, B)."""
-    n, m = At.shape[0], At.shape[1]
+    """Householder QR of At = A^T (n, m, B), m <= n: the reflectors (u_j (n - j, B),
+    beta_j (B,)) with Qf = H_0 ... H_{m-1}, H_j = I - beta_j u_j u_j^T on rows j.., and
+    R (m, m, B) (upper triangle valid). Qf = [Y | N]: Y spans A's rows, N its null space."""
+    m = At.shape[1]
     M = At
-    vs, betas = [], []
+    refl = []
     for j in range(m):
         v = M[j:, j]
-        norm = jnp.sqrt(jnp.sum(v * v, axis=0))
+        norm = jnp.sqrt(_sum0(v * v))
         alpha = jnp.where(v[0] >= 0, -norm, norm)
-        u = v.at[0].add(-alpha)
-        unorm2 = jnp.sum(u * u, axis=0)
+        u = jnp.concatenate([v[:1] - alpha, v[1:]])
+        unorm2 = _sum0(u * u)
         beta = jnp.where(unorm2 > 0, 2.0 / jnp.where(unorm2 > 0, unorm2, 1.0), 0.0)
-        # apply I - beta u u^T to the trailing rows of M
-        proj = jnp.sum(u[:, None] * M[j:], axis=0)  # (m, B)
-        M = M.at[j:].add(-beta * u[:, None] * proj[None])
-        vs.append(u)
-        betas.append(beta)
-    R = M[:m]
-    # accumulate Qfull = H_0 H_1 ... H_{m-1} applied to the identity, right to left
-    Qf = jnp.broadcast_to(jnp.eye(n, dtype=At.dtype)[:, :, None], (n, n, At.shape[-1]))
-    for j in reversed(range(m)):
-        u, beta = vs[j], betas[j]
-        proj = jnp.sum(u[:, None] * Qf[j:], axis=0)  # (n, B)
-        Qf = Qf.at[j:].add(-beta * u[:, None] * proj[None])
-    return Qf[:, :m], Qf[:, m:], R
+        proj = _mtv(M[j:], u)  # (m, B)
+        M = _barrier(jnp.concatenate([M[:j], M[j:] - beta * u[:, None] * proj[None]]))
+        refl.append((u, beta))
+    return refl, M[:m]
+
+
+def _apply_q(refl, X, transpose=False):
+    """Qf X (or Qf^T X) for X (n, B) or (n, c, B), applying the reflectors."""
+    for j in (range(len(refl)) if transpose else reversed(range(len(refl)))):
+        u, beta = refl[j]
+        if X.ndim == 3:
+            u = u[:, None]
+        proj = _sum0(u * X[j:])
+        X = _barrier(jnp.concatenate([X[:j], X[j:] - beta * u * proj[None]]))
+    return X
 
 
 def _tri_upper_solve_t(R, b):
@@ -210,17 +262,37 @@ def _tri_upper_solve(R, b):
     return jnp.stack(x) if m else b
 
 
-def _eliminate(A, b, rank_tol):
-    """Null-space reduction of A x = b (A (m, n, B)): (Y, N, R with safe pivots, x0, full_rank)."""
-    Y, N, R = _householder(jnp.swapaxes(A, 0, 1))
-    m = A.shape[0]
-    diag = jnp.stack([R[i, i] for i in range(m)]) if m else jnp.ones((1,) + b.shape[1:], A.dtype)
-    full_rank = jnp.all(jnp.abs(diag) > rank_tol, axis=0)
+class _Elim(NamedTuple):
+    refl: list  # Householder reflectors of A^T
+    R: jax.Array  # (m, m, B) triangular factor, tiny pivots replaced by 1
+    N: jax.Array  # (n, n - m, B) orthonormal null-space basis of A
+
+    def particular(self, b):
+        """Minimum-norm solution x of A x = b, b (m, B)."""
+        m = self.R.shape[0]
+        v = _tri_upper_solve_t(self.R, b)
+        pad = jnp.zeros((self.N.shape[0] - m,) + b.shape[1:], b.dtype)
+        return _apply_q(self.refl, jnp.concatenate([v, pad]))
+
+    def multipliers(self, g):
+        """y with A^T y = g in the least-squares sense (Y^T g = R y), g (n, B)."""
+        m = self.R.shape[0]
+        return _tri_upper_solve(self.R, _apply_q(self.refl, g, transpose=True)[:m])
+
+
+def _eliminate(A, rank_tol):
+    """Null-space reduction of A x = b (A (m, n, B)): (_Elim, full_rank (B,))."""
+    n, m = A.shape[1], A.shape[0]
+    refl, R = _householder(jnp.swapaxes(A, 0, 1))
     if m:
+        diag = jnp.stack([R[i, i] for i in range(m)])
+        full_rank = _all0(jnp.abs(diag) > rank_tol)
         safe = jnp.where(full_rank, diag, 1.0)
-        R = R.at[jnp.arange(m), jnp.arange(m)].set(safe)
-    x0 = _mv(Y, _tri_upper_solve_t(R, b))
-    return Y, N, R, x0, full_rank
+        R = jnp.where(jnp.eye(m, dtype=bool)[:, :, None], safe[:, None], R)
+    else:
+        full_rank = jnp.ones(A.shape[2:], bool)
+    basis = jnp.broadcast_to(jnp.eye(n, dtype=A.dtype)[:, m:, None], (n, n - m) + A.shape[2:])
+    return _Elim(refl, R, _apply_q(refl, basis)), full_rank
 
 
 def _polish(P, c, Gr, hr, u, s, z, tiny):
@@ -229,11 +301,9 @@ def _polish(P, c, Gr, hr, u, s, z, tiny):
     (reduced, batch-last: P (k, k, B), c (k, B), Gr (p, k, B), hr (p, B))."""
     dtype = c.dtype
     delta = jnp.finfo(dtype).eps ** 0.4
-    k = c.shape[0]
     act = z > s
     w = jnp.where(act, 1.0 / delta, 0.0)
-    eye = jnp.eye(k, dtype=dtype)[:, :, None]
-    fac = _chol(P + delta * eye + _mtm(Gr, w[:, None] * Gr), tiny)
+    fac = _chol(_normal(P, Gr, w, delta), tiny)
     up, zp = u, jnp.where(act, z, 0.0)
     for _ in range(POLISH):  # iterative refinement of the regularized KKT solve
         r1 = -c - _mv(P, up) - _mtv(Gr, zp)
@@ -243,26 +313,26 @@ def _polish(P, c, Gr, hr, u, s, z, tiny):
         zp = zp + jnp.where(act, (_mv(Gr, du) - r2) / delta, 0.0)
 
     def worst(u, z, slack):
-        rd = jnp.max(jnp.abs(_mv(P, u) + c + _mtv(Gr, z)), axis=0)
+        rd = _max0(jnp.abs(_mv(P, u) + c + _mtv(Gr, z)))
         gap = hr - _mv(Gr, u)
-        rp = jnp.max(jnp.maximum(-gap, 0.0), axis=0)
-        return jnp.maximum(jnp.maximum(rd, rp), jnp.max(jnp.abs(z * jnp.maximum(gap, slack)), axis=0))
+        rp = _max0(jnp.maximum(-gap, 0.0))
+        return jnp.maximum(jnp.maximum(rd, rp), _max0(jnp.abs(z * jnp.maximum(gap, slack))))
 
-    better = (worst(up, zp, 0.0) <= worst(u, z, 0.0)) & jnp.all(zp >= 0, axis=0)
-    better = better & jnp.all(jnp.isfinite(up), axis=0) & jnp.all(jnp.isfinite(zp), axis=0)
+    better = (worst(up, zp, 0.0) <= worst(u, z, 0.0)) & _all0(zp >= 0)
+    better = better & _all0(jnp.isfinite(up)) & _all0(jnp.isfinite(zp))
     return jnp.where(better, up, u), jnp.where(better, zp, z)
 
 
 def _max_step(v, dv):
     """Largest a in [0, 1] with v + a dv >= 0 (v > 0), per batch member."""
     ratio = jnp.where(dv < 0, -v / jnp.where(dv < 0, dv, -1.0), jnp.inf)
-    return jnp.minimum(1.0, jnp.min(ratio, axis=0))
+    return jnp.minimum(1.0, _min0(ratio))
 
 
 REFINE = 0
 STOP_EXP = 0.7
 POLISH = 3
-ADJOINT_REFINE = 3
+ADJOINT_REFINE = 6
 
 
 def _ipm(Q, q, A, b, G, h, *, iterations):
@@ -273,38 +343,37 @@ def _ipm(Q, q, A, b, G, h, *, iterations):
     eps = jnp.finfo(dtype).eps
     tiny = jnp.finfo(dtype).tiny ** 0.5
     p = h.shape[0]
-    Y, N, R, x0, full_rank = _eliminate(A, b, jnp.sqrt(eps) * 0.01)
+    el, full_rank = _eliminate(A, jnp.sqrt(eps) * 0.01)
+    N, x0 = el.N, el.particular(b)
     P = _mtm(N, _mm(Q, N))  # (k, k, B)
     c = _mtv(N, _mv(Q, x0) + q)  # (k, B)
     Gr = _mm(G, N)  # (p, k, B)
     hr = h - _mv(G, x0)
 
     def factor(w):
-        return _chol(P + _mtm(Gr, w[:, None] * Gr), tiny)
+        return _chol(_normal(P, Gr, w), tiny)
 
     # initial point (as CVXOPT's coneqp): least squares with unit weights, then shifted
     u = _chol_solve(factor(jnp.ones_like(hr)), _mtv(Gr, hr) - c)
     s = hr - _mv(Gr, u)
-    s = jnp.where(jnp.min(s, axis=0) > 0, s, s + 1.0 - jnp.min(s, axis=0))
+    s = jnp.where(_min0(s) > 0, s, s + 1.0 - _min0(s))
     z = -(hr - _mv(Gr, u))
-    z = jnp.where(jnp.min(z, axis=0) > 0, z, z + 1.0 - jnp.min(z, axis=0))
+    z = jnp.where(_min0(z) > 0, z, z + 1.0 - _min0(z))
     stop = eps ** STOP_EXP  # converged well enough for the polish: keep the iterate
 
     def body(_, state):
         u, s, z = state
-        rd = _mv(P, u) + c + _mtv(Gr, z)
-        rp = _mv(Gr, u) + s - hr
+        rd, rp, inv_s = _mv(P, u) + c + _mtv(Gr, z), _mv(Gr, u) + s - hr, 1.0 / s
         sz = s * z
-        mu = jnp.sum(sz, axis=0) / p
-        done = jnp.maximum(jnp.max(jnp.abs(rd), axis=0), jnp.max(jnp.abs(rp), axis=0))
-        done = jnp.maximum(done, jnp.max(sz, axis=0)) <= stop
-        fac = factor(z / s)
+        mu = _sum0(sz) / p
+        done = jnp.maximum(_max0(jnp.abs(rd)), _max0(jnp.maximum(jnp.abs(rp), sz))) <= stop
+        fac = factor(z * inv_s)
 
         def newton(r1, r2, r3):
             # P du + Gr^T dz = r1, Gr du + ds = r2, z ds + s dz = r3
-            du = _chol_solve(fac, r1 - _mtv(Gr, (r3 - z * r2) / s))
+            du = _chol_solve(fac, r1 - _mtv(Gr, (r3 - z * r2) * inv_s))
             ds = r2 - _mv(Gr, du)
-            return du, ds, (r3 - z * ds) / s
+            return du, ds, (r3 - z * ds) * inv_s
 
         def direction(rc, refine):
             du, ds, dz = newton(-rd, -rp, -rc)
@@ -318,20 +387,31 @@ def _ipm(Q, q, A, b, G, h, *, iterations):
 
         du, ds, dz = direction(sz, 0)
         a = jnp.minimum(_max_step(s, ds), _max_step(z, dz))
-        mu_aff = jnp.sum((s + a * ds) * (z + a * dz), axis=0) / p
+        mu_aff = _sum0((s + a * ds) * (z + a * dz)) / p
         sigma = jnp.clip(mu_aff / mu, 0.0, 1.0) ** 3
         du, ds, dz = direction(sz + ds * dz - sigma * mu, REFINE)
         a = 0.99 * jnp.minimum(_max_step(s, ds), _max_step(z, dz))
         new = (u + a * du, s + a * ds, z + a * dz)
-        finite = jnp.all(jnp.isfinite(new[0]), axis=0) & jnp.all(jnp.isfinite(new[1]) & jnp.isfinite(new[2]), axis=0)
+        finite = _all0(jnp.isfinite(new[0])) & _all0(jnp.isfinite(new[1]) & jnp.isfinite(new[2]))
         keep = done | ~finite
-        return tuple(jnp.where(keep, o, nw) for o, nw in zip(state, new))
+        return tuple(jnp.where(keep, o, nw) for o, nw in zip(state, new)), ~jnp.all(done)
 
-    u, s, z = jax.lax.fori_loop(0, iterations, body, (u, s, z))
+    def cond(carry):
+        i, _, running = carry
+        return (i < iterations) & running
+
+    def step(carry):
+        i, state, _ = carry
+        state, running = body(i, state)
+        return i + 1, state, running
+
+    # A converged member is frozen, so stopping once all are converged (or after
+    # `iterations`) gives every member exactly what `iterations` steps would.
+    _, (u, s, z), _ = jax.lax.while_loop(cond, step, (0, (u, s, z), jnp.asarray(True)))
     u, z = _polish(P, c, Gr, hr, u, s, z, tiny)
     x = x0 + _mv(N, u)
     g = _mv(Q, x) + q + _mtv(G, z)
-    y = -_tri_upper_solve(R, _mtv(Y, g))
+    y = -el.multipliers(g)
     return x, y, z, s, full_rank
 
 
@@ -339,12 +419,12 @@ def _fwd_kernel(Q, q, A, b, G, h, *, iterations, tol):
     """`_ipm` plus the scaled residuals and the ok flag (batch-last)."""
     x, y, z, s, full_rank = _ipm(Q, q, A, b, G, h, iterations=iterations)
     slack = h - _mv(G, x)
-    primal = jnp.maximum(jnp.max(jnp.abs(_mv(A, x) - b), axis=0, initial=0.0),
-                         jnp.max(-slack, axis=0, initial=0.0))
-    dual = jnp.max(jnp.abs(_mv(Q, x) + q + _mtv(A, y) + _mtv(G, z)), axis=0, initial=0.0)
-    comp = jnp.max(jnp.abs(z * slack), axis=0, initial=0.0)
+    primal = jnp.maximum(_max0(jnp.abs(_mv(A, x) - b)),
+                         _max0(-slack))
+    dual = _max0(jnp.abs(_mv(Q, x) + q + _mtv(A, y) + _mtv(G, z)))
+    comp = _max0(jnp.abs(z * slack))
     ok = (jnp.maximum(jnp.maximum(primal, dual), comp) <= tol) & full_rank
-    ok = ok & jnp.all(jnp.isfinite(s), axis=0) & jnp.all(z >= 0, axis=0)
+    ok = ok & _all0(jnp.isfinite(s)) & _all0(z >= 0)
     big = jnp.finfo(x.dtype).max
     primal, dual, comp = (jnp.where(jnp.isfinite(r), r, big) for r in (primal, dual, comp))
     x, y, z = (jnp.where(ok, v, 0.0) for v in (x, y, z))
@@ -372,19 +452,20 @@ def _adjoint_kernel(Q, A, G, h, x, z, ok, gx, gy, gz):
     zsafe = jnp.where(live, z, 1.0)
     W = jnp.where(live, z / jnp.maximum(s, delta * zsafe), 0.0)  # floored S/Z, inverted
     D = s / zsafe  # exact S/Z on live rows
-    Y, N, R, _, _ = _eliminate(A, jnp.zeros_like(gy), jnp.asarray(0.0, dtype))
+    el, _ = _eliminate(A, jnp.asarray(0.0, dtype))
+    N = el.N
     P = _mtm(N, _mm(Q, N))
     Gr = _mm(G, N)
-    fac = _chol(P + _mtm(Gr, W[:, None] * Gr), jnp.finfo(dtype).tiny ** 0.5)
+    fac = _chol(_normal(P, Gr, W), jnp.finfo(dtype).tiny ** 0.5)
 
     def hess(v):
         return _mv(Q, v) + _mtv(G, W * _mv(G, v))
 
     def kkt(a, bb, c):
         rhs = a + _mtv(G, W * c)
-        xp = _mv(Y, _tri_upper_solve_t(R, bb))
+        xp = el.particular(bb)
         dx = xp + _mv(N, _chol_solve(fac, _mtv(N, rhs - hess(xp))))
-        dy = _tri_upper_solve(R, _mtv(Y, rhs - hess(dx)))
+        dy = el.multipliers(rhs - hess(dx))
         return dx, dy, W * (_mv(G, dx) - c)
 
     a, bb, c = -gx, -gy, -gz
@@ -417,7 +498,7 @@ def _per_instance(kernel):
     return one
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _forward_fn(iterations, tol):
     return _per_instance(functools.partial(_fwd_kernel, iterations=iterations, tol=tol))
 
@@ -439,7 +520,7 @@ def _solve_diff(Q, q, A, b, G, h, iterations, tol):
 
 def _solve_diff_fwd(Q, q, A, b, G, h, iterations, tol):
     out = _forward((Q, q, A, b, G, h), iterations, tol)
-    x, y, z, s, *_, ok, _ = out
+    x, y, z, _, *_, ok, _ = out
     return out, (Q, A, G, h, x, y, z, ok)
 
 
