@@ -197,13 +197,13 @@ def _chol_solve(fac, r):
         e = r[i]
         for l in range(i):
             e = e - L[i][l] * w[l]
-        w[i] = _barrier(e * inv[i])
+        w[i] = e * inv[i]
     x = [None] * k
     for i in reversed(range(k)):
         e = w[i]
         for l in range(i + 1, k):
             e = e - L[l][i] * x[l]
-        x[i] = _barrier(e * inv[i])
+        x[i] = e * inv[i]
     return jnp.stack(x)
 
 
@@ -312,15 +312,17 @@ def _polish(P, c, Gr, hr, u, s, z, tiny):
         up = up + du
         zp = zp + jnp.where(act, (_mv(Gr, du) - r2) / delta, 0.0)
 
-    def worst(u, z, slack):
-        rd = _max0(jnp.abs(_mv(P, u) + c + _mtv(Gr, z)))
-        gap = hr - _mv(Gr, u)
-        rp = _max0(jnp.maximum(-gap, 0.0))
-        return jnp.maximum(jnp.maximum(rd, rp), _max0(jnp.abs(z * jnp.maximum(gap, slack))))
-
-    better = (worst(up, zp, 0.0) <= worst(u, z, 0.0)) & _all0(zp >= 0)
+    better = (_worst(P, c, Gr, hr, up, zp) <= _worst(P, c, Gr, hr, u, z)) & _all0(zp >= 0)
     better = better & _all0(jnp.isfinite(up)) & _all0(jnp.isfinite(zp))
     return jnp.where(better, up, u), jnp.where(better, zp, z)
+
+
+def _worst(P, c, Gr, hr, u, z):
+    """Largest reduced KKT residual (stationarity, infeasibility, |z_i gap_i|) of (u, z)."""
+    rd = _max0(jnp.abs(_mv(P, u) + c + _mtv(Gr, z)))
+    gap = hr - _mv(Gr, u)
+    rp = _max0(jnp.maximum(-gap, 0.0))
+    return jnp.maximum(jnp.maximum(rd, rp), _max0(jnp.abs(z * jnp.maximum(gap, 0.0))))
 
 
 def _max_step(v, dv):
@@ -335,7 +337,7 @@ POLISH = 3
 ADJOINT_REFINE = 6
 
 
-def _ipm(Q, q, A, b, G, h, *, iterations):
+def _ipm(Q, q, A, b, G, h, xw=None, zw=None, *, iterations):
     """Mehrotra predictor-corrector on the null-space-reduced QP (batch-last arrays:
     Q (n, n, B), q (n, B), A (m, n, B), b (m, B), G (p, n, B), h (p, B)).
     Returns x (n, B), y (m, B), z (p, B), s (p, B) and full_rank (B,)."""
@@ -360,6 +362,15 @@ def _ipm(Q, q, A, b, G, h, *, iterations):
     z = -(hr - _mv(Gr, u))
     z = jnp.where(_min0(z) > 0, z, z + 1.0 - _min0(z))
     stop = eps ** STOP_EXP  # converged well enough for the polish: keep the iterate
+    if xw is not None:
+        # warm start: the KKT system of the guessed active set (rows with zw > 0) solved
+        # at once; where that point is optimal to rounding level it is taken as converged
+        uw = _mtv(N, xw - x0)
+        uw, zp = _polish(P, c, Gr, hr, uw, jnp.where(zw > 0, 0.0, 1.0), jnp.maximum(zw, 0.0), tiny)
+        good = (_worst(P, c, Gr, hr, uw, zp) <= stop) & _all0(zp >= 0)
+        good = good & _all0(jnp.isfinite(uw)) & _all0(jnp.isfinite(zp))
+        sp = jnp.maximum(hr - _mv(Gr, uw), 0.0)
+        u, s, z = (jnp.where(good, w, v) for w, v in ((uw, u), (sp, s), (zp, z)))
 
     def body(_, state):
         u, s, z = state
@@ -415,9 +426,9 @@ def _ipm(Q, q, A, b, G, h, *, iterations):
     return x, y, z, s, full_rank
 
 
-def _fwd_kernel(Q, q, A, b, G, h, *, iterations, tol):
+def _fwd_kernel(Q, q, A, b, G, h, xw=None, zw=None, *, iterations, tol):
     """`_ipm` plus the scaled residuals and the ok flag (batch-last)."""
-    x, y, z, s, full_rank = _ipm(Q, q, A, b, G, h, iterations=iterations)
+    x, y, z, s, full_rank = _ipm(Q, q, A, b, G, h, xw, zw, iterations=iterations)
     slack = h - _mv(G, x)
     primal = jnp.maximum(_max0(jnp.abs(_mv(A, x) - b)),
                          _max0(-slack))
@@ -506,27 +517,27 @@ def _forward_fn(iterations, tol):
 _adjoint = _per_instance(_adjoint_kernel)
 
 
-def _forward(data, iterations, tol):
-    """Run the interior-point method for exactly `iterations` steps: sanitized iterate,
-    residuals, ok and the iteration count."""
-    out = _forward_fn(iterations, tol)(*data)
+def _forward(data, iterations, tol, warm=None):
+    """Run the interior-point method (at most `iterations` steps): sanitized iterate,
+    residuals, ok and the iteration count. `warm`: (x, z) guess in scaled units."""
+    out = _forward_fn(iterations, tol)(*data, *(warm or ()))
     return (*out, jnp.asarray(iterations, jnp.int32))
 
 
-@functools.partial(jax.custom_vjp, nondiff_argnums=(6, 7))
-def _solve_diff(Q, q, A, b, G, h, iterations, tol):
-    return _forward((Q, q, A, b, G, h), iterations, tol)
+@functools.partial(jax.custom_vjp, nondiff_argnums=(8, 9, 10))
+def _solve_diff(Q, q, A, b, G, h, xw, zw, iterations, tol, warm):
+    return _forward((Q, q, A, b, G, h), iterations, tol, (xw, zw) if warm else None)
 
 
-def _solve_diff_fwd(Q, q, A, b, G, h, iterations, tol):
-    out = _forward((Q, q, A, b, G, h), iterations, tol)
+def _solve_diff_fwd(Q, q, A, b, G, h, xw, zw, iterations, tol, warm):
+    out = _forward((Q, q, A, b, G, h), iterations, tol, (xw, zw) if warm else None)
     x, y, z, _, *_, ok, _ = out
-    return out, (Q, A, G, h, x, y, z, ok)
+    return out, (Q, A, G, h, x, y, z, ok, jnp.zeros_like(xw), jnp.zeros_like(zw))
 
 
-def _solve_diff_bwd(iterations, tol, saved, cts):
-    del iterations, tol
-    Q, A, G, h, x, y, z, ok = saved
+def _solve_diff_bwd(iterations, tol, warm, saved, cts):
+    del iterations, tol, warm
+    Q, A, G, h, x, y, z, ok, zx, zz = saved
     dx, dy, w = _adjoint(Q, A, G, h, x, z, ok, *cts[:3])
     grads = (
         0.5 * (jnp.outer(dx, x) + jnp.outer(x, dx)),
@@ -536,7 +547,7 @@ def _solve_diff_bwd(iterations, tol, saved, cts):
         jnp.outer(w, x) + jnp.outer(z, dx),
         -w,
     )
-    return tuple(jnp.where(ok, g, 0.0) for g in grads)
+    return (*(jnp.where(ok, g, 0.0) for g in grads), zx, zz)  # the warm start has no gradient
 
 
 _solve_diff.defvjp(_solve_diff_fwd, _solve_diff_bwd)
@@ -548,12 +559,18 @@ def _row_norms(M):
 
 
 def solve(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: float = 1e-6,
-          differentiable: bool = True) -> QPSolution:
+          differentiable: bool = True, warm_start=None) -> QPSolution:
     """Solve one QP (see the module docstring); jit/vmap compatible, float32 or float64.
 
     Shapes: Q (n, n), q (n,), A (m, n), b (m,), G (p, n), h (p,), x_scale (n,) > 0.
-    `iterations` (static int >= 1): interior-point iterations, always all of them.
+    `iterations` (static int >= 1): the interior-point iteration budget (a converged
+    member stops changing, so the result is that of all of them).
     `tol` (static float): bound on the scaled residuals for ``ok``.
+    `warm_start`: optional (x (n,), z (p,)) in the caller's units, e.g. the previous
+    solution of a slowly changing problem: its active set (z_i > 0) is tried first, and
+    where that gives the optimum (to rounding level) no iteration is needed; otherwise
+    the solve starts cold. The result is the same optimum either way (not
+    differentiated with respect to the guess).
     """
     if int(iterations) != iterations or iterations < 1:
         raise ValueError(f"iterations must be a positive int, got {iterations!r}")
@@ -584,10 +601,18 @@ def solve(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: float = 
     c = jnp.maximum(jnp.max(jnp.abs(Qd)), jnp.max(jnp.abs(qd), initial=0.0))
     c = jax.lax.stop_gradient(jnp.maximum(c, 1e-12))
     data = (Qd / c, qd / c, Ad / ra[:, None], b / ra, Gd / rg[:, None], h / rg)
-    if differentiable:
-        out = _solve_diff(*data, int(iterations), float(tol))
+    warm = warm_start is not None
+    if warm:
+        xw, zw = (jax.lax.stop_gradient(jnp.asarray(v, dtype)) for v in warm_start)
+        xw, zw = xw / d, zw * rg / c
+        use = finite & jnp.all(jnp.isfinite(xw)) & jnp.all(jnp.isfinite(zw))
+        xw, zw = jnp.where(use, xw, 0.0), jnp.where(use & ~off, zw, 0.0)
     else:
-        out = _forward(data, int(iterations), float(tol))
+        xw, zw = jnp.zeros(n, dtype), jnp.zeros(h.shape[0], dtype)
+    if differentiable:
+        out = _solve_diff(*data, xw, zw, int(iterations), float(tol), warm)
+    else:
+        out = _forward(data, int(iterations), float(tol), (xw, zw) if warm else None)
     xs, ys, zs, _, primal, dual, comp, ok, iters = out
     ok = ok & finite
     big = jnp.finfo(dtype).max  # residuals of the dummy stand-in would mislead
@@ -604,11 +629,12 @@ _BASE_NDIM = (2, 1, 2, 1, 2, 1, 1)  # Q, q, A, b, G, h, x_scale
 
 
 def solve_batch(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: float = 1e-6,
-                differentiable: bool = True, sequential: bool = False) -> QPSolution:
+                differentiable: bool = True, sequential: bool = False, warm_start=None) -> QPSolution:
     """`solve` over a leading batch axis: `jax.vmap` or, if `sequential`, `jax.lax.map`.
 
     Each of Q, q, A, b, G, h, x_scale may carry the batch axis (shape (B, ...)) or not
-    (shared by all members; at least one must carry it). Returns a batched QPSolution.
+    (shared by all members; at least one must carry it); `warm_start` (x (B, n), z (B, p))
+    is per member. Returns a batched QPSolution.
     Any batch size runs in one call (the solver uses no LAPACK custom calls);
     `sequential=True` solves one instance at a time (same results, much slower; kept
     for comparison and for memory-bound uses).
@@ -618,9 +644,13 @@ def solve_batch(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: fl
     axes = [0 if v.ndim == k + 1 else None for v, k in zip(args, _BASE_NDIM)]
     if x_scale is None:
         axes[6] = None
+    if warm_start is not None:
+        args += [jnp.asarray(v) for v in warm_start]
+        axes += [0, 0]
 
     def call(*a):
-        return fn(*a[:6], x_scale=None if x_scale is None else a[6])
+        warm = None if warm_start is None else (a[7], a[8])
+        return fn(*a[:6], x_scale=None if x_scale is None else a[6], warm_start=warm)
 
     if not sequential:
         return jax.vmap(call, in_axes=axes)(*args)
