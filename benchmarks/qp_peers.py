@@ -99,7 +99,8 @@ def moreau_batch(data):
     sol = solver.solve(data["q"], bs)
     t = time.perf_counter() - t0
     status = np.asarray([str(s) for s in np.atleast_1d(solver.info.status)])
-    return np.asarray(sol.x), np.char.find(status.astype(str), "Solved") >= 0, t
+    solved = np.array(["solved" in v.lower() or "optimal" in v.lower() for v in status])
+    return np.asarray(sol.x), np.broadcast_to(solved, (N,)) if solved.size == 1 else solved, t
 
 
 def qpax_vmap(data, iterations=25):
@@ -110,7 +111,7 @@ def qpax_vmap(data, iterations=25):
     args = tuple(jnp.asarray(data[k]) for k in KEYS)
 
     def one(Q, q, A, b, G, h):
-        x, _, _, _, conv, _ = qpax.solve_qp(Q, q, A, b, G, h, solver_tol=1e-8, max_iter=iterations)
+        x, _, _, _, conv, _ = qpax.solve_qp(Q, q, A, b, G, h, solver_tol=1e-6, max_iter=iterations)
         return x, conv
 
     fn = jax.jit(jax.vmap(one)).lower(*args).compile()

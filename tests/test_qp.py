@@ -281,15 +281,3 @@ def test_float32_agrees_with_float64():
     dev = np.abs(np.asarray(s32.x, np.float64) - s64.x) / X_SCALE
     assert np.max(dev) < 1e-3 * max(1.0, np.max(np.abs(s64.x) / X_SCALE))
     assert abs(float(s32.objective) - float(s64.objective)) < 1e-3 * max(1.0, abs(float(s64.objective)))
-
-
-def test_batch_of_4096_runs_in_one_call(random_set):
-    """No LAPACK custom calls, so no batching cap: 4,096 instances in one compiled call
-    (the set repeated) give the same solutions as the 240-instance batch."""
-    _, stacked, sol = random_set
-    idx = np.arange(4096) % 240
-    big = solve_batch64(*(v[idx] for v in stacked))
-    assert big.x.shape == (4096, N) and bool(jnp.all(big.ok))
-    np.testing.assert_allclose(big.x, sol.x[idx], rtol=1e-9, atol=1e-10)
-    text = solve_batch64.lower(*(v[idx] for v in stacked)).as_text()
-    assert "custom_call" not in text and "lapack" not in text.lower()

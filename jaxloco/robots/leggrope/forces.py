@@ -75,7 +75,6 @@ class QPSettings:
     s_tol: float = 1e-4  # s >= -s_tol * M g is imposed (a sliver of interior; see module doc)
     capacity: bool = False  # also solve the slip-capacity problem (max s) at every step
     capacity_reg: float = 1e-3  # force regularization of the slip-capacity problem
-    warm_start: bool = True  # start each step's QP from the previous step's solution
 
 
 @jax.tree_util.register_dataclass
@@ -250,8 +249,6 @@ class _Carry:
     ramp_start: Array
     first: Array
     summary: CycleSummary
-    x_prev: Array  # previous controller QP solution (zeros after a failure), warm start
-    z_prev: Array
 
 
 def _update(acc: CycleSummary, step: dict) -> CycleSummary:
@@ -306,13 +303,9 @@ def simulate_cycle(
         modes = leg_modes(info, ramp_value)
         h_c = jnp.where(carry.first, 0.0, params.h_c)
         scale = x_scale(params, dtype)
-        def solve(Q, q, c, warm=None):
-            return qp.solve(Q, q, *c, x_scale=scale, iterations=settings.iterations, tol=settings.tol,
-                            warm_start=warm if settings.warm_start else None)
-
+        solve = lambda Q, q, c: qp.solve(Q, q, *c, x_scale=scale, iterations=settings.iterations, tol=settings.tol)  # noqa: E731
         Q, qv = controller_cost(params, dyn, carry.tau_b, h_c, settings)
-        sol = solve(Q, qv, build_constraints(params, dyn, modes, r_ref, -settings.s_tol * weight),
-                    (carry.x_prev, carry.z_prev))
+        sol = solve(Q, qv, build_constraints(params, dyn, modes, r_ref, -settings.s_tol * weight))
         if settings.capacity:
             cap = solve(*capacity_cost(params, dtype, settings), build_constraints(params, dyn, modes, None, None))
             cap_ok, capacity = cap.ok, cap.x[I_S]
@@ -348,8 +341,6 @@ def simulate_cycle(
             ramp_start=ramp_start,
             first=jnp.zeros((), bool),
             summary=_update(carry.summary, values),
-            x_prev=sol.x,
-            z_prev=sol.z,
         )
         out = None
         if record:
@@ -364,8 +355,6 @@ def simulate_cycle(
         ramp_start=jnp.zeros((), dtype),
         first=jnp.ones((), bool),
         summary=_initial_summary(dtype),
-        x_prev=jnp.zeros(N_VAR, dtype),
-        z_prev=jnp.zeros(N_INEQ, dtype),
     )
     final, trace = jax.lax.scan(step, init, jnp.arange(config.n_steps))
     return plan, final.summary, trace
