@@ -343,14 +343,14 @@ def snake_operation(row: Row) -> Replay:
     state, the tip's distance from the operator's intended position and the object."""
     import mujoco
 
-    from jaxloco.robots.snake import params as P
+    from jaxloco.robots.snake import operations
 
     name = str(row.values["operation"])
     fixture = {"pick": ("pipe height", "m", 2), "valve": ("valve", "rad", 0), "door": ("door", "rad", 0)}[name]
 
     def caption(row: Row, records: Mapping[str, np.ndarray]) -> list[str]:
-        error = 1000 * np.linalg.norm(np.asarray(records["tip"])[:, :3] - np.asarray(records["intent"])[:, :3], axis=-1)
-        switching = np.any(np.asarray(records["grounded_cmd"]) != np.asarray(P.MODES[0], bool), axis=-1)
+        error = 1000 * operations.tip_distance(records)
+        switching = operations.switching(records)
         thing = np.asarray(records["fixture"])[:, fixture[2]]
         return [f"{name}  {'switching modes' if s else 'fixing state'}  tip error {e:.0f} mm  {fixture[0]} {a:.2f} "
                 f"{fixture[1]}" for s, e, a in zip(switching, error, thing)]

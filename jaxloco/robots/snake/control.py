@@ -34,8 +34,8 @@ Readings and choices (the paper does not give them):
   * Angle errors of w~ - w~_d are wrapped to (-pi, pi].
   * Mode switching (Sec. IV-C5): the fixing state uses `fixed_mode` (sigma = 1); the
     switching state cycles `mode_order` (2, 3, 4, 5, 6), one mode per Delta T counted
-    from the moment the state was entered. The state is entered on command (`switch_at`
-    <= t < `switch_until`, the operator's joystick; by default it then stays) or when a joint of phi reaches
+    from the moment the state was entered. The state is entered on command (t >=
+    `switch_at`, the operator's joystick; it then stays) or when a joint of phi reaches
     `enter_ratio` of its limit (Table I; the SCP psi_3 excepted) and is left, when not commanded, once every
     joint is back below `exit_ratio` of its limit ("until the robot becomes operable").
 """
@@ -117,7 +117,6 @@ class ControlParams:
     mode_order: Array = field(default_factory=lambda: jnp.arange(2, P.N_MODES + 1))  # (5,) sigma values
     fixed_mode: Array = 1  # sigma of the fixing state
     switch_at: Array = jnp.inf  # [s] operator's command of the switching state
-    switch_until: Array = jnp.inf  # [s] ... and back to the fixing state (the operator's second command)
     enter_ratio: Array = 0.99  # auto switching: |phi_i| >= ratio * limit_i (> 1: off)
     exit_ratio: Array = 0.9  # ... left when every |phi_i| <= ratio * limit_i
 
@@ -292,7 +291,7 @@ def limit_ratio(phi: Array) -> Array:
 def update_mode(t: Array, phi: Array, state: ModeState, cp: ControlParams) -> tuple[ModeState, Array]:
     """Next (ModeState, sigma) at time t [s] with joints phi (module docstring)."""
     ratio = jax.lax.stop_gradient(limit_ratio(phi))
-    commanded = (t >= cp.switch_at) & (t < cp.switch_until)
+    commanded = t >= cp.switch_at
     switching = commanded | (ratio >= cp.enter_ratio) | (state.switching & (ratio > cp.exit_ratio))
     t_enter = jnp.where(switching & ~state.switching, t, state.t_enter)
     k = jnp.floor((t - t_enter) / cp.delta_t + 1e-9).astype(jnp.int32)

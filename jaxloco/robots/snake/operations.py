@@ -18,38 +18,32 @@ pipe lying across its path on the ground with psi_3 lowered by 0.9 rad (with psi
 at its 110 deg SCP target the head part cannot reach the floor: psi_2 hits its
 limit; lowered by 1.2 rad the head part, stretched out, could not lift the pipe on
 its servos), the gripper hardens, and the tip lifts by 0.1 m. The pipe (a T of two
-capsules, PIPE_MASS, ours) is placed under the gripper's middle. Measured (`run_pick`):
-the pipe comes up 5.4 cm; the tip ends 3.8 cm below the script (the paper's
-feedforward control: the head part sags under the lifted pose; the paper's operator
-corrects such errors by joystick, Sec. V-A), against the issue's 30 mm.
+capsules, PIPE_MASS, ours) is placed under the gripper's middle.
 
-Rotating the valve (`VALVE_SCRIPT`, `run_valve`): a handwheel (VALVE_HALF, on a hinge
-along the tip's axis, stem friction VALVE_FRICTION, all ours) 1 cm ahead of the tip;
-the soft gripper is pushed 2 cm towards it ("so that the center of the gripper aligned
-with the center of the valve"), hardens, and the tip rolls by 90 deg (the paper turns
-the joint at the gripper's base; our gripper joints are fixed, so the head rolls, Table
-III's alpha motion). The membrane's wrap is the contact's torsional friction
-(VALVE_TORSION, ours). Measured: the valve turns 1.29 rad for the 1.57 rad roll, the tip
-within 21 mm; without the grip the pressed gripper still turns it 0.97 rad.
+Rotating the valve (`VALVE_SCRIPT`): a handwheel (VALVE_HALF, on a hinge along the
+tip's axis, stem friction VALVE_FRICTION, all ours) 1 cm ahead of the tip; the soft
+gripper is pushed 2 cm towards it ("so that the center of the gripper aligned with the
+center of the valve"), hardens, and the tip rolls by 90 deg (the paper turns the joint
+at the gripper's base; our gripper joints are fixed, so the head rolls, Table III's
+alpha motion). The membrane's wrap is the contact's torsional friction (VALVE_TORSION,
+ours).
 
-Opening the door (`door_script`, `run_door`): the tip holds the knob of a door (hinge
-0.35 m to its right, opening towards the robot only, ours) and pulls it along the
-door's arc in four 3 s steps to 1.2 rad, yawing with the door (Sec. V-D 3). At about 5 s
-theta_4 and theta_5 reach their limits and the robot stalls (Fig. 14 d): without help
-the gripper loses the knob and the door swings back. With the operator's recovery
-(`door_recovery_script`, DOOR_SWITCH: the pull pauses after the first step while the
-switching state runs modes 2..6, Fig. 14 e) both joints leave their limits within about
-8 s, the tip held within about 6 cm, and the pull resumes: the door opens to about
-0.95 rad (0.25-0.45 rad without the recovery).
-Later the base reaches a limit again (Fig. 14 f shows a second stall), and the tip error
-grows to 18 cm by the end; more than 30 mm throughout the recovery.
+Opening the door (`door_script`): the tip holds the knob of a door (hinge 0.35 m to its
+right, opening towards the robot only, ours) and pulls it along the arc it would follow
+held rigidly to the door, in four 3 s steps to 1.2 rad, yawing with the door (Sec. V-D
+3). theta_4 and theta_5 reach their limits at about 4 s (Fig. 14 d); the teleoperator
+model (`operator`, `operator_enter` < 1) then pauses the script and commands the
+switching state (Fig. 14 e).
+
+The measured results (5 perturbed trials each, `operations_analysis`, `jaxloco sweep
+snake_operations`) are in docs/snake.md.
 """
 
 from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -174,24 +168,23 @@ def _add_door(spec: mujoco.MjSpec) -> None:
     _add_gripper(spec)
 
 
-def door_script(angles=DOOR_ANGLES, t_start: float = 2.0, duration: float = 3.0, pause_after: int | None = None,
-                pause: float = 0.0) -> tuple:
+def door_script(angles=DOOR_ANGLES, t_start: float = 2.0, duration: float = 3.0) -> tuple:
     """The operator's door script: press the knob, then pull it along the door's arc in
     steps to the door angles `angles` [rad], yawing the gripper with the door so that it
     stays perpendicular to it (Sec. V-D 3): the tip moves on the circle about the hinge
-    that it would follow held rigidly to the door, one step every `duration` s from t_start;
-    after step `pause_after` (0-based) the operator waits `pause` s (to switch modes)."""
+    that it would follow held rigidly to the door, one step every `duration` s from
+    t_start."""
     steps, prev, t = [(0.5, 1.0, (0.005, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))], 0.0, t_start
     tip = np.array([-DOOR_TIP_BEHIND, DOOR_RADIUS])  # the tip from the hinge (x, y) at angle 0
 
     def turned(a):
         return np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]]) @ tip
 
-    for k, a in enumerate(angles):
+    for a in angles:
         dx, dy = turned(a) - turned(prev)
         d = (float(dx), float(dy), 0.0, 0.0, 0.0, a - prev, 0.0)
         steps.append((t, duration, d))
-        prev, t = a, t + duration + (pause if k == pause_after else 0.0)
+        prev, t = a, t + duration
     return tuple(steps)
 
 
@@ -237,17 +230,28 @@ def script_target(t: np.ndarray, w0: np.ndarray, script) -> np.ndarray:
     return out
 
 
+def tip_distance(records: Mapping[str, Any]) -> np.ndarray:
+    """(..., T) distance [m] of the tip from the operator's intended tip position
+    (`operator`: the tip seen at t = 0 plus the script's change so far) in a rollout's
+    records (with or without the batch axis)."""
+    return np.linalg.norm(np.asarray(records["tip"])[..., :3] - np.asarray(records["intent"])[..., :3], axis=-1)
+
+
+def switching(records: Mapping[str, Any]) -> np.ndarray:
+    """(..., T) bool: the commanded mode is not the fixing state's mode 1 (the switching
+    state runs modes 2..6, Table II)."""
+    return np.any(np.asarray(records["grounded_cmd"]) != np.asarray(P.MODES[0], bool), axis=-1)
+
+
 def tip_errors(res: RolloutResult) -> tuple[np.ndarray, np.ndarray]:
-    """(largest, final) distance [m] (n,) of the tip from the operator's intended tip
-    position (`operator`: the tip seen at t = 0 plus the script's change so far)."""
-    err = np.linalg.norm(np.asarray(res.records["tip"])[..., :3] - np.asarray(res.records["intent"])[..., :3], axis=-1)
+    """(largest, final) `tip_distance` [m] (n,) of each run."""
+    err = tip_distance(res.records)
     return err.max(-1), err[:, -1]
 
 
 def switching_record(res: RolloutResult) -> np.ndarray:
-    """(n, T) bool: the commanded mode is not the fixing state's mode 1 (the switching
-    state runs modes 2..6, Table II)."""
-    return np.any(np.asarray(res.records["grounded_cmd"]) != np.asarray(P.MODES[0], bool), axis=-1)
+    """(n, T) `switching` of a rollout."""
+    return switching(res.records)
 
 
 def _pick_measures(res: RolloutResult) -> dict[str, np.ndarray]:
@@ -280,10 +284,6 @@ class Operation:
     measures: Callable[[RolloutResult], dict[str, np.ndarray]]
 
 
-# the operator's recovery (ours): the door stalls at about 5 s (theta_4, theta_5 at their limits); the operator
-# stops pulling after the first step, switches modes for DOOR_PAUSE s, then pulls on
-DOOR_SWITCH = (4.5, 12.5)  # [s] switching state from, until
-DOOR_PAUSE = 8.0  # [s]
 DOOR_HORIZON = 40.0  # [s] the script's 14 s and the operator's pauses at the stalls
 
 OPERATIONS: dict[str, Operation] = {
@@ -324,11 +324,6 @@ def run_valve(n: int = 1, grip_at: Any = VALVE_GRIP_AT, **overrides) -> tuple[Ro
     handwheel's angle at the end, roll [rad]: the tip's roll gained, max_tip_error,
     final_tip_error [m] as `run_pick`)."""
     return run_operation("valve", n, grip_at=grip_at, **overrides)
-
-
-def door_recovery_script() -> tuple:
-    """`door_script` with the operator's pause after the first step (DOOR_SWITCH)."""
-    return door_script(pause_after=0, pause=DOOR_PAUSE)
 
 
 def run_door(n: int = 1, switch_at: Any = np.inf, script=None, grip_at: Any = DOOR_GRIP_AT, horizon: float = 16.0,

@@ -61,11 +61,9 @@ PARAM_DEFAULTS: dict[str, float] = {
     "mode_order": 0,  # row of control.MODE_ORDERS
     "fixed_mode": 1,
     "switch_at": float("inf"),  # [s]
-    "switch_until": float("inf"),  # [s] the operator's command back to the fixing state
     "enter_ratio": 2.0,  # automatic switching off
     "exit_ratio": 0.9,
     "wheel_speed_max": S.WHEEL_SPEED_MAX,  # [rad/s]
-    "joint_speed_max": float("inf"),  # [rad/s] u scaled down so that no joint is commanded faster (inf: off)
     "t0": E.T_START,  # [s] the target starts to change
     "duration": E.RAMP,  # [s] ... over this time
     **{k: 0.0 for k in DELTA_KEYS},
@@ -89,7 +87,6 @@ def control_params(p: Mapping[str, Array]) -> C.ControlParams:
         mode_order=jnp.asarray(C.MODE_ORDERS)[jnp.asarray(p["mode_order"]).astype(jnp.int32)],
         fixed_mode=jnp.asarray(p["fixed_mode"]).astype(jnp.int32),
         switch_at=p["switch_at"],
-        switch_until=p["switch_until"],
         enter_ratio=p["enter_ratio"],
         exit_ratio=p["exit_ratio"],
     )
@@ -136,8 +133,7 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
         op, command = OP.step(s["operator"], s["target"], t, seen_pose(obs), OP.base_limit_ratio(obs["phi"]), dt,
                               p["operator_gain"], p["operator_limit"], p["operator_enter"], p["operator_exit"],
                               p["operator_min_switch"])
-        cp = cp.with_(switch_at=jnp.where(command.switching, -jnp.inf, cp.switch_at),
-                      switch_until=jnp.where(command.switching, jnp.inf, cp.switch_until))
+        cp = cp.with_(switch_at=jnp.where(command.switching, -jnp.inf, cp.switch_at))
         mode, sigma = C.update_mode(t, phi, s["mode"], cp)
         chosen, slot = s["chosen"], s["slot"]
         if prediction is not None:
@@ -155,24 +151,15 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
         mats = K.augmented_matrices(w, phi, grounded, point=point)
         terms = C.control_terms(w, phi, wd, wd_dot, grounded, cp, None, point, mats)
         lim = jnp.asarray(C.PHI_LIMITS, phi.dtype)
-        u = terms.u * speed_scale(terms.u[: P.N_PHI], p["joint_speed_max"])
-        phi_cmd = jnp.clip(s["phi_cmd"] + dt * u[: P.N_PHI], -lim, lim)
-        rho_dot = jnp.clip(u[P.N_PHI :], -p["wheel_speed_max"], p["wheel_speed_max"])
+        phi_cmd = jnp.clip(s["phi_cmd"] + dt * terms.u[: P.N_PHI], -lim, lim)
+        rho_dot = jnp.clip(terms.u[P.N_PHI :], -p["wheel_speed_max"], p["wheel_speed_max"])
         if not feedback:
-            est, _ = S.integrate(est, u, mats, jnp.asarray(dt, phi.dtype), None, point)
+            est, _ = S.integrate(est, terms.u, mats, jnp.asarray(dt, phi.dtype), None, point)
         state = {"est": est, "target": s["target"], "mode": mode, "phi_cmd": phi_cmd, "chosen": chosen, "slot": slot,
                  "operator": op, "intent": command.intent}
         return state, phi_cmd, rho_dot, grounded
 
     return SC.make_controller(init, policy, name=f"task_space_{'fb' if feedback else 'ff'}_{point}")
-
-
-def speed_scale(phi_dot: Array, limit: Array) -> Array:
-    """The factor (<= 1) that brings the fastest commanded joint speed of phi_dot (12,)
-    [rad/s] down to `limit` [rad/s]: the whole input u is scaled, so its direction (the
-    task-space motion and the constraints it satisfies) is kept."""
-    fastest = jnp.max(jnp.abs(phi_dot))
-    return jnp.where(fastest > limit, limit / jnp.maximum(fastest, 1e-12), 1.0)
 
 
 def params_batch(n: int = 1, **overrides) -> dict[str, Array]:
