@@ -220,7 +220,9 @@ def main(argv=None):
     both = ok & solved
     print(f"clarabel (default settings) on {count} instances: {count / t_clar:.0f} QPs/s (Python loop); "
           f"reference (tol 1e-10) solved {solved.mean():.4f}")
-    print(f"fraction ok (jaxloco.qp) on those: {ok.mean():.4f}; ok but clarabel not solved: {int(np.sum(ok & ~solved))}")
+    print(
+        f"fraction ok (jaxloco.qp) on those: {ok.mean():.4f}; ok but clarabel not solved: {int(np.sum(ok & ~solved))}"
+    )
     if both.any():
         print(f"max |x - x_clarabel| / x_scale over {int(both.sum())} ok instances: {dev[both].max():.2e} "
               f"(median {np.median(dev[both].max(axis=1)):.2e})")

@@ -49,8 +49,10 @@ def main(argv: list[str]) -> None:
     d = clm.PARAM_DEFAULTS
     # the CLM's collision rule: |boom or elbow torque| > collision_torque while that joint
     # moved less than collision_still, collision_periods periods in a row
-    held = np.any((tau[1:, :, 1:] > d["collision_torque"]) & (np.abs(q[1:, :, 1:] - q[:-1, :, 1:]) < d["collision_still"]),
-                  axis=-1)
+    held = np.any(
+        (tau[1:, :, 1:] > d["collision_torque"]) & (np.abs(q[1:, :, 1:] - q[:-1, :, 1:]) < d["collision_still"]),
+        axis=-1,
+    )
     run = np.zeros_like(held, dtype=int)
     for k in range(held.shape[0]):
         run[k] = np.where(held[k], (run[k - 1] if k else 0) + 1, 0)

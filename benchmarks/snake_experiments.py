@@ -97,9 +97,11 @@ def limit_table(tuned: dict[str, float] | None) -> None:
           "| min margin [mm] | footprint at end [m^2] | base joints theta_4..9 below 70 % at [s] | order left |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for i, (label, _) in enumerate(rows):
-        print(f"| {label} | kinematic | {kin['recovery_time'][i]:.1f} | {kin['V0'][i]:.1f} -> {kin['final_V'][i]:.1f} "
-              f"| {1e3 * kin['max_pos_error'][i]:.1f} | {kin['max_att_error'][i]:.3f} | {1e3 * kin['min_margin'][i]:.0f} "
-              f"| {kin['final_area'][i]:.3f} | - | - |")
+        print(
+            f"| {label} | kinematic | {kin['recovery_time'][i]:.1f} | {kin['V0'][i]:.1f} -> {kin['final_V'][i]:.1f} "
+            f"| {1e3 * kin['max_pos_error'][i]:.1f} | {kin['max_att_error'][i]:.3f} | {1e3 * kin['min_margin'][i]:.0f} "
+            f"| {kin['final_area'][i]:.3f} | - | - |"
+        )
         m = _metrics(recs, i)
         order = E.release_times(recs["t"][i], recs["phi"][i])
         print(f"| {label} | MuJoCo | {m['recovery_time']:.1f} | {m['V0']:.1f} -> {m['final_V']:.1f} "

@@ -69,7 +69,9 @@ def main() -> None:
     args = ap.parse_args()
     rows = [("paper order 2..6", 0, None), ("reverse order 6..2", 1, None),
             ("predictive, 0.5 s", 0, PR.Prediction(horizon_s=0.5)), ("predictive, 1 s", 0, PR.Prediction())]
-    print(f"Joint-limit avoidance, kinematic, {args.horizon:g} s from the zigzag posture (tip held; switching from 2 s)")
+    print(
+        f"Joint-limit avoidance, kinematic, {args.horizon:g} s from the zigzag posture (tip held; switching from 2 s)"
+    )
     print("| selection | recovery [s] | V0 -> final V | max tip error [mm] | max att. error [rad] | compute per switch "
           "[ms] | run wall [s] | modes of the first 8 slots |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")

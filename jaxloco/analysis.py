@@ -22,17 +22,15 @@ Contract of `Analysis.make_batch_fn(fixed)`:
 
 from __future__ import annotations
 
-import importlib
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from jaxloco.errors import SpecError
+from jaxloco.registry import Registry, robot_entries
+
 ParamKind = Literal["float", "int", "bool", "str"]
-
-
-class SpecError(ValueError):
-    """A user input (spec, parameter value, file) is wrong; the message is one line."""
 
 
 @dataclass(frozen=True)
@@ -183,47 +181,34 @@ class Analysis:
             return self._by_name[name]
         except KeyError:
             known = ", ".join(sorted(self._by_name))
-            raise SpecError(f"{where or name}: unknown parameter '{name}' for analysis '{self.name}' (known: {known})") from None
+            raise SpecError(
+                f"{where or name}: unknown parameter '{name}' for analysis '{self.name}' (known: {known})"
+            ) from None
 
     def defaults(self) -> dict[str, Any]:
         return {p.name: p.default for p in self.params}
 
 
-# name -> "module:attribute" (imported lazily) or an Analysis registered at run time.
-_BUILTIN: dict[str, str] = {
-    "leggrope.slope_cycle": "jaxloco.robots.leggrope.analysis:SLOPE_CYCLE",
-    "leggrope.fragile_walk": "jaxloco.robots.leggrope.sim_analysis:FRAGILE_WALK",
-    "octopus.terrain_classification": "jaxloco.robots.octopus.analysis:TERRAIN_CLASSIFICATION",
-    "octopus.step_climb": "jaxloco.robots.octopus.sim_analysis:STEP_CLIMB",
-    "octopus.paper": "jaxloco.robots.octopus.paper_analysis:PAPER_EXPERIMENTS",
-    "titan.stride": "jaxloco.robots.titan.analysis:STRIDE",
-    "titan.walk": "jaxloco.robots.titan.sim_analysis:WALK",
-    "snake.kv": "jaxloco.robots.snake.analysis:KV",
-    "snake.reach": "jaxloco.robots.snake.sim_analysis:REACH",
-    "snake.table3": "jaxloco.robots.snake.table3:TABLE3",
-    "snake.contact": "jaxloco.robots.snake.contact:CONTACT",
-    "snake.operations": "jaxloco.robots.snake.operations_analysis:OPERATIONS",
-}
-_REGISTERED: dict[str, Analysis] = {}
+# Built-in analyses come from the robots' entries modules (jaxloco.registry).
+ANALYSES: Registry[Analysis] = Registry(
+    "analysis", lambda: robot_entries("ANALYSES"), lambda entry: isinstance(entry, Analysis)
+)
 
 
 def register(analysis: Analysis) -> Analysis:
     """Add an analysis (e.g. from a plugin or a test); returns it."""
-    _REGISTERED[analysis.name] = analysis
-    return analysis
+    return ANALYSES.register(analysis.name, analysis)
 
 
 def names() -> list[str]:
-    return sorted(set(_BUILTIN) | set(_REGISTERED))
+    return ANALYSES.names()
 
 
 def get(name: str) -> Analysis:
     """The analysis called `name`; SpecError naming the known ones if there is none."""
-    if name in _REGISTERED:
-        return _REGISTERED[name]
-    if name in _BUILTIN:
-        module, attr = _BUILTIN[name].split(":")
-        analysis = getattr(importlib.import_module(module), attr)
-        _REGISTERED[name] = analysis
-        return analysis
-    raise SpecError(f"unknown analysis '{name}' (known: {', '.join(names())})")
+    return ANALYSES.get(name)
+
+
+def is_builtin(name: str) -> bool:
+    """Whether `name` is one of jaxloco's own analyses (importable anywhere by name)."""
+    return name in ANALYSES.builtin

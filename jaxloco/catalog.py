@@ -30,6 +30,7 @@ from jaxloco.analysis import Metric, Param
 
 if TYPE_CHECKING:
     from jaxloco.analysis import Analysis
+    from jaxloco.registry import Registry
     from jaxloco.tune.objective import Objective, Tunable
 
 FORMAT = 1
@@ -139,25 +140,21 @@ def objective_to_data(objective: Objective | ObjectiveInfo) -> dict[str, Any]:
 
 
 def _load_builtins(table: Mapping[str, str]) -> dict[str, Any]:
-    """Each entry of a registry's `_BUILTIN` table ("module:attribute") as code defines it
+    """Each entry of a registry's built-in table ("module:attribute") as code defines it
     (a fresh import, not a run-time override), by name."""
-    import importlib
+    from jaxloco.registry import load_reference
 
-    loaded = {}
-    for name, target in sorted(table.items()):
-        module, attr = target.split(":")
-        loaded[name] = getattr(importlib.import_module(module), attr)
-    return loaded
+    return {name: load_reference(target) for name, target in sorted(table.items())}
 
 
 def _builtin_analyses() -> dict[str, Analysis]:
-    return _load_builtins(analysis_registry._BUILTIN)
+    return _load_builtins(analysis_registry.ANALYSES.builtin)
 
 
 def _builtin_objectives() -> dict[str, Objective]:
-    from jaxloco.tune import objective as objective_registry
+    from jaxloco.tune.objective import OBJECTIVES
 
-    return _load_builtins(objective_registry._BUILTIN)
+    return _load_builtins(OBJECTIVES.builtin)
 
 
 def build() -> dict[str, Any]:
@@ -257,17 +254,17 @@ def _packaged_text() -> str:
 # ---- lookups for the CLI: the catalog for built-ins, the live registry for the rest ----
 
 
-def _from_catalog(name: str, registry: Any, entries: Mapping[str, Any] | None) -> bool:
+def _from_catalog(name: str, registry: Registry, entries: Mapping[str, Any] | None) -> bool:
     """Whether `name` is a built-in of `registry` that is not overridden or loaded yet
     and has an entry in the catalog."""
-    builtin = name in registry._BUILTIN and name not in registry._REGISTERED
+    builtin = name in registry.builtin and not registry.is_live(name)
     return builtin and entries is not None and name in entries
 
 
 def analysis(name: str, catalog: Catalog | None) -> Analysis | AnalysisInfo:
     """What to show for analysis `name`: one registered at run time (or already loaded),
     else its catalog entry, else the live registry's (SpecError naming the known ones)."""
-    if _from_catalog(name, analysis_registry, catalog.analyses if catalog else None):
+    if _from_catalog(name, analysis_registry.ANALYSES, catalog.analyses if catalog else None):
         return catalog.analyses[name]
     return analysis_registry.get(name)
 
@@ -276,7 +273,7 @@ def objective(name: str, catalog: Catalog | None) -> Objective | ObjectiveInfo:
     """Like `analysis`, for the objectives of `jaxloco tune`."""
     from jaxloco.tune import objective as objective_registry
 
-    if _from_catalog(name, objective_registry, catalog.objectives if catalog else None):
+    if _from_catalog(name, objective_registry.OBJECTIVES, catalog.objectives if catalog else None):
         try:
             return catalog.objectives[name]
         except _UNREADABLE:  # decoded only now: an entry that no longer fits `Tunable`, ...

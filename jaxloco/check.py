@@ -1,7 +1,7 @@
 """`jaxloco check SPEC`: what running a sweep or tune spec would do, without running it.
 
 For a sweep: rows, chunks, batch calls per chunk and rows per call as the runner makes
-them on this machine's JAX devices (`runner.rows_per_call`, `runner.call_slices`), the
+them on this machine's JAX devices (`chunks.rows_per_call`, `chunks.call_slices`), the
 output directory's state (`store.check_output`) and a time estimate. For a tuning: the
 objective, tunables, settings, optimizer, steps, output state and the [validate] sweep.
 
@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from jaxloco import paths, specs
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.sweep.spec_model import read_toml
 
 if TYPE_CHECKING:
@@ -177,8 +177,8 @@ class SweepPlan:
 
 def sweep_plan(spec: SweepSpec, n_devices: int, platform: str) -> SweepPlan:
     """The chunks and calls of `spec` on `n_devices` JAX devices of `platform` ("cpu", "gpu")."""
+    from jaxloco.sweep.chunks import call_slices, rows_per_call
     from jaxloco.sweep.grid import chunk_bounds
-    from jaxloco.sweep.runner import call_slices, rows_per_call
 
     host = spec.analysis.executor == "host"
     bounds = chunk_bounds(spec.n_rows, spec.chunk_size)
@@ -319,7 +319,7 @@ def sweep_probe(spec: SweepSpec, plan: SweepPlan) -> Estimate:
     analysis: one call on min(first chunk's rows, 2 x devices) rows, extrapolated linearly
     to every row (its own setup counts in full, so this errs on the long side)."""
     from jaxloco import runtime
-    from jaxloco.sweep.runner import call_args, prepare
+    from jaxloco.sweep.chunks import call_args, prepare
 
     started = time.perf_counter()
     runtime.configure(x64=spec.analysis.x64, cache_dir=True)  # as the runner does

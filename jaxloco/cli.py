@@ -15,7 +15,7 @@ from typing import Annotated
 
 import typer
 
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 
 app = typer.Typer(
     add_completion=False,
@@ -87,7 +87,8 @@ def sweep(
 ) -> None:
     """Run a parameter sweep and write its table (Parquet, optionally CSV); with --from-tune,
     validate a tuning run's values with it."""
-    from jaxloco.sweep import SweepInterrupted, load_spec, run
+    from jaxloco.errors import SweepInterrupted
+    from jaxloco.sweep import load_spec, run
     from jaxloco.sweep.display import print_summary
 
     with _user_errors():
@@ -97,7 +98,9 @@ def sweep(
             raise SpecError("--map needs --from-tune")
         if from_tune is not None:
             if resume or overwrite:
-                raise SpecError("--from-tune resumes or replaces its validation sweep by itself; drop --resume/--overwrite")
+                raise SpecError(
+                    "--from-tune resumes or replaces its validation sweep by itself; drop --resume/--overwrite"
+                )
             mapping = None
             if maps:
                 pairs = [m.split("=", 1) for m in maps]
@@ -202,7 +205,8 @@ def tune(
 ) -> None:
     """Tune an objective's parameters by gradient descent (optax) and compare them with the
     initial values and the objective's references; --validate hands them to a sweep."""
-    from jaxloco.tune import TuneDiverged, load_spec, run
+    from jaxloco.errors import TuneDiverged
+    from jaxloco.tune import load_spec, run
     from jaxloco.tune.display import print_result
 
     with _user_errors():
@@ -236,7 +240,7 @@ def tune(
 
 def _validate(tuned: Path, sweep_spec, mapping, labels, out: Path | None, quiet: bool, **run_options) -> None:
     """Run a tuning run's validation sweep and print the comparison (shared by tune and sweep)."""
-    from jaxloco.sweep import SweepInterrupted
+    from jaxloco.errors import SweepInterrupted
     from jaxloco.tune.display import validation_table
     from jaxloco.tune.handoff import validate as run_validation
 
@@ -334,17 +338,31 @@ _SOURCE_HELP = ("a sweep spec (TOML file or bundled name; its output table is us
 def render(
     source: Annotated[Path, typer.Argument(help=_SOURCE_HELP, show_default=False)],
     row: Annotated[int, typer.Option("--row", help="row index in the sweep's order")] = 0,
-    out: Annotated[Path, typer.Option("--out", help=".gif, .mp4 (needs imageio-ffmpeg) or .png (the last frame)")] = Path(
-        "run.gif"),
+    out: Annotated[
+        Path, typer.Option("--out", help=".gif, .mp4 (needs imageio-ffmpeg) or .png (the last frame)")
+    ] = Path("run.gif"),
     fps: Annotated[int, typer.Option("--fps", help="frames per second of the video")] = 15,
     width: Annotated[int, typer.Option("--width", help="image width [px]")] = 480,
     height: Annotated[int, typer.Option("--height", help="image height [px]")] = 360,
-    camera: Annotated[str, typer.Option("--camera", help="track (follows the robot), side, front, top, free "
-                                        "(still, frames the whole run) or a camera of the model")] = "track",
-    every: Annotated[int | None, typer.Option("--every", help="draw every N-th recorded state (default: at most "
-                                              "150 frames spread over the run)", show_default=False)] = None,
-    seconds: Annotated[float | None, typer.Option("--seconds", help="replay only the first S seconds of motion",
-                                                  show_default=False)] = None,
+    camera: Annotated[
+        str,
+        typer.Option(
+            "--camera",
+            help="track (follows the robot), side, front, top, free "
+            "(still, frames the whole run) or a camera of the model",
+        ),
+    ] = "track",
+    every: Annotated[
+        int | None,
+        typer.Option(
+            "--every",
+            help="draw every N-th recorded state (default: at most 150 frames spread over the run)",
+            show_default=False,
+        ),
+    ] = None,
+    seconds: Annotated[
+        float | None, typer.Option("--seconds", help="replay only the first S seconds of motion", show_default=False)
+    ] = None,
 ) -> None:
     """Replay one row of a sweep in MuJoCo and write a video (GIF/MP4) or a still (PNG) with
     the row's parameters, status and key metrics drawn on it.

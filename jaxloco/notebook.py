@@ -66,8 +66,14 @@ def evenly(n: int, keep: int) -> list[int]:
     return sorted({int(round(i)) for i in np.linspace(0, n - 1, keep)})
 
 
-def shrink(spec: Any, keep: int = 2, *, fixed: Mapping[str, Any] | None = None, keep_by_name: Mapping[str, int] | None = None,
-           seeds: int = 1) -> Any:
+def shrink(
+    spec: Any,
+    keep: int = 2,
+    *,
+    fixed: Mapping[str, Any] | None = None,
+    keep_by_name: Mapping[str, int] | None = None,
+    seeds: int = 1,
+) -> Any:
     """A smaller copy of a SweepSpec: each swept factor keeps `keep` evenly spread values
     (`keep_by_name` per parameter; a zipped group by its first name), the first `seeds`
     seeds, and `fixed` overrides (checked against the analysis' ranges)."""

@@ -13,7 +13,7 @@ import os
 import stat
 from pathlib import Path
 
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 
 _LABEL_MAX = 80
 

@@ -52,13 +52,13 @@ def test_write_then_load_round_trips(tmp_path):
     target = tmp_path / "catalog.json"
     assert catalog.main(["--write", str(target)]) == 0
     loaded = catalog.load(target)
-    assert loaded is not None and set(loaded.analyses) == set(analysis_registry._BUILTIN)
-    assert set(loaded.objectives) == set(objective_registry._BUILTIN)
-    for name in analysis_registry._BUILTIN:
+    assert loaded is not None and set(loaded.analyses) == set(analysis_registry.ANALYSES.builtin)
+    assert set(loaded.objectives) == set(objective_registry.OBJECTIVES.builtin)
+    for name in analysis_registry.ANALYSES.builtin:
         live, info = analysis_registry.get(name), loaded.analyses[name]
         assert (info.params, info.metrics, info.statuses) == (live.params, live.metrics, live.statuses)
         assert (info.doc, info.x64, info.executor) == (live.doc, live.x64, live.executor)
-    for name in objective_registry._BUILTIN:
+    for name in objective_registry.OBJECTIVES.builtin:
         live, info = objective_registry.get(name), loaded.objectives[name]
         assert (info.tunables, info.settings, info.doc) == (live.tunables, live.settings, live.doc)
         assert {k: dict(v) for k, v in info.references.items()} == {k: dict(v) for k, v in live.references.items()}
@@ -91,7 +91,7 @@ def test_an_objective_entry_that_no_longer_fits_falls_back_to_the_registry(tmp_p
     (tmp_path / "old.json").write_text(json.dumps(data))
     loaded = catalog.load(tmp_path / "old.json")
     for name in ("titan.stride", "snake.kv"):  # as if not loaded yet
-        monkeypatch.delitem(objective_registry._REGISTERED, name, raising=False)
+        monkeypatch.delitem(objective_registry.OBJECTIVES._loaded, name, raising=False)
     assert isinstance(catalog.objective("titan.stride", loaded), Objective)
     assert isinstance(catalog.objective("snake.kv", loaded), catalog.ObjectiveInfo)
 
@@ -118,7 +118,10 @@ def test_reading_the_catalog_imports_no_jax():
         static_environment()
         loaded = sorted(m for m in sys.modules if m.split(".")[0] in ("jax", "jaxlib", "mujoco"))
         assert not loaded, loaded
-        assert not any(m.startswith("jaxloco.robots") for m in sys.modules)
+        # the robots' entries modules (strings only) and their packages, no robot code
+        robot_code = [m for m in sys.modules if m.startswith("jaxloco.robots.")
+                      and not m.endswith(".entries") and m.count(".") > 2]
+        assert not robot_code, robot_code
         """
     )
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))}
@@ -136,9 +139,8 @@ def catalog_vs_live(monkeypatch):
 
     def outputs(*args):
         with monkeypatch.context() as patch:
-            for registry in (analysis_registry, objective_registry):
-                runtime_only = {k: v for k, v in registry._REGISTERED.items() if k not in registry._BUILTIN}
-                patch.setattr(registry, "_REGISTERED", runtime_only)
+            for registry in (analysis_registry.ANALYSES, objective_registry.OBJECTIVES):
+                patch.setattr(registry, "_loaded", {})
             from_catalog = invoke(*args)
         with monkeypatch.context() as patch:
             patch.setattr(catalog, "load", lambda path=None: None)
@@ -153,8 +155,8 @@ def catalog_vs_live(monkeypatch):
 @pytest.mark.parametrize(
     "args",
     [("analyses",), ("objectives",)]
-    + [("describe", name) for name in sorted(analysis_registry._BUILTIN)]
-    + [("objectives", name) for name in sorted(objective_registry._BUILTIN)],
+    + [("describe", name) for name in sorted(analysis_registry.ANALYSES.builtin)]
+    + [("objectives", name) for name in sorted(objective_registry.OBJECTIVES.builtin)],
 )
 def test_catalog_output_equals_live_output(catalog_vs_live, args):
     from_catalog, live = catalog_vs_live(*args)
@@ -171,9 +173,9 @@ def _toy_objective(name: str, doc: str) -> Objective:
 
 def test_names_registered_at_run_time_still_show(monkeypatch):
     extra, tune = "test.catalog_extra", "test.catalog_tune"
-    monkeypatch.setitem(analysis_registry._REGISTERED, extra, _toy_analysis(extra, "Extra."))
-    monkeypatch.setitem(analysis_registry._REGISTERED, "snake.kv", _toy_analysis("snake.kv", "Overridden kv."))
-    monkeypatch.setitem(objective_registry._REGISTERED, tune, _toy_objective(tune, "Tune."))
+    monkeypatch.setitem(analysis_registry.ANALYSES._registered, extra, _toy_analysis(extra, "Extra."))
+    monkeypatch.setitem(analysis_registry.ANALYSES._registered, "snake.kv", _toy_analysis("snake.kv", "Overridden kv."))
+    monkeypatch.setitem(objective_registry.OBJECTIVES._registered, tune, _toy_objective(tune, "Tune."))
     listed = invoke("analyses")
     assert listed.exit_code == 0 and "test.catalog_extra" in listed.stdout and "Overridden kv." in listed.stdout
     assert "leggrope.slope_cycle" in listed.stdout

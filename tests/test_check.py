@@ -19,7 +19,7 @@ from test_tune import TOY as TOY_TUNE  # noqa: F401  (registers the objective "t
 
 from jaxloco import check, specs
 from jaxloco.analysis import Analysis, Metric, Param, register
-from jaxloco.sweep import executors, load_spec, run, runner, store
+from jaxloco.sweep import chunks, executors, load_spec, run, store
 
 
 def _host_batch_fn(fixed):
@@ -117,18 +117,18 @@ def batch_calls(monkeypatch):
 
 
 def test_rows_per_call_is_the_runners_call_shape():
-    assert runner.rows_per_call(101, 505, 2, "cpu", host=False) == 102  # padded to the devices
-    assert runner.rows_per_call(2000, 5000, 2, "cpu", host=False) == 2 * runner.MAX_ROWS_PER_DEVICE
-    assert runner.rows_per_call(2000, 5000, 2, "gpu", host=False) == 2000  # accelerators: the chunk
-    assert runner.rows_per_call(8, 3, 2, "cpu", host=False) == 4  # never more than the sweep's rows
-    assert runner.rows_per_call(8, 3, 2, "cpu", host=True) == 8  # a host analysis: the chunk, unpadded
-    assert runner.call_slices(5, 2) == [(0, 2), (2, 4), (4, 5)]
+    assert chunks.rows_per_call(101, 505, 2, "cpu", host=False) == 102  # padded to the devices
+    assert chunks.rows_per_call(2000, 5000, 2, "cpu", host=False) == 2 * chunks.MAX_ROWS_PER_DEVICE
+    assert chunks.rows_per_call(2000, 5000, 2, "gpu", host=False) == 2000  # accelerators: the chunk
+    assert chunks.rows_per_call(8, 3, 2, "cpu", host=False) == 4  # never more than the sweep's rows
+    assert chunks.rows_per_call(8, 3, 2, "cpu", host=True) == 8  # a host analysis: the chunk, unpadded
+    assert chunks.call_slices(5, 2) == [(0, 2), (2, 4), (4, 5)]
 
 
 def test_plan_printed_matches_the_runner(workdir, monkeypatch, batch_calls):
     """Several calls per chunk (a cap of 1 row per device): the rows, chunks and calls that
     check prints are those of load_spec and of the runner's actual calls, all of one shape."""
-    monkeypatch.setattr(runner, "MAX_ROWS_PER_DEVICE", 1)
+    monkeypatch.setattr(chunks, "MAX_ROWS_PER_DEVICE", 1)
     path = write_sweep(workdir, chunk_size=5)
     spec = load_spec(path)
     devices = len(jax.devices())

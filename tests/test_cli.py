@@ -11,8 +11,8 @@ import pytest
 from test_sweep_run import TASKS, TOY  # noqa: F401  (registers the analyses "test.toy", "test.tasks", ...)
 from typer.testing import CliRunner
 
-from jaxloco.analysis import SpecError
 from jaxloco.cli import app
+from jaxloco.errors import SpecError
 from jaxloco.sweep import store
 
 REPO = Path(__file__).resolve().parents[1]

@@ -45,7 +45,9 @@ def _clarabel(Q, q, A, b, Gm, h):
     P_ = sp.csc_matrix(np.triu(np.asarray(Q)))
     M = sp.csc_matrix(np.vstack([np.asarray(A), np.asarray(Gm)]))
     cones = [clarabel.ZeroConeT(A.shape[0]), clarabel.NonnegativeConeT(Gm.shape[0])]
-    sol = clarabel.DefaultSolver(P_, np.asarray(q), M, np.concatenate([np.asarray(b), np.asarray(h)]), cones, settings).solve()
+    sol = clarabel.DefaultSolver(
+        P_, np.asarray(q), M, np.concatenate([np.asarray(b), np.asarray(h)]), cones, settings
+    ).solve()
     return sol
 
 

@@ -9,11 +9,11 @@ import mujoco
 import numpy as np
 import pytest
 
+from jaxloco.errors import SweepInterrupted
 from jaxloco.robots.leggrope import control, gait, model, scenarios
 from jaxloco.robots.leggrope.params import G, default_params
 from jaxloco.sim.rollout import rollout
 from jaxloco.sweep import run as run_sweep
-from jaxloco.sweep.errors import SweepInterrupted
 
 THETA = float(np.pi / 12)
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from jaxloco import notebook
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.sweep import load_spec
 
 ROOT = Path(__file__).resolve().parents[1]

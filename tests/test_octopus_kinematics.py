@@ -54,7 +54,9 @@ def test_zero_pose_and_eq3_reading():
     # Eq. 3 as printed (-l1 cos t2) would not keep the boom end at distance l1 from the
     # boom axis; the sin reading does, for every boom angle.
     t2s = np.linspace(-1.5, 1.5, 7)
-    ours = [float(jnp.linalg.norm(kin.arm_points(PR, 0, jnp.array([0.4, t2, 0.0]))[1] - PR.arm_bases()[0])) for t2 in t2s]
+    ours = [
+        float(jnp.linalg.norm(kin.arm_points(PR, 0, jnp.array([0.4, t2, 0.0]))[1] - PR.arm_bases()[0])) for t2 in t2s
+    ]
     np.testing.assert_allclose(ours, np.hypot(P.L1, P.D3), atol=1e-14)
     printed = np.hypot(np.hypot(P.L1 * np.cos(t2s), P.D3), P.L1 * np.cos(t2s))  # (x', y', z') with l2 = 0
     assert np.ptp(printed) > 0.3
@@ -176,7 +178,11 @@ def test_attitude_and_level_rotation_match_eqs_12_to_16():
         # Eq. 15 row by row
         p = jnp.asarray(rng.normal(size=3))
         sp, cp, sr, cr = np.sin(a_p), np.cos(a_p), np.sin(a_r), np.cos(a_r)
-        eq15 = [cp * p[0] + sp * sr * p[1] - sp * cr * p[2], cr * p[1] + sr * p[2], sp * p[0] - cp * sr * p[1] + cp * cr * p[2]]
+        eq15 = [
+            cp * p[0] + sp * sr * p[1] - sp * cr * p[2],
+            cr * p[1] + sr * p[2],
+            sp * p[0] - cp * sr * p[1] + cp * cr * p[2],
+        ]
         np.testing.assert_allclose(C @ p, eq15, atol=1e-12)
     # paper convention: A_P > 0 nose up, A_R > 0 left side down
     C = kin.level_rotation(0.2, 0.0)

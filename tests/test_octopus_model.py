@@ -5,7 +5,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.robots.octopus import model as octo_model
 from jaxloco.robots.octopus import params as P
 from jaxloco.sim import terrain
@@ -39,7 +39,8 @@ def _up(quat):
 # ------------------------------------------------------------------ file and structure
 def test_xml_in_sync_with_model_py():
     assert octo_model.MODEL_PATH.read_text() == octo_model.xml_text(), (
-        "jaxloco/models/octopus.xml is stale: run python -m jaxloco.robots.octopus.model --write jaxloco/models/octopus.xml"
+        "jaxloco/models/octopus.xml is stale: run "
+        "python -m jaxloco.robots.octopus.model --write jaxloco/models/octopus.xml"
     )
 
 
@@ -83,7 +84,9 @@ def test_names(model):
     for s in ("imu_quat", "imu_gyro", "imu_acc"):
         assert model.sensor(s).objid[0] == model.site("imu").id
     # the passive roller joints are unactuated
-    actuated = {model.actuator_trnid[i, 0] for i in range(model.nu) if model.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT}
+    actuated = {
+        model.actuator_trnid[i, 0] for i in range(model.nu) if model.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT
+    }
     assert all(model.joint(f"{a}_roller").id not in actuated for a in P.ARM_NAMES)
 
 
@@ -92,12 +95,17 @@ def test_collision_bits_match_terrain(model):
     assert len(colliding) >= 30
     for g in colliding:
         assert (model.geom_contype[g], model.geom_conaffinity[g]) == (terrain.ROBOT_CONTYPE, terrain.ROBOT_CONAFFINITY)
-        assert model.geom_contype[g] & terrain.TERRAIN_CONAFFINITY and terrain.TERRAIN_CONTYPE & model.geom_conaffinity[g]
+        assert (
+            model.geom_contype[g] & terrain.TERRAIN_CONAFFINITY and terrain.TERRAIN_CONTYPE & model.geom_conaffinity[g]
+        )
     # no robot pair can collide
     for a in colliding:
         for b in colliding:
             assert not (model.geom_contype[a] & model.geom_conaffinity[b])
-    assert (octo_model.ROBOT_CONTYPE, octo_model.ROBOT_CONAFFINITY) == (terrain.ROBOT_CONTYPE, terrain.ROBOT_CONAFFINITY)
+    assert (octo_model.ROBOT_CONTYPE, octo_model.ROBOT_CONAFFINITY) == (
+        terrain.ROBOT_CONTYPE,
+        terrain.ROBOT_CONAFFINITY,
+    )
 
 
 # ------------------------------------------------------------------ Table 3
@@ -179,7 +187,9 @@ def test_home_pose_settles_on_crawlers_and_rollers():
     d.qpos[2] += 0.02
     mujoco.mj_step(m, d, nstep=1000)
     assert np.abs(d.qvel).max() < 1e-3 and _up(d.qpos[3:7]) > 0.9999
-    touching = {m.geom(d.contact[i].geom2).name for i in range(d.ncon)} | {m.geom(d.contact[i].geom1).name for i in range(d.ncon)}
+    touching = {m.geom(d.contact[i].geom2).name for i in range(d.ncon)} | {
+        m.geom(d.contact[i].geom1).name for i in range(d.ncon)
+    }
     assert {f"{a}_roller" for a in P.ARM_NAMES} <= touching
     assert {f"wheel_{s}{k}" for s in "lr" for k in (1, P.MAIN_WHEELS)} <= touching
     # the arms carry part of the weight: the booms hold a torque

@@ -8,11 +8,10 @@ import numpy as np
 import pytest
 
 from jaxloco import analysis
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError, SweepInterrupted
 from jaxloco.robots.octopus import clm, scenarios, sim_analysis
 from jaxloco.sweep import run as run_sweep
 from jaxloco.sweep import spec_from_dict
-from jaxloco.sweep.errors import SweepInterrupted
 
 NAME = "octopus.step_climb"
 

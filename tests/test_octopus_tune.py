@@ -23,7 +23,7 @@ import pytest
 import jaxloco.sweep
 import jaxloco.tune
 from jaxloco import specs
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.robots.octopus import analysis as A
 from jaxloco.robots.octopus import kinematics as kin
 from jaxloco.robots.octopus import tuning as T

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from jaxloco.analysis import SpecError
 from jaxloco.cli import app
+from jaxloco.errors import SpecError
 from jaxloco.render import gl, video
 from jaxloco.render.replay import capture_rollouts, frame_indices, replay_row
 from jaxloco.render.rows import load_row

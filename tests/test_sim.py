@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.robots.leggrope import kinematics as kin
 from jaxloco.robots.leggrope import model as robot_model
 from jaxloco.robots.leggrope.params import default_params

@@ -13,7 +13,6 @@ Short horizons (1-2 s, dt 0.05) keep the compiled programs small."""
 
 from __future__ import annotations
 
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -57,7 +56,7 @@ def rows():
     swept = {k: jnp.asarray(v, jnp.int32 if k == "mode_order" else jnp.float64) for k, v in SWEPT.items()}
     keys = jnp.zeros((3, 2), jnp.uint32)
     batch = {k: np.asarray(v) for k, v in batch_fn(swept, keys).items()}
-    config = A._config(HORIZON, DT, False)
+    config = A.rollout_config(HORIZON, DT, False)
     one = jax.jit(lambda v: A.run_one(v, config))
     singles = [jax.tree_util.tree_map(np.asarray, one(_row_values(i))) for i in range(3)]
     return batch, singles
@@ -172,7 +171,9 @@ def test_sweep_table_and_summary(swept, rows):
     for r in summary.rows:
         i = int(r[0].split()[-1])
         assert {f"{t['k_eta'][i]:g}", f"{t['mode_order'][i]:g}", f"{t['amplitude'][i]:g}"} <= set(r[1:])
-    assert len(summary.columns) == len(A.summarize(swept.table.slice(0, 2)).columns) + 1  # amplitude varies in 3 rows only
+    assert (
+        len(summary.columns) == len(A.summarize(swept.table.slice(0, 2)).columns) + 1
+    )  # amplitude varies in 3 rows only
 
 
 # ------------------------------------------------------------------------------- tune

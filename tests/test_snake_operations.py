@@ -22,8 +22,11 @@ def test_a_script_is_the_sum_of_its_smooth_steps():
         np.testing.assert_allclose(w_dot, one[0][1] + one[1][1], atol=1e-12)
     np.testing.assert_allclose(script.at(jnp.asarray(9.0))[0], w0 + delta.sum(0), atol=1e-12)
     # the host copy of the tip's part
-    np.testing.assert_allclose(O.script_target(np.array([9.0]), np.zeros(6), [(1.0, 4.0, delta[0]), (6.0, 2.0, delta[1])])[0],
-                               np.asarray(delta.sum(0))[:6], atol=1e-12)
+    np.testing.assert_allclose(
+        O.script_target(np.array([9.0]), np.zeros(6), [(1.0, 4.0, delta[0]), (6.0, 2.0, delta[1])])[0],
+        np.asarray(delta.sum(0))[:6],
+        atol=1e-12,
+    )
 
 
 @pytest.fixture(scope="module")

@@ -15,8 +15,8 @@ import pytest
 from typer.testing import CliRunner
 
 from jaxloco import specs
-from jaxloco.analysis import SpecError
 from jaxloco.cli import app
+from jaxloco.errors import SpecError
 from jaxloco.robots.leggrope import model as leggrope_model
 from jaxloco.sweep import load_spec as load_sweep
 from jaxloco.tune import load_spec as load_tune
@@ -67,7 +67,10 @@ def test_a_typo_names_the_closest_bundled_spec_in_one_line():
     assert all(name in message for name in specs.names())
     result = invoke("sweep", "leggrope_slop")
     assert result.exit_code == 2
-    assert result.stderr.startswith("error: leggrope_slop: no such file or bundled spec") and result.stderr.count("\n") == 1
+    assert (
+        result.stderr.startswith("error: leggrope_slop: no such file or bundled spec")
+        and result.stderr.count("\n") == 1
+    )
 
 
 def test_a_missing_path_still_says_no_such_file(tmp_path, monkeypatch):

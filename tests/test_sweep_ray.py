@@ -26,11 +26,12 @@ import test_sweep_run
 from test_sweep_run import TRACES, toy_expected_y, toy_spec
 from typer.testing import CliRunner
 
-from jaxloco.analysis import Analysis, Metric, Param, SpecError, register
+from jaxloco.analysis import Analysis, Metric, Param, register
 from jaxloco.cli import app
+from jaxloco.errors import SpecError
 from jaxloco.sweep import AnalysisError, SweepInterrupted, expand, run, spec_from_dict, store
+from jaxloco.sweep.chunks import ChunkJob, spec_document
 from jaxloco.sweep.executors import RAY_MISSING, RayExecutor, check_reachable
-from jaxloco.sweep.runner import ChunkJob, spec_document
 
 TESTS = Path(__file__).resolve().parent
 

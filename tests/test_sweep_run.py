@@ -13,7 +13,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from jaxloco.analysis import Analysis, Metric, Param, SpecError, Summary, register
+from jaxloco.analysis import Analysis, Metric, Param, Summary, register
+from jaxloco.errors import SpecError
 from jaxloco.sweep import (
     AnalysisError,
     SweepInterrupted,
@@ -335,10 +336,10 @@ def test_chunks_larger_than_one_call_are_split(tmp_path, monkeypatch):
     """A chunk bigger than MAX_ROWS_PER_DEVICE x devices runs as several calls of one
     compiled shape (guarding against jaxlib's batched-LAPACK hang); the table is the
     same as with one call per chunk."""
-    from jaxloco.sweep import runner
+    from jaxloco.sweep import chunks
 
     whole = run(toy_spec(tmp_path / "whole"), progress=False).table
-    monkeypatch.setattr(runner, "MAX_ROWS_PER_DEVICE", 1)
+    monkeypatch.setattr(chunks, "MAX_ROWS_PER_DEVICE", 1)
     split = run(toy_spec(tmp_path / "split"), progress=False).table
     assert split.drop_columns(["jaxloco_version"]).equals(whole.drop_columns(["jaxloco_version"]))
 
@@ -493,7 +494,7 @@ def test_string_column_csv_round_trip(tmp_path):
 
 
 def test_string_spec_survives_the_worker_round_trip():
-    from jaxloco.sweep.runner import ChunkJob
+    from jaxloco.sweep.chunks import ChunkJob
 
     spec = task_spec("unused")
     rebuilt = ChunkJob.of(spec, x64=True).rebuild()
@@ -501,7 +502,7 @@ def test_string_spec_survives_the_worker_round_trip():
 
 
 def test_a_hand_made_string_sweep_under_jax_is_refused_before_computing(tmp_path):
-    from jaxloco.sweep.runner import prepare
+    from jaxloco.sweep.chunks import prepare
 
     spec = dataclasses.replace(task_spec(tmp_path / "out"), analysis=TASKS_JAX)
     with pytest.raises(SpecError, match=r"params\.task: 'task' is a string parameter and this analysis runs under JAX"):

@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_sweep_run import TASKS, TOY  # noqa: F401  (registers the analyses "test.toy", "test.tasks")
 
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.sweep import expand, load_spec, spec_from_dict
 from jaxloco.sweep.ranges import arange
 
@@ -191,7 +191,11 @@ def test_string_params_from_toml(tmp_path):
     assert spec.n_rows == 6 and expand(spec).columns["task"].tolist() == ["swim"] * 3 + ["climb"] * 3
 
     def from_dict(tasks):
-        d = {"sweep": {"analysis": "test.tasks"}, "fixed": {"note": "hi"}, "params": {"task": tasks, "speed": [1, 2, 3.0]}}
+        d = {
+            "sweep": {"analysis": "test.tasks"},
+            "fixed": {"note": "hi"},
+            "params": {"task": tasks, "speed": [1, 2, 3.0]},
+        }
         return spec_from_dict(d)
 
     assert from_dict(np.array(["swim", "climb"])).hash == spec.hash  # a numpy array of str is a list

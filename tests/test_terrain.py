@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from jax.test_util import check_grads
 
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.sim import terrain as T
 
 DOWN = np.array([0.0, 0.0, -1.0])

@@ -19,7 +19,7 @@ import pytest
 
 import jaxloco.tune
 from jaxloco import specs
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.robots.titan import analysis as ta
 from jaxloco.robots.titan import params as P
 from jaxloco.robots.titan import tuning as TT
@@ -129,7 +129,9 @@ def test_loss_and_aux_equal_the_analysis_metrics(analysis_rows):
         for k in ("n_failures", "n_modifications"):
             assert float(aux[k]) == int(r[k][j]), (point, k)
         assert r["n_failures"][j] == 0  # no held step: the loss's soft-min is the analysis'
-        expected = -r["distance_per_cycle"][j] / (2 * P.L_STD) + w * np.logaddexp(0.0, (s_c - r["softmin_nesm"][j]) / tau)
+        expected = -r["distance_per_cycle"][j] / (2 * P.L_STD) + w * np.logaddexp(
+            0.0, (s_c - r["softmin_nesm"][j]) / tau
+        )
         assert float(loss) == pytest.approx(expected, rel=1e-12)
         assert (float(aux["steps_below"]) == 0) == bool(r["status"][j] != 2)
 

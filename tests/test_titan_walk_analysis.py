@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from jaxloco.analysis import SpecError, get
+from jaxloco.analysis import get
+from jaxloco.errors import SpecError
 from jaxloco.robots.titan import params as P
 from jaxloco.robots.titan import sim_analysis as SA
 from jaxloco.robots.titan import walk as W

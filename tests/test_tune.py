@@ -20,8 +20,9 @@ from test_sweep_spec import _both
 from typer.testing import CliRunner
 
 import jaxloco.tune
-from jaxloco.analysis import Param, SpecError
+from jaxloco.analysis import Param
 from jaxloco.cli import app
+from jaxloco.errors import SpecError
 from jaxloco.tune import (
     Objective,
     ObjectiveError,
@@ -188,7 +189,7 @@ def test_objective_contract_is_checked():
 
 
 def test_builtin_that_cannot_load_is_a_clean_error(monkeypatch):
-    monkeypatch.setitem(registry._BUILTIN, "test.broken", "jaxloco.no_such_module:X")
+    monkeypatch.setitem(registry.OBJECTIVES.builtin, "test.broken", "jaxloco.no_such_module:X")
     with pytest.raises(SpecError, match=r"^objective 'test.broken' cannot be loaded \(ModuleNotFoundError"):
         get("test.broken")
     result = CliRunner().invoke(app, ["objectives"])
@@ -301,7 +302,10 @@ def test_interrupt_keeps_what_was_computed(tmp_path):
 
     with pytest.raises(TuneInterrupted) as info:
         run(spec_from_dict(BASE), progress=False, out=tmp_path, configure_jax=False, on_step=stop)
-    assert str(info.value) == f"interrupted after 4 of 150 steps; the loss curve and the best values so far are in {tmp_path}"
+    assert (
+        str(info.value)
+        == f"interrupted after 4 of 150 steps; the loss curve and the best values so far are in {tmp_path}"
+    )
     curve = pq.read_table(tmp_path / "loss_curve.parquet").to_pydict()
     assert curve["step"] == [0, 1, 2, 3, 4]
     labels = pq.read_table(tmp_path / "tuned.parquet").column("label").to_pylist()

@@ -11,9 +11,10 @@ import pyarrow.csv  # noqa: F401  (pa.csv)
 import pytest
 from typer.testing import CliRunner
 
-from jaxloco.analysis import Analysis, Metric, Param, SpecError
+from jaxloco.analysis import Analysis, Metric, Param
 from jaxloco.analysis import register as register_analysis
 from jaxloco.cli import app
+from jaxloco.errors import SpecError
 from jaxloco.sweep import spec_from_dict
 from jaxloco.tune import Objective, Tunable, handoff
 from jaxloco.tune import register as register_objective
@@ -33,7 +34,11 @@ OBJECTIVE = register_objective(
     Objective(
         name="test.handoff_tune",
         doc="toy",
-        tunables=(Tunable("a", 0.5, "a", lo=-5.0, hi=5.0), Tunable("b", 0.0, "b"), Tunable("gain", 1.0, "g", scale="log")),
+        tunables=(
+            Tunable("a", 0.5, "a", lo=-5.0, hi=5.0),
+            Tunable("b", 0.0, "b"),
+            Tunable("gain", 1.0, "g", scale="log"),
+        ),
         settings=(),
         make_loss=_loss,
         references={"paper": {"a": 0.5, "b": 0.0}, "far": {"a": -1.0}},
@@ -233,7 +238,9 @@ def test_cli_validate_without_a_section_or_with_a_bad_path_exits_2(specs):
     assert "validate.sweep: no sweep spec at specs/missing.toml" in result.output
     (specs / "specs" / "badlabel.toml").write_text(TUNE_TOML.replace('"tuned"]', '"best"]'))
     result = invoke("tune", "specs/badlabel.toml", "--quiet")
-    assert result.exit_code == 2 and "validate.labels[1]: 'best' is not one of initial, tuned, paper, far" in result.output
+    assert (
+        result.exit_code == 2 and "validate.labels[1]: 'best' is not one of initial, tuned, paper, far" in result.output
+    )
 
 
 def test_cli_sweep_from_tune_with_a_map(specs):

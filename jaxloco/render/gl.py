@@ -20,7 +20,7 @@ import subprocess
 import sys
 import warnings
 
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 
 HEADLESS = ("egl", "osmesa")
 KNOWN = ("egl", "osmesa", "glfw", "glx", "cgl", "wgl", "enable", "enabled", "on", "true", "1")

@@ -33,14 +33,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.render.replay import Replay, model_copy
 from jaxloco.render.rows import Row
 
 F64 = jnp.float64
 
 
-def _plain(tree: Mapping[str, Any]) -> dict[str, Any]:
+def plain_data(tree: Mapping[str, Any]) -> dict[str, Any]:
     return {k: np.asarray(v).item() for k, v in tree.items()}
 
 
@@ -109,10 +109,10 @@ def titan_plan(values: Mapping[str, Any]):
 def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
     """`titan.stride` (module docstring)."""
     from jaxloco.robots.titan import analysis as A
+    from jaxloco.robots.titan import control as TC
     from jaxloco.robots.titan import kinematics as K
     from jaxloco.robots.titan import model as titan_model
     from jaxloco.robots.titan import params as P
-    from jaxloco.robots.titan import control as TC
     from jaxloco.sim import terrain as tr
 
     values = row.values
@@ -121,7 +121,7 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
                         "plot the plan with jaxloco.robots.titan.plots instead")
     start, plan, _, metrics = titan_plan(values)
     status = A.STATUSES[int(metrics.pop("status"))]
-    metrics = _plain(metrics)
+    metrics = plain_data(metrics)
     feet = np.concatenate([np.asarray(start.feet)[None], np.asarray(plan.feet)])  # (S+1, 4, 3) map frame
     cog = np.concatenate([np.asarray(start.cog)[None], np.asarray(plan.cog)])  # (S+1, 3)
     swing = np.asarray(plan.swing_leg, int)
@@ -201,7 +201,7 @@ def snake_rollout(values: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, 
     """(metrics with status code, records) of a `snake.kv` row (`analysis.run_one`)."""
     from jaxloco.robots.snake import analysis as A
 
-    config = A._config(values["horizon"], values["dt"], values["feedback"])
+    config = A.rollout_config(values["horizon"], values["dt"], values["feedback"])
     v = {p.name: jnp.asarray(values[p.name], jnp.int32 if p.name == "mode_order" else F64)
          for p in A.PARAMS if p.sweepable}
     metrics, recs = jax.jit(lambda x: A.run_one(x, config))(v)
@@ -243,7 +243,7 @@ def snake_kv(row: Row) -> Replay:
                 for sg, lr, e in zip(recs["sigma"], recs["limit_ratio"], err)]
     n = qpos.shape[0]
     return Replay(
-        row=row, model=model, qpos=qpos, times=recs["t"], metrics=_plain(metrics), status=status,
+        row=row, model=model, qpos=qpos, times=recs["t"], metrics=plain_data(metrics), status=status,
         headline=("recovery_time", "max_pos_error", "min_margin", "time_near_limit"),
         kind="kinematic simulation", captions=captions,
         markers=np.broadcast_to(tip_target, (n, 1, 3)).copy(), marker_size=0.015,
@@ -270,12 +270,12 @@ def leggrope_cycle(values: Mapping[str, Any], key: np.ndarray):
     from jaxloco.robots.leggrope import gait
     from jaxloco.robots.leggrope.params import default_params
 
-    config, _ = A._config(values)
+    config, _ = A.walk_config(values)
     dt = float(values["dt"])
     v = {p.name: jnp.asarray(values[p.name], F64) for p in A.PARAMS if p.sweepable}
     params = default_params().with_(mu=v["mu"], r_ref_factor=v["r_ref_factor"], a_max=v["a_max"],
                                     v_max=v["v_max"], h_s=v["h_s"], h_tau=v["h_tau"], h_c=v["h_c"], dt=dt)
-    walk = A._design(values).walk(stride=v["stride"], swing_height=v["swing_height"])
+    walk = A.cycle_design(values).walk(stride=v["stride"], swing_height=v["swing_height"])
 
     @jax.jit
     def run(key):

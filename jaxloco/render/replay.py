@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import importlib
 import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -32,7 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
+from jaxloco.registry import Registry, robot_entries
 from jaxloco.render.rows import Row
 
 MAX_FRAMES = 150  # default cap of a video's frames (a GIF of 480x360 renders in well under a minute)
@@ -367,41 +367,26 @@ def generic_host(row: Row) -> Replay:
 
 
 # -------------------------------------------------------------------------- registry
-REPLAYS: dict[str, str] = {
-    "titan.stride": "jaxloco.render.kinematic:titan_stride",
-    "snake.kv": "jaxloco.render.kinematic:snake_kv",
-    "leggrope.slope_cycle": "jaxloco.render.kinematic:leggrope_slope_cycle",
-    "octopus.step_climb": "jaxloco.render.replay:octopus_step_climb",
-    "octopus.paper": "jaxloco.render.replay:octopus_step_climb",
-    "leggrope.fragile_walk": "jaxloco.render.replay:leggrope_fragile_walk",
-    "titan.walk": "jaxloco.render.replay:titan_walk",
-    "snake.operations": "jaxloco.render.replay:snake_operation",
-}
-NO_REPLAY: dict[str, str] = {
-    "octopus.terrain_classification": "a row is a Monte-Carlo set of static postures, not a motion",
-}
-_REGISTERED: dict[str, Callable[[Row], Replay]] = {}
+# Built-in replays come from the robots' entries modules (jaxloco.registry).
+REPLAYS: Registry[Callable[[Row], Replay]] = Registry("replay", lambda: robot_entries("REPLAYS"), callable)
 
 
 def register(name: str, fn: Callable[[Row], Replay]) -> None:
     """Add (or replace) the replay of analysis `name` (plugins, tests)."""
-    _REGISTERED[name] = fn
+    REPLAYS.register(name, fn)
 
 
 def replay_fn(analysis: Any) -> Callable[[Row], Replay]:
     """The replay function of an analysis; SpecError (one line) when it has none."""
     name = analysis.name
-    if name in _REGISTERED:
-        return _REGISTERED[name]
     if name in REPLAYS:
-        module, attr = REPLAYS[name].split(":")
-        return getattr(importlib.import_module(module), attr)
-    if name not in NO_REPLAY and analysis.executor == "host":
+        return REPLAYS.get(name)
+    no_replay = robot_entries("NO_REPLAY")
+    if name not in no_replay and analysis.executor == "host":
         return generic_host
-    why = f" ({NO_REPLAY[name]})" if name in NO_REPLAY else ""
-    known = ", ".join(sorted(set(REPLAYS) | set(_REGISTERED)))
-    raise SpecError(f"analysis {name} has no replay yet{why}; replays exist for: {known} and simulated (host) "
-                    "analyses")
+    why = f" ({no_replay[name]})" if name in no_replay else ""
+    raise SpecError(f"analysis {name} has no replay yet{why}; replays exist for: {', '.join(REPLAYS.names())} and "
+                    "simulated (host) analyses")
 
 
 def replay_row(row: Row) -> Replay:

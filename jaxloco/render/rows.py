@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from jaxloco import paths, specs
-from jaxloco.analysis import Analysis, SpecError
+from jaxloco.analysis import Analysis
+from jaxloco.errors import SpecError
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,7 @@ class Row:
         return np.asarray(jax.random.PRNGKey(int(self.seed)), dtype=np.uint32)
 
 
-def _plain(value: Any) -> Any:
+def plain_data(value: Any) -> Any:
     return value.item() if isinstance(value, np.generic) else value
 
 
@@ -74,7 +75,7 @@ def row_from_table(table: Any, analysis: Analysis, index: int, source: str) -> R
     i = int(hits[0])
 
     def cell(name: str) -> Any:
-        return _plain(table.column(name)[i].as_py())
+        return plain_data(table.column(name)[i].as_py())
 
     values: dict[str, Any] = {}
     for p in analysis.params:
@@ -125,7 +126,7 @@ def load_row(path: str | Path, index: int) -> Row:
     _check_index(index, grid.n_rows, str(path))
     columns, seed_pos = grid.rows(index, index + 1)
     values = dict(spec.fixed)
-    values.update({name: _plain(v[0]) for name, v in columns.items()})
+    values.update({name: plain_data(v[0]) for name, v in columns.items()})
     values = {p.name: values[p.name] for p in spec.analysis.params}
     seed = int(grid.seed_values[seed_pos[0]])
     return Row(spec.analysis, index, grid.n_rows, values, seed, tuple(spec.swept), None, None, str(path),

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from jaxloco import paths
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.render.replay import Replay, frame_indices
 
 CAMERAS = ("track", "side", "front", "top", "free")

@@ -11,7 +11,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.render import gl
 
 NO_DISPLAY = ("no display ($DISPLAY and $WAYLAND_DISPLAY are unset): `jaxloco view` needs a desktop; write a video "

@@ -18,7 +18,7 @@ from pathlib import Path
 import mujoco
 
 from jaxloco import paths
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "models"  # the packaged MJCF files
 

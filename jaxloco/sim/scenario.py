@@ -32,7 +32,9 @@ Params = Mapping[str, Any]
 
 # model fields that mj_setConst reads: changing them per simulation needs the derived
 # constants (subtree masses, invweight0, ...) recomputed
-MASS_FIELDS = frozenset({"body_mass", "body_inertia", "body_ipos", "body_iquat", "dof_armature", "body_pos", "body_quat"})
+MASS_FIELDS = frozenset(
+    {"body_mass", "body_inertia", "body_ipos", "body_iquat", "dof_armature", "body_pos", "body_quat"}
+)
 
 
 @dataclass(frozen=True)
@@ -166,7 +168,8 @@ class Scenario:
             raise ValueError(f"scenario {self.name}: horizon, substeps and record_every must be >= 1")
         if self.horizon % self.record_every:
             raise ValueError(
-                f"scenario {self.name}: horizon ({self.horizon}) must be a multiple of record_every ({self.record_every})"
+                f"scenario {self.name}: horizon ({self.horizon}) must be a multiple of record_every "
+                f"({self.record_every})"
             )
 
     @property

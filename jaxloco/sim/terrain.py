@@ -37,7 +37,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.analysis import Param, SpecError
+from jaxloco.analysis import Param
+from jaxloco.errors import SpecError
 
 Array = jax.Array
 PlaceFn = Callable[[dict[str, Array], Array], tuple[Array, Array]]

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from jaxloco import paths
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 
 DIRECTORY = Path(__file__).resolve().parent
 SUFFIX = ".toml"

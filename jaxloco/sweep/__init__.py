@@ -4,18 +4,19 @@
     grid = expand(spec)                    # rows, in a fixed order
     result = run(spec)                     # result.table, result.path, result.summary
 
-Modules: `spec` (format and validation), `grid` (row order), `runner` (chunks and JAX),
+Modules: `spec` (format and validation), `grid` (row order), `runner` (the driver), `chunks`
+(computing one chunk: what every executor runs), `executors` (local, Ray),
 `store` (output directory, atomic files, resume), `schema` (table columns),
-`summary` and `display` (what is printed). Importing this package does not import JAX.
+`summary` and `display` (what is printed); its exceptions are in `jaxloco.errors`.
+Importing this package does not import JAX.
 """
 
 from typing import TYPE_CHECKING
 
 from jaxloco._lazy import lazy_attributes
-from jaxloco.analysis import SpecError
+from jaxloco.errors import AnalysisError, SpecError, SweepInterrupted
 
 if TYPE_CHECKING:
-    from jaxloco.sweep.errors import AnalysisError, SweepInterrupted
     from jaxloco.sweep.grid import Grid, expand
     from jaxloco.sweep.runner import SweepResult, run
     from jaxloco.sweep.spec import SweepSpec, load_spec, spec_from_dict
@@ -23,7 +24,7 @@ if TYPE_CHECKING:
 # The names below are imported on first use (PEP 562), so that `jaxloco analyses` and
 # `describe` import `jaxloco.sweep.display` without numpy, pyarrow and pydantic.
 _LAZY = {
-    "AnalysisError": "errors", "SweepInterrupted": "errors", "Grid": "grid", "expand": "grid",
+    "Grid": "grid", "expand": "grid",
     "SweepResult": "runner", "run": "runner", "SweepSpec": "spec", "load_spec": "spec", "spec_from_dict": "spec",
 }  # fmt: skip
 

@@ -4,7 +4,7 @@ An executor turns the driver's `SweepWork` and the indices of the chunks still t
 into `(index, chunk table)` pairs, in the order the chunks finish; the driver
 (`jaxloco.sweep.runner.run`) writes each chunk file as it arrives, advances the
 progress bar and assembles the table, whatever the executor. Both executors compute a
-chunk with the same function (`runner.compute_chunk`), so their tables are equal.
+chunk with the same function (`chunks.compute_chunk`), so their tables are equal.
 
 The Ray executor sends a `ChunkJob` (the spec in its TOML layout, plain data) once to
 the object store and submits one task per chunk (`num_cpus` / `num_gpus` per task); a
@@ -32,8 +32,8 @@ from typing import Any, Protocol
 
 import pyarrow as pa
 
-from jaxloco.analysis import SpecError
-from jaxloco.sweep.runner import ChunkJob, SweepWork, compute_chunk, compute_job_chunk, prepare
+from jaxloco.errors import SpecError
+from jaxloco.sweep.chunks import ChunkJob, SweepWork, compute_chunk, compute_job_chunk, prepare
 
 EXECUTORS = ("local", "ray")
 RAY_MISSING = 'the ray executor needs Ray: pip install "jaxloco[ray]"'

@@ -19,7 +19,7 @@ import numpy as np
 import pyarrow as pa
 
 from jaxloco.analysis import Analysis
-from jaxloco.sweep.errors import AnalysisError
+from jaxloco.errors import AnalysisError
 
 ARROW_KIND = {"float": pa.float64(), "int": pa.int64(), "bool": pa.bool_(), "str": pa.string()}
 NUMPY_KIND = {"float": np.float64, "int": np.int64, "bool": np.bool_}

@@ -37,7 +37,8 @@ from typing import Any
 
 from jaxloco import analysis as registry
 from jaxloco import specs
-from jaxloco.analysis import Analysis, Param, SpecError, sweep_problem
+from jaxloco.analysis import Analysis, Param, sweep_problem
+from jaxloco.errors import SpecError
 from jaxloco.sweep import ranges
 from jaxloco.sweep.spec_model import (
     MAX_ROWS,
@@ -132,18 +133,18 @@ def spec_from_dict(d: Mapping[str, Any], source: str = "<dict>") -> SweepSpec:
     """Validate a spec given as a dict with the TOML layout ({"sweep": ..., "params": ...})."""
     if not isinstance(d, Mapping):
         raise SpecError(f"{source}: expected a mapping with a 'sweep' table, got {type(d).__name__}")
-    return _resolve(_plain(d), source, default_name="sweep")
+    return _resolve(plain_data(d), source, default_name="sweep")
 
 
-def _plain(value: Any) -> Any:
+def plain_data(value: Any) -> Any:
     """numpy scalars/arrays and tuples -> the plain types a TOML file would give."""
     if isinstance(value, Mapping):
-        return {k: _plain(v) for k, v in value.items()}
+        return {k: plain_data(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
+        return [plain_data(v) for v in value]
     if type(value).__module__ == "numpy":
         tolist = getattr(value, "tolist", None)
-        return _plain(tolist()) if tolist else value
+        return plain_data(tolist()) if tolist else value
     return value
 
 

@@ -11,7 +11,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.paths import short_label
 
 MAX_ROWS = 100_000_000
@@ -81,11 +81,11 @@ def bounded(lo: float, hi: float, *, lo_open: bool = False) -> AfterValidator:
     return AfterValidator(check)
 
 
-class _Strict(BaseModel):
+class StrictModel(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
 
-class SweepSection(_Strict):
+class SweepSection(StrictModel):
     analysis: NonEmptyStr
     name: PlainName | None = None
     output: NonEmptyStr | None = None
@@ -123,13 +123,13 @@ class SweepSection(_Strict):
         return v
 
 
-class SpecDoc(_Strict):
+class SpecDoc(StrictModel):
     sweep: SweepSection
     fixed: dict[str, Any] = {}
     params: dict[str, Any] = {}
 
 
-class RangeModel(_Strict):
+class RangeModel(StrictModel):
     start: float
     stop: float
     num: int | None = Field(None, ge=1)

@@ -31,7 +31,7 @@ import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
 from jaxloco import paths
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.sweep.schema import METADATA_KEY
 
 MANIFEST = "manifest.json"

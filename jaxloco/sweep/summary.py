@@ -10,7 +10,8 @@ import pyarrow.parquet as pq
 
 from jaxloco import analysis as registry
 from jaxloco import paths
-from jaxloco.analysis import Analysis, SpecError, Summary
+from jaxloco.analysis import Analysis, Summary
+from jaxloco.errors import SpecError
 
 
 def status_counts(table: pa.Table, analysis: Analysis) -> Summary:

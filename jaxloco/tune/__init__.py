@@ -5,24 +5,25 @@ the tuned values, compared with the initial values and the objective's reference
     result = run(spec)                     # result.curve, result.comparison, result.values()
 
 Modules: `objective` (the registry: `Objective`, `Tunable`, `register`, `get`), `spec`
-(format and validation), `transform` (bounds and log scales), `runner` (the loop),
+(format and validation), `transform` (bounds and log scales), `runner` (the loop), `result` (what it returns),
 `output` (files) and `display` (what is printed). Importing this package does not import JAX.
 """
 
 from typing import TYPE_CHECKING
 
 from jaxloco._lazy import lazy_attributes
-from jaxloco.analysis import SpecError
+from jaxloco.errors import ObjectiveError, SpecError, TuneDiverged, TuneInterrupted
 from jaxloco.tune.objective import Objective, Tunable, get, names, register
 
 if TYPE_CHECKING:
-    from jaxloco.tune.runner import ObjectiveError, TuneDiverged, TuneInterrupted, TuneResult, run
+    from jaxloco.tune.result import TuneResult
+    from jaxloco.tune.runner import run
     from jaxloco.tune.spec import TuneSpec, load_spec, spec_from_dict
 
 # The names below are imported on first use (PEP 562), so that `jaxloco objectives`
 # imports the registry and `jaxloco.tune.display` without numpy, pyarrow and pydantic.
 _LAZY = {
-    "ObjectiveError": "runner", "TuneDiverged": "runner", "TuneInterrupted": "runner", "TuneResult": "runner",
+    "TuneResult": "result",
     "run": "runner", "TuneSpec": "spec", "load_spec": "spec", "spec_from_dict": "spec",
 }  # fmt: skip
 

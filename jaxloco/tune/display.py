@@ -24,7 +24,7 @@ from jaxloco.terminal import DocTable, FoldedTable, Labelled, fixed_text, progre
 from jaxloco.tune.objective import Objective, Tunable
 
 if TYPE_CHECKING:
-    from jaxloco.tune.runner import TuneResult
+    from jaxloco.tune.result import TuneResult
 
 
 class StepProgress:

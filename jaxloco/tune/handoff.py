@@ -29,7 +29,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from jaxloco import paths
-from jaxloco.analysis import SpecError
+from jaxloco.errors import SpecError
 from jaxloco.sweep.spec import SweepSpec
 
 LABEL = "label"
@@ -238,4 +238,14 @@ def write_comparison(out: Path, comparison: pa.Table, csv: bool = True) -> list[
     return write_tables(out, {"validation": comparison}, ["parquet", "csv"] if csv else ["parquet"])
 
 
-__all__ = ["ParamSet", "Validated", "validate", "compare", "labels_of", "param_sets", "read_tuned", "validation_spec", "write_comparison"]
+__all__ = [
+    "ParamSet",
+    "Validated",
+    "validate",
+    "compare",
+    "labels_of",
+    "param_sets",
+    "read_tuned",
+    "validation_spec",
+    "write_comparison",
+]

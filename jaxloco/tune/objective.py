@@ -23,14 +23,15 @@ strictly inside. Importing this module does not import JAX.
 
 from __future__ import annotations
 
-import importlib
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Literal
 
-from jaxloco.analysis import Param, SpecError
+from jaxloco.analysis import Param
+from jaxloco.errors import SpecError
+from jaxloco.registry import Registry, robot_entries
 
 LossFn = Callable[[dict[str, Any]], tuple[Any, dict[str, Any]]]
 
@@ -129,42 +130,27 @@ class Objective:
             return table[name]
         except KeyError:
             known = ", ".join(table) or "none"
-            raise SpecError(f"{where or name}: unknown {kind} '{name}' for objective '{self.name}' (known: {known})") from None
+            raise SpecError(
+                f"{where or name}: unknown {kind} '{name}' for objective '{self.name}' (known: {known})"
+            ) from None
 
 
-# name -> "module:attribute" (imported lazily) or an Objective registered at run time.
-_BUILTIN: dict[str, str] = {
-    "snake.kv": "jaxloco.robots.snake.tuning:KV_TUNE",
-    "snake.reach_gain": "jaxloco.robots.snake.mjx_tuning:REACH_GAIN_TUNE",
-    "titan.stride": "jaxloco.robots.titan.tuning:STRIDE_TUNE",
-    "octopus.sigma": "jaxloco.robots.octopus.tuning:SIGMA_TUNE",
-}
-_REGISTERED: dict[str, Objective] = {}
+# Built-in objectives come from the robots' entries modules (jaxloco.registry).
+OBJECTIVES: Registry[Objective] = Registry(
+    "objective", lambda: robot_entries("OBJECTIVES"), lambda entry: isinstance(entry, Objective)
+)
 
 
 def register(objective: Objective) -> Objective:
     """Add an objective (e.g. from a plugin or a test); returns it."""
-    _REGISTERED[objective.name] = objective
-    return objective
+    return OBJECTIVES.register(objective.name, objective)
 
 
 def names() -> list[str]:
-    return sorted(set(_BUILTIN) | set(_REGISTERED))
+    return OBJECTIVES.names()
 
 
 def get(name: str) -> Objective:
     """The objective called `name`; SpecError naming the known ones if there is none or it
     cannot be loaded."""
-    if name in _REGISTERED:
-        return _REGISTERED[name]
-    if name in _BUILTIN:
-        module, attr = _BUILTIN[name].split(":")
-        try:
-            objective = getattr(importlib.import_module(module), attr)
-        except (ImportError, AttributeError) as exc:
-            raise SpecError(f"objective '{name}' cannot be loaded ({type(exc).__name__}: {exc})") from exc
-        if not isinstance(objective, Objective):
-            raise SpecError(f"objective '{name}': {_BUILTIN[name]} is a {type(objective).__name__}, not an Objective")
-        _REGISTERED[name] = objective
-        return objective
-    raise SpecError(f"unknown objective '{name}' (known: {', '.join(names())})")
+    return OBJECTIVES.get(name)

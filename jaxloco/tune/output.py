@@ -77,7 +77,9 @@ def curve_table(
         [
             pa.field("step", pa.int64(), metadata={"doc": "optimizer updates before this evaluation"}),
             pa.field("loss", pa.float64(), metadata={"role": "loss"}),
-            pa.field("grad_norm", pa.float64(), metadata={"doc": "global norm of the gradient in the optimised coordinates"}),
+            pa.field(
+                "grad_norm", pa.float64(), metadata={"doc": "global norm of the gradient in the optimised coordinates"}
+            ),
             *_fields(spec, aux),
         ],
         metadata=meta,

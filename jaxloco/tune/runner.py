@@ -14,7 +14,6 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -22,61 +21,14 @@ import numpy as np
 import pyarrow as pa
 
 from jaxloco import info, paths
-from jaxloco.analysis import SpecError
+from jaxloco.errors import ObjectiveError, SpecError, TuneDiverged, TuneInterrupted
 from jaxloco.tune import output
+from jaxloco.tune.display import step_progress
+from jaxloco.tune.result import TuneResult
 from jaxloco.tune.spec import TuneSpec, load_spec, spec_from_dict
 from jaxloco.tune.transform import from_free, to_free
 
 FLUSH_SECONDS = 2.0
-
-
-class ObjectiveError(RuntimeError):
-    """An objective broke its contract (loss not a scalar, clashing aux names): a bug, not a user error."""
-
-
-class TuneInterrupted(KeyboardInterrupt):
-    """Ctrl+C (or a KeyboardInterrupt from `on_step`) during a tuning; what was computed is on disk."""
-
-    def __init__(self, done: int, total: int, path: Path | None) -> None:
-        self.done, self.total, self.path = done, total, path
-        where = f"the loss curve and the best values so far are in {path}" if path else "nothing was written"
-        super().__init__(f"interrupted after {done} of {total} steps; {where}")
-
-    def __str__(self) -> str:
-        return str(self.args[0])
-
-
-class TuneDiverged(RuntimeError):
-    """The loss or its gradient is not finite at a step; the run stopped (the curve is on disk)."""
-
-    def __init__(self, message: str, step: int, path: Path) -> None:
-        self.step, self.path = step, path
-        super().__init__(message)
-
-
-@dataclass(frozen=True)
-class TuneResult:
-    """The loss curve, the comparison table (initial, tuned, references) and the files written."""
-
-    spec: TuneSpec
-    path: Path
-    curve: pa.Table
-    comparison: pa.Table
-    best_step: int
-    written: tuple[Path, ...] = ()
-    warnings: tuple[str, ...] = ()
-
-    def row(self, label: str) -> dict[str, Any]:
-        """The comparison row called `label` ("initial", "tuned" or a reference name)."""
-        for row in self.comparison.to_pylist():
-            if row["label"] == label:
-                return row
-        raise KeyError(label)
-
-    def values(self, label: str = "tuned") -> dict[str, float]:
-        """Every tunable's value in the row `label`."""
-        row = self.row(label)
-        return {t.name: row[t.name] for t in self.spec.objective.tunables}
 
 
 def run(
@@ -136,8 +88,6 @@ def run(
     u = {t.name: jnp.asarray(to_free(t, spec.init[t.name]), dtype=dtype) for t in tuned}
     state = optimizer.init(u)
     record = _Record(spec, info.versions())
-
-    from jaxloco.tune.display import step_progress
 
     try:
         with step_progress(spec.steps, enabled=progress) as bar:
@@ -262,7 +212,9 @@ def _checked_aux(name: str, loss: Any, aux: Any, taken: Mapping[str, Any]) -> li
         if not isinstance(key, str) or key in taken or key == "label":
             raise ObjectiveError(f"objective '{name}': aux metric name {key!r} is taken (or not a string)")
         if np.shape(value) != ():
-            raise ObjectiveError(f"objective '{name}': aux metric '{key}' has shape {np.shape(value)}, expected a scalar")
+            raise ObjectiveError(
+                f"objective '{name}': aux metric '{key}' has shape {np.shape(value)}, expected a scalar"
+            )
     return list(aux)
 
 
@@ -363,9 +315,6 @@ class _Record:
 
 
 __all__ = [
-    "ObjectiveError",
-    "TuneDiverged",
-    "TuneInterrupted",
     "TuneResult",
     "make_evaluate",
     "run",

@@ -39,12 +39,12 @@ from typing import Annotated, Any, Literal
 from pydantic import BeforeValidator, Field
 
 from jaxloco import paths, specs
-from jaxloco.analysis import SpecError
-from jaxloco.sweep.spec import _plain
+from jaxloco.errors import SpecError
+from jaxloco.sweep.spec import plain_data
 from jaxloco.sweep.spec_model import (
     NonEmptyStr,
     PlainName,
-    _Strict,
+    StrictModel,
     bounded,
     error,
     name_from_stem,
@@ -64,7 +64,7 @@ def _fspath(v: Any) -> Any:
     return os.fspath(v) if isinstance(v, os.PathLike) else v
 
 
-class TuneSection(_Strict):
+class TuneSection(StrictModel):
     objective: NonEmptyStr
     name: PlainName | None = None
     output: Annotated[NonEmptyStr, BeforeValidator(_fspath)] | None = None
@@ -76,13 +76,13 @@ class TuneSection(_Strict):
     formats: list[Literal["parquet", "csv"]] = ["parquet", "csv"]
 
 
-class ValidateSection(_Strict):
+class ValidateSection(StrictModel):
     sweep: Annotated[NonEmptyStr, BeforeValidator(_fspath)]
     map: dict[str, NonEmptyStr] | None = None
     labels: list[NonEmptyStr] | None = Field(None, min_length=1)
 
 
-class TuneDoc(_Strict):
+class TuneDoc(StrictModel):
     tune: TuneSection
     init: dict[str, Any] = {}
     settings: dict[str, Any] = {}
@@ -154,7 +154,7 @@ def spec_from_dict(d: Mapping[str, Any], source: str = "<dict>") -> TuneSpec:
     """Validate a spec given as a dict with the TOML layout ({"tune": ..., "init": ...})."""
     if not isinstance(d, Mapping):
         raise SpecError(f"{source}: expected a mapping with a 'tune' table, got {type(d).__name__}")
-    return _resolve(_plain(d), source, default_name="tune")
+    return _resolve(plain_data(d), source, default_name="tune")
 
 
 def _resolve(doc: Mapping[str, Any], source: str, default_name: str) -> TuneSpec:

@@ -89,13 +89,13 @@ STATUSES = (
 )
 
 
-def _design(fixed: Mapping[str, Any]) -> gait.GaitDesign:
+def cycle_design(fixed: Mapping[str, Any]) -> gait.GaitDesign:
     """The row's leg numbering and footsteps for the A-D cycle (`gait.CYCLE_DESIGNS`)."""
     return gait.gait_design(str(fixed["numbering"]), cycle=True)
 
 
-def _config(fixed: Mapping[str, Any]) -> tuple[gait.WalkConfig, forces.QPSettings]:
-    config = _design(fixed).config(
+def walk_config(fixed: Mapping[str, Any]) -> tuple[gait.WalkConfig, forces.QPSettings]:
+    config = cycle_design(fixed).config(
         n_move=fixed["n_move"], n_unload=fixed["n_unload"], n_swing=fixed["n_swing"], n_load=fixed["n_load"]
     )
     settings = forces.QPSettings(iterations=fixed["qp_iterations"], capacity=fixed["capacity"])
@@ -152,8 +152,8 @@ def run_one(values: Mapping[str, jax.Array], key: jax.Array, config: gait.WalkCo
 
 
 def make_batch_fn(fixed: Mapping[str, Any]):
-    config, settings = _config(fixed)
-    design = _design(fixed)
+    config, settings = walk_config(fixed)
+    design = cycle_design(fixed)
     dt = float(fixed["dt"])
     sweepable = [p.name for p in PARAMS if p.sweepable]
 

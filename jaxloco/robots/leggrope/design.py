@@ -45,7 +45,6 @@ import numpy as np
 from jaxloco.robots.leggrope import gait
 from jaxloco.robots.leggrope.params import LegGropeParams, default_params
 
-
 # The footsteps must serve every slope: on a slope the body sits uphill of the footprint
 # (the COG's vertical projection is what the regions constrain), which changes the leg
 # configurations and so the COG shift of each swing. The search maximizes the worst case.

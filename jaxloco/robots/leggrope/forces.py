@@ -49,9 +49,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco import geometry as geo
-from jaxloco import qp
-from jaxloco import stability
-from jaxloco.robots.leggrope import gait, kinematics as kin
+from jaxloco import qp, stability
+from jaxloco.robots.leggrope import gait
+from jaxloco.robots.leggrope import kinematics as kin
 from jaxloco.robots.leggrope.params import G, LegGropeParams
 
 Array = jax.Array

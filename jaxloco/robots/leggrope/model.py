@@ -98,8 +98,14 @@ def build_spec(params: LegGropeParams | None = None) -> mujoco.MjSpec:
         for j, name in enumerate(JOINTS):
             if j:
                 parent = parent.add_body(name=f"{leg}_{name}_link", pos=[float(lengths[j - 1]), 0, 0])
-            parent.add_joint(name=f"{leg}_{name}", axis=axes[j], range=ranges[j], limited=mujoco.mjtLimited.mjLIMITED_TRUE,
-                             armature=ARMATURE, damping=0.02)
+            parent.add_joint(
+                name=f"{leg}_{name}",
+                axis=axes[j],
+                range=ranges[j],
+                limited=mujoco.mjtLimited.mjLIMITED_TRUE,
+                armature=ARMATURE,
+                damping=0.02,
+            )
             parent.add_geom(name=f"{leg}_link{j + 1}", type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.01, 0, 0],
                             fromto=[0, 0, 0, float(lengths[j]), 0, 0], mass=float(masses[j]), contype=0, conaffinity=0,
                             rgba=[0.7, 0.7, 0.7, 1])

@@ -29,7 +29,6 @@ from typing import Any
 import numpy as np
 
 from jaxloco.plots import new_axes
-
 from jaxloco.robots.leggrope.results import (  # critical_theta, status_category: public here too
     PAPER_CRITICAL_THETA,
     _categories,

@@ -304,8 +304,8 @@ def _standing_q() -> np.ndarray:
 
 def standing_scenario(horizon: int = 10, substeps: int = 5, record_every: int = 1, mjx_contacts: bool = True
                       ) -> Scenario:
-    """A small scenario for tests and benchmarks: stand on a flat box (top at params['ground'] m), joint targets = standing pose plus
-    params['offset'] on every knee, with a 2 Hz wiggle of the L1 yaw joint; params
+    """A small scenario for tests and benchmarks: stand on a flat box (top at params['ground'] m), joint targets =
+    standing pose plus params['offset'] on every knee, with a 2 Hz wiggle of the L1 yaw joint; params
     ['kick'] is added to the initial vertical body velocity.
 
     mjx_contacts: contacts that both backends simulate alike (pyramidal cone, no

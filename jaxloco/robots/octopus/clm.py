@@ -74,8 +74,8 @@ Robot phases (`PHASE_NAMES`; Fig. 9 a-h and the phases A-F of Fig. 14):
     while the front crawler ends are below the step top (from the front EPRAs resting on
     it: the reading of "H < H_EST" that lets the crawlers onto the step). Eq. 29: the
     flippers turn down by delta_f once the front is lifted (front to flip_min, onto the
-    step top; rear to rear_flip_min; with rear_flip_late = 0 the rear ones at once). The crawlers drive once the front is
-    lifted. S (Eq. 18, crawler encoders) starts when the front flippers touch down on the
+    step top; rear to rear_flip_min; with rear_flip_late = 0 the rear ones at once). The crawlers drive once the
+    front is lifted. S (Eq. 18, crawler encoders) starts when the front flippers touch down on the
     step top (torque beyond T0) at minus their reach: S is the front flipper pivots'
     distance past the edge (Fig. 5). H - H(CLIMB start) > H_EST and S > L (0.3 m) and the
     pitch below release_pitch -> RELEASE.
@@ -935,7 +935,11 @@ def release_step(p, q_cmd: Array, flip: Array, pitch: Array, roll: Array) -> tup
     back = jnp.all(high) & jnp.all(flip >= 0.0)
     paper = p["climb_paper"] > 0
     q_paper, flip_paper, back_paper = paper_release_step(p, q_cmd, flip)
-    return jnp.where(paper, q_paper, q_release), jnp.where(paper, flip_paper, flip_r), jnp.where(paper, back_paper, back)
+    return (
+        jnp.where(paper, q_paper, q_release),
+        jnp.where(paper, flip_paper, flip_r),
+        jnp.where(paper, back_paper, back),
+    )
 
 
 def carry_step(p, q_cmd: Array) -> Array:
@@ -980,8 +984,9 @@ def flipper_commands(p, ph: Phases, flip: Array, f_rule: Array, flip_climb: Arra
     flip_walk = jnp.concatenate([f_rule, jnp.zeros(2, dt)])
     flip_prep = flip.at[:2].set(jnp.minimum(flip[:2] + p["flip_delta_a"], p["A0"]))
     flip_walk = jnp.where(ph.walk, flip_walk, jnp.where(ph.prepare, flip_prep, flip))
-    return jnp.select([ph.climb, ph.release, ph.done, ph.crawl], [flip_climb, flip_release, jnp.zeros(4, dt), flip_crawl],
-                      flip_walk)
+    return jnp.select(
+        [ph.climb, ph.release, ph.done, ph.crawl], [flip_climb, flip_release, jnp.zeros(4, dt), flip_crawl], flip_walk
+    )
 
 
 def phase_transition(p, s: ClmState, ph: Phases, arms: ArmState, confirmed: Array, h_est: Array, at_riser: Array,

@@ -134,7 +134,9 @@ def inverse_kinematics(params: OctopusParams, arm: int | Array, target: Array) -
     cos3 = jnp.clip((dist * dist - l1 * l1 - l2 * l2) / (2.0 * l1 * l2), -1.0 + 1e-12, 1.0 - 1e-12)
     t3 = jnp.arccos(cos3)
     t2 = jnp.arctan2(w, r) - jnp.arctan2(l2 * jnp.sin(t3), l1 + l2 * jnp.cos(t3))
-    margin = jnp.minimum(jnp.minimum(l1 + l2 - dist, dist - jnp.abs(l1 - l2)), jnp.sign(r_signed2) * jnp.sqrt(jnp.abs(r_signed2)))
+    margin = jnp.minimum(
+        jnp.minimum(l1 + l2 - dist, dist - jnp.abs(l1 - l2)), jnp.sign(r_signed2) * jnp.sqrt(jnp.abs(r_signed2))
+    )
     return jnp.stack([_wrap(t1), t2, t3]), margin
 
 
@@ -198,7 +200,9 @@ def terrain_case(diffs: Array, sigma: Array) -> Array:
     flat = jnp.all(jnp.abs(diffs) < s1)
     up = jnp.all((diffs > s1) & (diffs < s2))
     down = jnp.all((diffs > -s3) & (diffs < -s1))
-    return jnp.where(flat, CASE_FLAT, jnp.where(up, CASE_UP, jnp.where(down, CASE_DOWN, CASE_UNDETECTABLE))).astype(jnp.int32)
+    return jnp.where(flat, CASE_FLAT, jnp.where(up, CASE_UP, jnp.where(down, CASE_DOWN, CASE_UNDETECTABLE))).astype(
+        jnp.int32
+    )
 
 
 def explore_terrain(params: OctopusParams, tips_r: Array, a_p: Array = 0.0, a_r: Array = 0.0) -> TerrainEstimate:

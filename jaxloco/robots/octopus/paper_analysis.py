@@ -211,7 +211,13 @@ def run_summary(metrics: Mapping[str, Any]) -> dict[str, float]:
     ok = np.asarray(metrics["success"], bool)
     pitch, roll, margin = (np.asarray(metrics[k], float) for k in ("max_pitch", "max_abs_roll", "min_margin"))
     t = np.asarray(metrics["climb_time"], float)[ok]
-    return {"success": float(ok.mean()), "max_pitch": float(np.nanmean(pitch)), "max_pitch_worst": float(np.nanmax(pitch)),
-            "max_abs_roll": float(np.nanmean(roll)), "max_abs_roll_worst": float(np.nanmax(roll)),
-            "min_margin": float(np.nanmean(margin)), "min_margin_worst": float(np.nanmin(margin)),
-            "climb_time": float(np.nanmean(t)) if t.size else float("nan")}
+    return {
+        "success": float(ok.mean()),
+        "max_pitch": float(np.nanmean(pitch)),
+        "max_pitch_worst": float(np.nanmax(pitch)),
+        "max_abs_roll": float(np.nanmean(roll)),
+        "max_abs_roll_worst": float(np.nanmax(roll)),
+        "min_margin": float(np.nanmean(margin)),
+        "min_margin_worst": float(np.nanmin(margin)),
+        "climb_time": float(np.nanmean(t)) if t.size else float("nan"),
+    }

@@ -60,7 +60,9 @@ ARM_LABELS = ("LF", "RF", "LR", "RR")
 ARM_JOINTS = ("swing", "boom", "elbow")
 ARM_SIGNS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])  # (sx, sy) of each base
 FLIPPER_NAMES = ("flipper_fl", "flipper_fr", "flipper_rl", "flipper_rr")
-FLIPPER_SIGNS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])  # (front +1 / rear -1, left +1 / right -1)
+FLIPPER_SIGNS = np.array(
+    [[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]]
+)  # (front +1 / rear -1, left +1 / right -1)
 CRAWLER_NAMES = ("crawler_l", "crawler_r")
 # Actuator order in the MJCF (ctrl vector): crawlers [m/s], flippers [rad], arms [rad].
 ACTUATOR_NAMES = CRAWLER_NAMES + FLIPPER_NAMES + tuple(f"{a}_{j}" for a in ARM_NAMES for j in ARM_JOINTS)
@@ -75,8 +77,12 @@ ARM_BASE_N = 0.500  # n: lateral distance between arm bases
 ROLLER_RADIUS = 0.050
 # --- Table 2 [m, in {R}]; P4's target y is printed +399, a typo for -399 (P4 is the
 # right-rear arm: y = -399 at the start, and the target layout is left/right symmetric).
-TABLE2_INIT = np.array([[0.540, 0.399, -0.433], [0.298, -0.399, -0.433], [-0.419, 0.399, -0.433], [-0.618, -0.399, -0.433]])
-TABLE2_TARGET = np.array([[0.618, 0.399, -0.433], [0.618, -0.399, -0.433], [-0.121, 0.399, -0.433], [-0.121, -0.399, -0.433]])
+TABLE2_INIT = np.array(
+    [[0.540, 0.399, -0.433], [0.298, -0.399, -0.433], [-0.419, 0.399, -0.433], [-0.618, -0.399, -0.433]]
+)
+TABLE2_TARGET = np.array(
+    [[0.618, 0.399, -0.433], [0.618, -0.399, -0.433], [-0.121, 0.399, -0.433], [-0.121, -0.399, -0.433]]
+)
 BASE_HEIGHT = -TABLE2_INIT[0, 2] + ROLLER_RADIUS  # {R} origin above flat ground [m]
 
 # --- Table 3

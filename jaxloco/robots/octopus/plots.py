@@ -25,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from jaxloco.plots import column, heatmap
+
 __all__ = ["TERRAIN_NAMES", "climb_trace", "plot_accuracy_map", "plot_arm_joints", "plot_arm_on_obstacle",
            "plot_attitude_traces", "plot_climb_traces"]
 
@@ -37,8 +39,6 @@ ARM_LABELS = ("LF", "RF", "LR", "RR")  # params.ARM_LABELS (arms 1..4)
 CLM_PHASES = ("walk", "prepare", "climb", "release", "done", "crawl")
 PAPER_PHASE = {"walk": "A-C", "prepare": "D", "climb": "E", "release": "F", "done": "after F", "crawl": "CRAWL (ours)"}
 OBSTACLE_MIN = 0.1  # [m] scenarios.OBSTACLE_MIN: a roller contact this high is on an obstacle top
-from jaxloco.plots import column, heatmap
-
 
 # ------------------------------------------------------------------------- OCTOPUS
 def plot_accuracy_map(table: Any, sigma: Sequence[float] | None = None, *, ax=None, value: str = "accuracy",

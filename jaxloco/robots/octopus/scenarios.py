@@ -189,8 +189,12 @@ def terrain_values(kind: str, p) -> dict[str, jax.Array]:
         return {"height": 0.0 * jnp.asarray(p["height"], jnp.result_type(float))}
     if kind == "block":
         h = jnp.asarray(p["height"], jnp.result_type(float))
-        return {"block0_x": p["distance"] + 0.5 * BLOCK_SIZE, "block0_y": -(ROBOT_SIDE + p["block_gap"] + 0.5 * BLOCK_SIZE),
-                "block0_height": h, "block0_yaw": 0.0 * h}
+        return {
+            "block0_x": p["distance"] + 0.5 * BLOCK_SIZE,
+            "block0_y": -(ROBOT_SIDE + p["block_gap"] + 0.5 * BLOCK_SIZE),
+            "block0_height": h,
+            "block0_yaw": 0.0 * h,
+        }
     left, right = _heights(kind, p)
     start = jnp.asarray(p["distance"], left.dtype) - (PIT_PLATFORM if kind == "pit" else 0.0)
     return {"height_left": left, "height_right": right, "start": start}

@@ -37,9 +37,9 @@ the HARD classifier's scores on the same bank (`accuracy`, `danger_rate`,
 `undetectable_rate`, `hard_cost`: the same cost with the hard answer).
 
 Reference "default (ours)": the paper gives no values (the sigmas are "set according to
-actual condition"); the row is our default `params.SIGMA` = (0.05, 0.45, 0.45) m, the analysis' defaults. The tuned values
-have the analysis' parameter names, so they can be put into jaxloco/specs/octopus_sigma.toml for
-validation with `octopus.terrain_classification`.
+actual condition"); the row is our default `params.SIGMA` = (0.05, 0.45, 0.45) m, the analysis'
+defaults. The tuned values have the analysis' parameter names, so they can be put into
+jaxloco/specs/octopus_sigma.toml for validation with `octopus.terrain_classification`.
 """
 
 from __future__ import annotations
@@ -51,7 +51,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.analysis import Param, SpecError
+from jaxloco.analysis import Param
+from jaxloco.errors import SpecError
 from jaxloco.robots.octopus import analysis as A
 from jaxloco.robots.octopus import kinematics as kin
 from jaxloco.robots.octopus.params import SIGMA

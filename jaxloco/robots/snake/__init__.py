@@ -14,5 +14,6 @@ MuJoCo), `table3` and `contact` (Tables III-V in MuJoCo, analyses `snake.table3`
 `snake.contact`), `operator` (the teleoperator model), `operations` (the pipe, the valve
 and the door of Sec. V-D), `operations_analysis` (analysis `snake.operations`),
 `predictive` (predictive mode selection), `trials` (the perturbed trials' parameters),
-`sim_analysis` and `mjx_tuning` (`snake.reach` and its MJX gain objective), `plots`.
+`sim_analysis` and `mjx_tuning` (`snake.reach` and its MJX gain objective), `plots`,
+`entries` (its registry entries).
 """

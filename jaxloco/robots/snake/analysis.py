@@ -134,7 +134,7 @@ def limit_loss(recs: Mapping[str, jax.Array], recover_ratio: jax.Array, w_limit:
     return jnp.mean(pos + att) + w_limit * jnp.mean(jnp.sum(excess, axis=-1))
 
 
-def _config(horizon: float, dt: float, feedback: bool) -> S.RolloutConfig:
+def rollout_config(horizon: float, dt: float, feedback: bool) -> S.RolloutConfig:
     return S.RolloutConfig(steps=round(horizon / dt) + 1, dt=dt, point="tip", feedback=bool(feedback))
 
 
@@ -165,7 +165,7 @@ def run_one(values: Mapping[str, jax.Array], config: S.RolloutConfig) -> tuple[d
 def make_batch_fn(fixed: Mapping[str, Any]):
     """`Analysis.make_batch_fn`: every sweepable parameter vmapped; horizon, dt and
     feedback static. No randomness (keys unused)."""
-    config = _config(fixed["horizon"], fixed["dt"], fixed["feedback"])
+    config = rollout_config(fixed["horizon"], fixed["dt"], fixed["feedback"])
     sweepable = [p.name for p in PARAMS if p.sweepable]
 
     def batch(swept: Mapping[str, jax.Array], keys: jax.Array) -> dict[str, jax.Array]:

@@ -46,7 +46,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Param, SpecError, Summary
+from jaxloco.analysis import Analysis, Metric, Param, Summary
+from jaxloco.errors import SpecError
 from jaxloco.robots.snake import control as C
 from jaxloco.robots.snake import experiments as E
 from jaxloco.robots.snake import kinematics as K

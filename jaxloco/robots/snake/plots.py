@@ -57,8 +57,8 @@ def plot_limit_runs(runs: Mapping[str, Mapping[str, Any]], *, paper_error: tuple
                     figsize=(9.0, 5.6)):
     """The paper's Fig. 9 for each labelled run: gripper-tip position error [mm] and
     attitude error [rad] (norm of roll, pitch, yaw errors) with the paper's "about 30 mm
-    and 0.1 rad" (dashed; `experiments.PAPER_HEAD_ERROR` unless given), the mode sigma (1: fixing state; 2..6: the lifted wheel pair)
-    and the cost V = phi^T K_V phi (Eq. 19; log scale)."""
+    and 0.1 rad" (dashed; `experiments.PAPER_HEAD_ERROR` unless given), the mode sigma (1: fixing state;
+    2..6: the lifted wheel pair) and the cost V = phi^T K_V phi (Eq. 19; log scale)."""
     import matplotlib.pyplot as plt
 
     if paper_error is None:
@@ -129,7 +129,13 @@ def plot_accuracy(errors: Mapping[str, Sequence[float]], names: Sequence[str], *
     x = np.arange(len(names))
     for k, (label, vals) in enumerate(errors.items()):
         vals = np.maximum(np.asarray(vals, float), 1e-4)
-        ax.bar(x + (k - (len(errors) - 1) / 2) * width, vals, width, label=label, color="C3" if label == "paper" else f"C{k}")
+        ax.bar(
+            x + (k - (len(errors) - 1) / 2) * width,
+            vals,
+            width,
+            label=label,
+            color="C3" if label == "paper" else f"C{k}",
+        )
     ax.set_yscale("log")
     ax.set_xticks(x, list(names))
     ax.set_ylabel("error of the changed component [%]")
@@ -201,7 +207,10 @@ def plot_operations(table: Any, *, figsize=(10.0, 3.2)):
                 ax.plot(np.full(v.size, x), v, ".", color="k", ms=3)
     a1.axhline(1.0, color="k", lw=0.8, ls="--")
     a2.axhline(1e3 * OA.TIP_BOUND, color="k", lw=0.8, ls="--")
-    for ax, title in ((a1, "goal reached (measure / success threshold)"), (a2, "largest tip error [mm] (30 mm dashed)")):
+    for ax, title in (
+        (a1, "goal reached (measure / success threshold)"),
+        (a2, "largest tip error [mm] (30 mm dashed)"),
+    ):
         ax.set_xticks(range(len(names)), names)
         ax.set_title(title, fontsize=9)
     a1.legend(fontsize=8)

@@ -51,7 +51,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Param, SpecError, Summary
+from jaxloco.analysis import Analysis, Metric, Param, Summary
+from jaxloco.errors import SpecError
 from jaxloco.robots.snake import kinsim as S
 from jaxloco.robots.snake import model as snake_model
 from jaxloco.robots.snake import params as P

@@ -138,9 +138,14 @@ def summarize(table) -> Summary:
         d = np.stack([cols[c][sel].astype(float) for c in COMPONENTS], -1) if sel.any() else np.full((1, 6), np.nan)
         sd = d.std(0, ddof=1) if len(d) > 1 else np.zeros(6)
         err = cols["error"][sel].astype(float)
-        rows.append((f"d{name} = {E.ACCURACY_DELTAS[j]:+.3f}", f"ours ({int(sel.sum())}/{int((targets == name).sum())})",
-                     *(_cell(m, s, u) for m, s, u in zip(d.mean(0), sd, UNITS, strict=True)),
-                     f"{err.mean():.1f}" if err.size else "-"))
+        rows.append(
+            (
+                f"d{name} = {E.ACCURACY_DELTAS[j]:+.3f}",
+                f"ours ({int(sel.sum())}/{int((targets == name).sum())})",
+                *(_cell(m, s, u) for m, s, u in zip(d.mean(0), sd, UNITS, strict=True)),
+                f"{err.mean():.1f}" if err.size else "-",
+            )
+        )
         rows.append(("", "paper (5)", *(_cell(m, s, u) for m, s, u in
                                          zip(E.PAPER_ACCURACY_ROWS[j], E.PAPER_ACCURACY_SD[j], UNITS, strict=True)),
                      f"{E.PAPER_ACCURACY_ERROR[j]:.1f}"))

@@ -50,7 +50,7 @@ PAPER = {
 
 def make_loss(settings: Mapping[str, Any]):
     """`Objective.make_loss`: loss_fn(values) -> (limit_loss, metrics) of one rollout."""
-    config = A._config(settings["horizon"], settings["dt"], settings["feedback"])
+    config = A.rollout_config(settings["horizon"], settings["dt"], settings["feedback"])
     fixed = {p.name: settings[p.name] for p in SETTINGS if p.sweepable}
 
     def loss_fn(values):

@@ -2,6 +2,11 @@
 Mechatron. 19(1), 2007): the grid step over intermittent crawl gait.
 
 Modules: `params` (Table 1 and the dimensions chosen where the figures are missing),
-`maps` (unevenness and forbidden-foothold grid maps, Section 8.2.1, and the Section 7 /
-8.4 frame scenarios), `gait` (planar and height gait of Sections 5-6, `plan_cycles`).
+`kinematics` (leg geometry), `maps` (unevenness and forbidden-foothold grid maps, Section
+8.2.1, and the Section 7 / 8.4 frame scenarios), `gait` (planar and height gait of
+Sections 5-6, `plan_cycles`), `analysis` (`titan.stride`), `tuning` (the `titan.stride`
+objective), `model` (the MJCF `models/titan_xi.xml`), `control` (the quasi-static
+footstep executor), `scenarios` and `walk` (the plan executed in MuJoCo), `localization`
+(self-localisation by surveying, Sec. 8.2.2), `sim_analysis` (`titan.walk`), `plots`,
+`entries` (its registry entries).
 """

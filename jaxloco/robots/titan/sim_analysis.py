@@ -40,7 +40,8 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Param, SpecError, Summary, mean_worst
+from jaxloco.analysis import Analysis, Metric, Param, Summary, mean_worst
+from jaxloco.errors import SpecError
 from jaxloco.robots.titan import params as P
 from jaxloco.robots.titan import scenarios as S
 from jaxloco.robots.titan import walk as W

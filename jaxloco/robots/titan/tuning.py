@@ -95,7 +95,8 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from jaxloco.analysis import Param, SpecError
+from jaxloco.analysis import Param
+from jaxloco.errors import SpecError
 from jaxloco.robots.titan import analysis as A
 from jaxloco.robots.titan import gait as G
 from jaxloco.robots.titan import params as P
@@ -261,7 +262,8 @@ def make_loss(settings: Mapping[str, Any]):
 STRIDE_TUNE = Objective(
     name="titan.stride",
     doc="TITAN XI crawl gait: stride (L_std, W_std) maximising the distance per cycle against a soft-min NESM "
-    "penalty below S_NE^c, through the grid-map gait planner (default: the Sec. 8.4 30 deg slope, 75 % tether, no frames)",
+    "penalty below S_NE^c, through the grid-map gait planner (default: the Sec. 8.4 30 deg slope, 75 % "
+    "tether, no frames)",
     tunables=TUNABLES,
     settings=SETTINGS,
     make_loss=make_loss,

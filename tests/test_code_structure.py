@@ -1,0 +1,133 @@
+"""Guards on how jaxloco's modules depend on each other, read from the source (no imports):
+no import cycles, and no module using another package's private names."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1] / "jaxloco"
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        out[name] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _package(name: str, path: Path) -> str:
+    return name if path.name == "__init__.py" else name.rpartition(".")[0]
+
+
+def _imports(name: str, path: Path) -> list[tuple[str, str | None, int]]:
+    """(module, imported name or None, line) for every import statement of a module, also
+    those inside functions and `if TYPE_CHECKING:` blocks."""
+    package = _package(name, path)
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            found += [(a.name, None, node.lineno) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(parts + ([base] if base else []))
+            for a in node.names:
+                sub = f"{base}.{a.name}"
+                found.append((sub, None, node.lineno) if sub in MODULES else (base, a.name, node.lineno))
+    return found
+
+
+def _graph() -> dict[str, set[str]]:
+    return {name: {m for m, _, _ in _imports(name, path) if m in MODULES and m != name}
+            for name, path in MODULES.items()}
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index, low, stack, on_stack, found = {}, {}, [], set(), []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_the_modules_were_found():
+    assert {"jaxloco.analysis", "jaxloco.sweep.runner", "jaxloco.robots.octopus.clm"} <= set(MODULES)
+
+
+def test_cycle_finder_finds_a_cycle():
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_no_import_cycles():
+    assert _cycles(_graph()) == []
+
+
+def _is_private(attr: str) -> bool:
+    return attr.startswith("_") and not attr.startswith("__")
+
+
+def test_no_module_uses_another_packages_private_names():
+    offenders = []
+    for name, path in MODULES.items():
+        package = _package(name, path)
+        aliases = {}
+        for module, imported, line in _imports(name, path):
+            if module not in MODULES:
+                continue
+            other = _package(module, MODULES[module])
+            if imported is not None and _is_private(imported) and other != package:
+                offenders.append(f"{name}:{line} imports {module}.{imported}")
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom | ast.Import):
+                for a in node.names:
+                    base = node.module if isinstance(node, ast.ImportFrom) else None
+                    full = f"{base}.{a.name}" if base else a.name
+                    if full in MODULES:
+                        aliases[a.asname or a.name.split(".")[-1]] = full
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases:
+                module = aliases[node.value.id]
+                if _is_private(node.attr) and _package(module, MODULES[module]) != package:
+                    offenders.append(f"{name}:{node.lineno} uses {module}.{node.attr}")
+    assert offenders == []
+
+
+def test_robot_packages_list_their_modules():
+    """Each robot package's docstring names every module in it (`name` in backquotes)."""
+    missing = []
+    for package in sorted((PACKAGE / "robots").glob("*/__init__.py")):
+        doc = ast.get_docstring(ast.parse(package.read_text(encoding="utf-8"))) or ""
+        for module in sorted(package.parent.glob("*.py")):
+            if module.stem != "__init__" and f"`{module.stem}`" not in doc:
+                missing.append(f"{package.parent.name}.{module.stem}")
+    assert missing == []
