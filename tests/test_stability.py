@@ -359,8 +359,12 @@ def test_friction_margins_hand():
     )
     s = np.asarray(FRIC_MARGINS(f, MU))
     np.testing.assert_allclose(s, [0, 0, MU * fz / SQ2, 0, -MU * fz / SQ2, -MU * fz / SQ2], atol=1e-12)
-    assert float(sm.friction_margin(jnp.asarray(f), MU, jnp.array([1, 1, 1, 1, 0, 0], bool))) == pytest.approx(0.0, abs=1e-12)
-    assert float(sm.friction_margin(jnp.asarray(f), MU, jnp.array([0, 0, 1, 0, 1, 0], bool))) == pytest.approx(-MU * fz / SQ2)
+    assert float(sm.friction_margin(jnp.asarray(f), MU, jnp.array([1, 1, 1, 1, 0, 0], bool))) == pytest.approx(
+        0.0, abs=1e-12
+    )
+    assert float(sm.friction_margin(jnp.asarray(f), MU, jnp.array([0, 0, 1, 0, 1, 0], bool))) == pytest.approx(
+        -MU * fz / SQ2
+    )
     assert float(sm.friction_margin(jnp.asarray(f), MU, jnp.zeros(6, bool))) == np.inf
 
 
