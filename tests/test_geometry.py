@@ -578,3 +578,51 @@ def test_soft_min_tends_to_min():
     assert all(g >= 0 for g in gaps) and all(a > b for a, b in itertools.pairwise(gaps))
     assert gaps[-1] < 1e-6
     check_grads(lambda v: SOFT_MIN(v, 0.2, mask), (jnp.asarray(x),), order=1, modes=["fwd", "rev"])
+
+
+# ------------------------------------------------- O(N^2) hull edges vs the all-pairs form
+HULL_NEW_V = jax.jit(jax.vmap(geo.hull_edges))
+HULL_REF_V = jax.jit(jax.vmap(geo._hull_edges_all_pairs))
+
+
+def _degenerate_sets(rng: np.random.Generator, n: int, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """`count` masked sets of n rows: general position, dyadic grids (exact collinear
+    triples), all on one line, heavy duplicates, 1-2 distinct points and none; masked
+    rows hold garbage (also NaN), rows in random order."""
+    kind = rng.integers(0, 6, count)
+    pts = rng.normal(size=(count, n, 2))
+    grid = rng.integers(-3, 4, size=(count, n, 2)) / 4.0
+    pts = np.where((kind == 1)[:, None, None], grid, pts)
+    t = rng.integers(-4, 5, size=(count, n)) / 4.0
+    pts = np.where((kind == 2)[:, None, None], np.stack([t, 0.5 * t - 0.25], -1), pts)
+    src = np.take_along_axis(pts, rng.integers(0, n, size=(count, n))[..., None], 1)
+    dup = (kind == 3)[:, None] & (rng.uniform(size=(count, n)) < 0.5)
+    pts = np.where(dup[..., None], src, pts)
+    few = rng.normal(size=(count, 2, 2))[:, rng.integers(0, 2, n)]  # 1-2 distinct points
+    pts = np.where((kind == 4)[:, None, None], few, pts)
+    mask = rng.uniform(size=(count, n)) < rng.uniform(0.2, 1.0, (count, 1))
+    mask[kind == 5] = False
+    garbage = rng.uniform(-30.0, 30.0, pts.shape)
+    garbage[rng.uniform(size=(count, n)) < 0.1] = np.nan
+    return np.where(mask[..., None], pts, garbage), mask
+
+
+@pytest.mark.parametrize("n", range(3, 17))
+def test_hull_edges_equal_all_pairs_reference(n):
+    """hull_edges (O(N^2), one successor per point) == the all-pairs O(N^3) test."""
+    rng = np.random.default_rng(100 + n)
+    pts, mask = _degenerate_sets(rng, n, 512)
+    new, ref = np.asarray(HULL_NEW_V(pts, mask)), np.asarray(HULL_REF_V(pts, mask))
+    bad = np.nonzero(np.any(new != ref, axis=(1, 2)))[0]
+    assert len(bad) == 0, (n, bad[:5])
+    assert np.all(new.sum(axis=2) <= 1)  # at most one edge leaves a point
+    # float32 (tolerance ~4e-4 here): every edge found is an all-pairs edge, and the two
+    # agree wherever the all-pairs edges form a proper cycle (a point within the
+    # tolerance of an edge's line can give the all-pairs form two edges leaving a point)
+    new32 = np.asarray(HULL_NEW_V(pts.astype(np.float32), mask))
+    ref32 = np.asarray(HULL_REF_V(pts.astype(np.float32), mask))
+    assert not np.any(new32 & ~ref32)
+    out_deg, in_deg = ref32.sum(axis=2), ref32.sum(axis=1)
+    proper = np.all((out_deg <= 1) & (out_deg == in_deg), axis=1)
+    np.testing.assert_array_equal(new32[proper], ref32[proper])
+    assert proper.mean() > 0.98
