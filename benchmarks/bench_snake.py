@@ -42,26 +42,23 @@ def main() -> None:
     ap.add_argument("--no-mujoco", action="store_true")
     args = ap.parse_args()
     runtime.configure(x64=True)
-    from jaxloco.robots.snake import control as C
-    from jaxloco.robots.snake import experiments as E
-    from jaxloco.robots.snake import kinsim as S
-    from jaxloco.robots.snake import params as P
-    from jaxloco.robots.snake import tuning
+    from jaxloco.robots.snake import control, experiments, kinsim, tuning
+    from jaxloco.robots.snake import params as snake_params
 
     print(f"jax {jax.__version__}, devices {jax.devices()}, float64")
     rng = np.random.default_rng(0)
-    cp = E.limit_params()
-    law = jax.jit(jax.vmap(lambda b, phi, g: C.control_input(
-        S.point_pose(S.initial_state(phi, b)), phi, jnp.zeros(7), jnp.zeros(7), g, cp)))
-    x0, target = E.limit_setup()
-    config = S.RolloutConfig(steps=200, dt=0.02)
-    loop = jax.jit(jax.vmap(lambda k: S.rollout(x0, target, cp.with_(k_eta=k), config)["V"][-1]))
+    cp = experiments.limit_params()
+    law = jax.jit(jax.vmap(lambda b, phi, g: control.control_input(
+        kinsim.point_pose(kinsim.initial_state(phi, b)), phi, jnp.zeros(7), jnp.zeros(7), g, cp)))
+    x0, target = experiments.limit_setup()
+    config = kinsim.RolloutConfig(steps=200, dt=0.02)
+    loop = jax.jit(jax.vmap(lambda k: kinsim.rollout(x0, target, cp.with_(k_eta=k), config)["V"][-1]))
     print("| batch | control law [evals/s] | compile [s] | kinematic closed loop [periods/s] | compile [s] |")
     print("| --- | --- | --- | --- | --- |")
     for n in [int(b) for b in args.batch.split(",")]:
-        phi = np.tile(P.INITIAL_PHI, (n, 1)) + rng.uniform(-0.3, 0.3, (n, P.N_PHI))
+        phi = np.tile(snake_params.INITIAL_PHI, (n, 1)) + rng.uniform(-0.3, 0.3, (n, snake_params.N_PHI))
         base = rng.uniform(-1, 1, (n, 3))
-        modes = np.asarray(P.MODES)[rng.integers(0, P.N_MODES, n)]
+        modes = np.asarray(snake_params.MODES)[rng.integers(0, snake_params.N_MODES, n)]
         c1, b1 = timed(law, jnp.asarray(base), jnp.asarray(phi), jnp.asarray(modes))
         c2, b2 = timed(loop, jnp.linspace(0.05, 0.5, n), repeat=1)
         print(f"| {n} | {n / b1:,.0f} | {c1:.1f} | {n * config.steps / b2:,.0f} | {c2:.1f} |")
@@ -75,13 +72,14 @@ def main() -> None:
     print(f"\ntuning (value_and_grad, 401 periods): {1 / b:.2f} steps/s ({b:.2f} s per step), compile {c:.1f} s")
 
     if not args.no_mujoco:
-        from jaxloco.robots.snake import scenarios as SC
-        from jaxloco.robots.snake import sim_control as SCT
+        from jaxloco.robots.snake import scenarios, sim_control
         from jaxloco.sim.rollout import rollout
 
-        sc = SC.snake_scenario(5.0, 0.02, SCT.task_space_controller(0.02, "tip"), phi0=E.zigzag_phi())
+        sc = scenarios.snake_scenario(
+            5.0, 0.02, sim_control.task_space_controller(0.02, "tip"), phi0=experiments.zigzag_phi()
+        )
         for n in (1, 6):
-            params = SCT.params_batch(n, switch_at=1.0)
+            params = sim_control.params_batch(n, switch_at=1.0)
             rollout(sc, params)  # compile
             t = time.perf_counter()
             res = rollout(sc, params)

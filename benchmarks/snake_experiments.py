@@ -26,31 +26,32 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco import runtime
-from jaxloco.robots.snake import analysis as A
-from jaxloco.robots.snake import experiments as E
-from jaxloco.robots.snake import sim_control as SCT
+from jaxloco.robots.snake import analysis, experiments, sim_control
 
 KV_KEYS = ("kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio", "k_eta")
 
 
 def accuracy_table() -> None:
     t = time.perf_counter()
-    kin = E.run_accuracy_kinematic()
+    kin = experiments.run_accuracy_kinematic()
     t_kin = time.perf_counter() - t
     t = time.perf_counter()
-    ff = SCT.run_accuracy(feedback=False)
-    fb = SCT.run_accuracy(feedback=True)
+    ff = sim_control.run_accuracy(feedback=False)
+    fb = sim_control.run_accuracy(feedback=True)
     t_mj = time.perf_counter() - t
     print(f"\nTable III, relative position accuracy: error [%] (kinematic {t_kin:.1f} s, MuJoCo 12 runs {t_mj:.1f} s)")
     print("| target | paper | kinematic | MuJoCo feedforward | MuJoCo feedback | MuJoCo max side slip [m/s] |")
     print("| --- | --- | --- | --- | --- | --- |")
-    for i, name in enumerate(E.ACCURACY_NAMES):
-        print(f"| d{name} = {E.ACCURACY_DELTAS[i]:+.3f} | {E.PAPER_ACCURACY_ERROR[i]:.1f} | {kin['error'][i]:.3f} | "
-              f"{ff['error'][i]:.1f} | {fb['error'][i]:.1f} | {ff['max_slip'][i]:.3f} |")
+    for i, name in enumerate(experiments.ACCURACY_NAMES):
+        print(
+            f"| d{name} = {experiments.ACCURACY_DELTAS[i]:+.3f} | {experiments.PAPER_ACCURACY_ERROR[i]:.1f} | "
+            f"{kin['error'][i]:.3f} | "
+            f"{ff['error'][i]:.1f} | {fb['error'][i]:.1f} | {ff['max_slip'][i]:.3f} |"
+        )
     print("\nMuJoCo feedforward, full displacement rows (x, y, z [m], roll, pitch, yaw [rad]):")
-    for i, name in enumerate(E.ACCURACY_NAMES):
+    for i, name in enumerate(experiments.ACCURACY_NAMES):
         ours = " ".join(f"{v:+.4f}" for v in ff["displacement"][i])
-        paper = " ".join(f"{v:+.4f}" for v in E.PAPER_ACCURACY_ROWS[i])
+        paper = " ".join(f"{v:+.4f}" for v in experiments.PAPER_ACCURACY_ROWS[i])
         print(f"  d{name}: ours {ours}   paper {paper}")
 
 
@@ -63,7 +64,7 @@ def _rows(tuned: dict[str, float] | None) -> list[tuple[str, dict[str, float]]]:
 
 def _metrics(recs: dict[str, np.ndarray], i: int) -> dict[str, float]:
     r = {k: jnp.asarray(v[i]) for k, v in recs.items() if k != "slip"}
-    return {k: float(v) for k, v in E.limit_metrics(r).items()}
+    return {k: float(v) for k, v in experiments.limit_metrics(r).items()}
 
 
 def release_order(times: np.ndarray) -> str:
@@ -75,19 +76,19 @@ def release_order(times: np.ndarray) -> str:
 
 def limit_table(tuned: dict[str, float] | None) -> None:
     rows = _rows(tuned)
-    fixed = A.KV.defaults()
-    fn = jax.jit(A.make_batch_fn(fixed))
-    names = [p.name for p in A.PARAMS if p.sweepable]
+    fixed = analysis.KV.defaults()
+    fn = jax.jit(analysis.make_batch_fn(fixed))
+    names = [p.name for p in analysis.PARAMS if p.sweepable]
     n = len(rows)
     swept = {k: jnp.asarray([float(r[1].get(k, fixed[k])) for r in rows]) for k in names if k != "mode_order"}
     t = time.perf_counter()
     kin = {k: np.asarray(v) for k, v in fn(swept, jnp.zeros((n, 2), jnp.uint32)).items()}
     t_kin = time.perf_counter() - t
-    over = {k: np.asarray([float(r[1].get(k, SCT.PARAM_DEFAULTS[k])) for r in rows]) for k in KV_KEYS + ("a2",)}
+    over = {k: np.asarray([float(r[1].get(k, sim_control.PARAM_DEFAULTS[k])) for r in rows]) for k in KV_KEYS + ("a2",)}
     t = time.perf_counter()
-    res, recs = SCT.run_joint_limit(over, n=n)
+    res, recs = sim_control.run_joint_limit(over, n=n)
     t_mj = time.perf_counter() - t
-    print(f"\nJoint-limit avoidance from the zigzag posture, {E.LIMIT_HORIZON:g} s (kinematic {t_kin:.1f} s, "
+    print(f"\nJoint-limit avoidance from the zigzag posture, {experiments.LIMIT_HORIZON:g} s (kinematic {t_kin:.1f} s, "
           f"MuJoCo {n} runs {t_mj:.1f} s); paper: V decreases, the joints leave the limits, head error about "
           "30 mm / 0.1 rad")
     print("(errors of the controlled point: the gripper tip in the kinematic rows (snake.kv), the head in the MuJoCo "
@@ -103,7 +104,7 @@ def limit_table(tuned: dict[str, float] | None) -> None:
             f"| {kin['final_area'][i]:.3f} | - | - |"
         )
         m = _metrics(recs, i)
-        order = E.release_times(recs["t"][i], recs["phi"][i])
+        order = experiments.release_times(recs["t"][i], recs["phi"][i])
         print(f"| {label} | MuJoCo | {m['recovery_time']:.1f} | {m['V0']:.1f} -> {m['final_V']:.1f} "
               f"| {1e3 * m['max_pos_error']:.1f} | {m['max_att_error']:.3f} | {1e3 * m['min_margin']:.0f} | - "
               f"| {' '.join(f'{x:.1f}' for x in order)} | {release_order(order)} |")

@@ -28,13 +28,13 @@ def main() -> None:
     args = ap.parse_args()
     runtime.configure(x64=True, cache_dir=True)
 
-    from jaxloco.robots.snake import mjx_tuning as MT
+    from jaxloco.robots.snake import mjx_tuning
     from jaxloco.tune import runner
 
-    settings = {p.name: p.default for p in MT.SETTINGS}
+    settings = {p.name: p.default for p in mjx_tuning.SETTINGS}
     t0 = time.perf_counter()
-    f = jax.jit(runner.value_and_grad(MT.make_loss(settings), "forward", ["gain_k"]))
-    loss = jax.jit(MT.make_loss(settings))
+    f = jax.jit(runner.value_and_grad(mjx_tuning.make_loss(settings), "forward", ["gain_k"]))
+    loss = jax.jit(mjx_tuning.make_loss(settings))
 
     def value(k):
         return float(loss({"gain_k": jnp.float64(k), "k_eta": jnp.float64(0.1)})[0])

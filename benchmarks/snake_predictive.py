@@ -26,32 +26,27 @@ from jaxloco import runtime
 
 runtime.configure(x64=True, cache_dir=True)
 
-from jaxloco.robots.snake import control as C
-from jaxloco.robots.snake import experiments as E
-from jaxloco.robots.snake import kinsim as S
-from jaxloco.robots.snake import operations as O
-from jaxloco.robots.snake import predictive as PR
-from jaxloco.robots.snake import sim_control as SCT
+from jaxloco.robots.snake import control, experiments, kinsim, operations, predictive, sim_control
 
 DT = 0.02  # [s]
 
 
-def run(horizon: float, order: int, prediction: PR.Prediction | None):
-    x0, target = E.limit_setup()
-    cp = E.limit_params(mode_order=jnp.asarray(C.MODE_ORDERS[order]))
-    config = S.RolloutConfig(steps=round(horizon / DT), dt=DT, point="tip", feedback=False)
-    choose = None if prediction is None else PR.chooser(target, cp, DT, "tip", prediction)
-    f = jax.jit(lambda: S.rollout(x0, target, cp, config, choose=choose))
+def run(horizon: float, order: int, prediction: predictive.Prediction | None):
+    x0, target = experiments.limit_setup()
+    cp = experiments.limit_params(mode_order=jnp.asarray(control.MODE_ORDERS[order]))
+    config = kinsim.RolloutConfig(steps=round(horizon / DT), dt=DT, point="tip", feedback=False)
+    choose = None if prediction is None else predictive.chooser(target, cp, DT, "tip", prediction)
+    f = jax.jit(lambda: kinsim.rollout(x0, target, cp, config, choose=choose))
     t = time.perf_counter()
     recs = jax.block_until_ready(f())
     wall = time.perf_counter() - t
     return recs, wall
 
 
-def switch_cost(prediction: PR.Prediction) -> float:
-    x0, target = E.limit_setup()
-    cp = E.limit_params()
-    f = jax.jit(lambda s, t: PR.mode_scores(s, t, target, cp, DT, "tip", prediction))
+def switch_cost(prediction: predictive.Prediction) -> float:
+    x0, target = experiments.limit_setup()
+    cp = experiments.limit_params()
+    f = jax.jit(lambda s, t: predictive.mode_scores(s, t, target, cp, DT, "tip", prediction))
     jax.block_until_ready(f(x0, jnp.asarray(2.0)))
     times = []
     for _ in range(20):
@@ -63,12 +58,16 @@ def switch_cost(prediction: PR.Prediction) -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--horizon", type=float, default=E.LIMIT_HORIZON)
+    ap.add_argument("--horizon", type=float, default=experiments.LIMIT_HORIZON)
     ap.add_argument("--mujoco", action="store_true", help="also the MuJoCo runs (about 3 minutes)")
     ap.add_argument("--door", action="store_true", help="also the door in MuJoCo (about 8 minutes)")
     args = ap.parse_args()
-    rows = [("paper order 2..6", 0, None), ("reverse order 6..2", 1, None),
-            ("predictive, 0.5 s", 0, PR.Prediction(horizon_s=0.5)), ("predictive, 1 s", 0, PR.Prediction())]
+    rows = [
+        ("paper order 2..6", 0, None),
+        ("reverse order 6..2", 1, None),
+        ("predictive, 0.5 s", 0, predictive.Prediction(horizon_s=0.5)),
+        ("predictive, 1 s", 0, predictive.Prediction()),
+    ]
     print(
         f"Joint-limit avoidance, kinematic, {args.horizon:g} s from the zigzag posture (tip held; switching from 2 s)"
     )
@@ -77,10 +76,10 @@ def main() -> None:
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for label, order, pred in rows:
         recs, wall = run(args.horizon, order, pred)
-        m = {k: float(v) for k, v in E.limit_metrics(recs).items()}
+        m = {k: float(v) for k, v in experiments.limit_metrics(recs).items()}
         sigma = np.asarray(recs["sigma"])
         t = np.asarray(recs["t"])
-        slots = [int(sigma[np.argmin(np.abs(t - (E.SWITCH_AT + k + 0.5)))]) for k in range(8)]
+        slots = [int(sigma[np.argmin(np.abs(t - (experiments.SWITCH_AT + k + 0.5)))]) for k in range(8)]
         cost = "-" if pred is None else f"{1e3 * switch_cost(pred):.1f}"
         print(f"| {label} | {m['recovery_time']:.1f} | {m['V0']:.1f} -> {m['final_V']:.2f} | "
               f"{1e3 * m['max_pos_error']:.1f} | {m['max_att_error']:.3f} | {cost} | {wall:.1f} | "
@@ -101,13 +100,13 @@ def mujoco_rows(horizon: float) -> None:
     print("| selection | recovery [s] | V0 -> final V | max head error [mm] | max att. error [rad] | wall [s] | "
           "theta_4..9 below 70 % at [s] |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
-    for label, pred in (("paper order 2..6", None), ("predictive, 1 s", PR.Prediction())):
+    for label, pred in (("paper order 2..6", None), ("predictive, 1 s", predictive.Prediction())):
         t = time.perf_counter()
-        res, recs = SCT.run_joint_limit(n=1, horizon=horizon, prediction=pred)
+        res, recs = sim_control.run_joint_limit(n=1, horizon=horizon, prediction=pred)
         wall = time.perf_counter() - t
-        m = {k: float(v) for k, v in E.limit_metrics({k: jnp.asarray(v[0]) for k, v in recs.items()
+        m = {k: float(v) for k, v in experiments.limit_metrics({k: jnp.asarray(v[0]) for k, v in recs.items()
                                                         if k != "slip"}).items()}
-        order = E.release_times(recs["t"][0], recs["phi"][0])
+        order = experiments.release_times(recs["t"][0], recs["phi"][0])
         print(f"| {label} ({res.status[0]}) | {m['recovery_time']:.1f} | {m['V0']:.1f} -> {m['final_V']:.2f} | "
               f"{1e3 * m['max_pos_error']:.1f} | {m['max_att_error']:.3f} | {wall:.0f} | "
               f"{' '.join(f'{x:.1f}' for x in order)} |")
@@ -122,11 +121,11 @@ def door_rows() -> None:
           "final tip error [mm] | time switching [s] | wall [s] |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     gains = np.array([0.0, 1.0])
-    for label, pred in (("paper order 2..6", None), ("predictive, 1 s", PR.Prediction())):
+    for label, pred in (("paper order 2..6", None), ("predictive, 1 s", predictive.Prediction())):
         t = time.perf_counter()
-        res, m = O.run_operation("door", 2, prediction=pred, operator_gain=gains, operator_enter=0.97)
+        res, m = operations.run_operation("door", 2, prediction=pred, operator_gain=gains, operator_enter=0.97)
         wall = time.perf_counter() - t
-        switching = O.switching_record(res).sum(-1) * (res.times[1] - res.times[0])
+        switching = operations.switching_record(res).sum(-1) * (res.times[1] - res.times[0])
         for i, g in enumerate(gains):
             print(f"| {label} | {g:g} | {m['door_max'][i]:.2f} | {m['door_angle'][i]:.2f} | "
                   f"{1e3 * m['max_tip_error'][i]:.0f} | {1e3 * m['final_tip_error'][i]:.0f} | {switching[i]:.1f} | "

@@ -33,17 +33,15 @@ def planner(n_cycles: int, exponent: float):
     import jax
     import jax.numpy as jnp
 
-    from jaxloco.robots.titan import gait as G
-    from jaxloco.robots.titan import maps as M
-    from jaxloco.robots.titan import params as P
+    from jaxloco.robots.titan import gait, maps, params
 
-    par = P.default_params().with_(stride_exponent=exponent)
+    par = params.default_params().with_(stride_exponent=exponent)
 
     def one(size, interval, block, offset, direction):
-        gmap = M.mixed_frame_map(SHAPE, jnp.zeros(2), jnp.asarray(P.CELL), (size, interval, offset),
-                                 (P.FRAME_LARGE, P.GRID_LARGE, offset * P.GRID_LARGE / interval), block)
-        start = G.standard_start(par, gmap, jnp.array([START, START]), direction)
-        p = G.plan_cycles(par, gmap, start, n_cycles, direction)
+        gmap = maps.mixed_frame_map(SHAPE, jnp.zeros(2), jnp.asarray(params.CELL), (size, interval, offset),
+                                 (params.FRAME_LARGE, params.GRID_LARGE, offset * params.GRID_LARGE / interval), block)
+        start = gait.standard_start(par, gmap, jnp.array([START, START]), direction)
+        p = gait.plan_cycles(par, gmap, start, n_cycles, direction)
         return p.n_failures, p.min_nesm, p.distance_per_cycle
 
     return jax.jit(jax.vmap(one))
@@ -88,9 +86,9 @@ def main(argv=None) -> None:
     from jaxloco import runtime
 
     runtime.configure(x64=True)
-    from jaxloco.robots.titan import params as P
+    from jaxloco.robots.titan import params
 
-    run("default planner", args.cycles, args.offsets, P.STRIDE_EXPONENT, FIELDS)
+    run("default planner", args.cycles, args.offsets, params.STRIDE_EXPONENT, FIELDS)
     if args.ablate:
         run("without the directional stride (stride_exponent = 0)", args.cycles, args.offsets, 0.0, FIELDS)
 

@@ -28,18 +28,18 @@ def make_maps(batch: int, shape: tuple[int, int], seed: int, dtype):
     import jax
     import jax.numpy as jnp
 
-    from jaxloco.robots.titan import maps as M
-    from jaxloco.robots.titan import params as P
+    from jaxloco.robots.titan import maps as titan_maps
+    from jaxloco.robots.titan import params
 
     rng = np.random.default_rng(seed)
-    sizes = rng.choice([P.FRAME_SMALL, P.FRAME_LARGE], batch)
-    grids = rng.choice([P.SLOPE_GRID, P.GRID_SMALL, P.GRID_LARGE], batch)
+    sizes = rng.choice([params.FRAME_SMALL, params.FRAME_LARGE], batch)
+    grids = rng.choice([params.SLOPE_GRID, params.GRID_SMALL, params.GRID_LARGE], batch)
     sizes[::8] = 0.0  # flat ground
     offs = rng.uniform(0.0, 1.0, (batch, 2)) * grids[:, None]
-    slopes = np.where(grids == P.SLOPE_GRID, P.SLOPE_ANGLE, 0.0)
+    slopes = np.where(grids == params.SLOPE_GRID, params.SLOPE_ANGLE, 0.0)
     gen = jax.vmap(
-        lambda s, i, o, a: M.frame_grid_map(
-            shape, jnp.zeros(2, dtype), jnp.asarray(P.CELL, dtype), s, i, o, a
+        lambda s, i, o, a: titan_maps.frame_grid_map(
+            shape, jnp.zeros(2, dtype), jnp.asarray(params.CELL, dtype), s, i, o, a
         )
     )
     return gen(*(jnp.asarray(x, dtype) for x in (sizes, grids, offs, slopes)))
@@ -61,17 +61,16 @@ def main() -> None:
     import jax
     import jax.numpy as jnp
 
-    from jaxloco.robots.titan import gait as G
-    from jaxloco.robots.titan import params as P
+    from jaxloco.robots.titan import gait, params
 
     dtype = jnp.dtype(args.dtype)
     shape = tuple(int(s) for s in args.shape.split(","))
-    par = P.default_params().astype(dtype)
-    start_xy = jnp.array([3.0, 0.5 * shape[1] * P.CELL], dtype)
+    par = params.default_params().astype(dtype)
+    start_xy = jnp.array([3.0, 0.5 * shape[1] * params.CELL], dtype)
 
     def plan(gmap):
-        start = G.standard_start(par, gmap, start_xy, jnp.zeros((), dtype))
-        p = G.plan_cycles(par, gmap, start, args.cycles, jnp.zeros((), dtype))
+        start = gait.standard_start(par, gmap, start_xy, jnp.zeros((), dtype))
+        p = gait.plan_cycles(par, gmap, start, args.cycles, jnp.zeros((), dtype))
         return p.min_nesm, p.n_failures, p.distance_per_cycle
 
     f = jax.jit(jax.vmap(plan))

@@ -70,8 +70,7 @@ def main(argv=None) -> None:
     )
     args = ap.parse_args(argv)
 
-    from jaxloco.robots.titan import scenarios as S
-    from jaxloco.robots.titan import walk as W
+    from jaxloco.robots.titan import scenarios, walk
     from jaxloco.sim.rollout import rollout
 
     n = args.cycles
@@ -88,7 +87,7 @@ def main(argv=None) -> None:
             else [math.radians(dirs_deg[0])] * n
         )
         try:
-            plan, gait, scalars = W.plan_walk(
+            plan, gait, scalars = walk.plan_walk(
                 xy, n, dirs, frame, grid, math.radians(slope_deg)
             )
         except ValueError as e:
@@ -104,7 +103,7 @@ def main(argv=None) -> None:
     results_gait = {row[0]: row[3] for row in planned}
     for width in sorted({row[1] for row in planned}):
         group = [row for row in planned if row[1] == width]
-        sc = S.make_scenario(6 * n, beam_width=width)
+        sc = scenarios.make_scenario(6 * n, beam_width=width)
         keys = group[0][4].keys()
         extra = {
             k: v
@@ -115,7 +114,7 @@ def main(argv=None) -> None:
             )
             if v is not None
         }
-        p = S.params_batch(
+        p = scenarios.params_batch(
             [row[2] for row in group],
             **{k: np.array([row[4][k] for row in group]) for k in keys},
             **extra,

@@ -12,29 +12,28 @@ import pytest
 import scipy.sparse as sp
 
 from jaxloco import qp
-from jaxloco.robots.leggrope import forces as F
-from jaxloco.robots.leggrope import gait as G
+from jaxloco.robots.leggrope import forces, gait
 from jaxloco.robots.leggrope.params import G as GRAVITY
 from jaxloco.robots.leggrope.params import default_params
 
 P = default_params()
-CFG = G.WalkConfig()
-WALK = G.WalkParams()
-SET = F.QPSettings()
+CFG = gait.WalkConfig()
+WALK = gait.WalkParams()
+SET = forces.QPSettings()
 WEIGHT = float(P.total_mass) * GRAVITY
 
 
 def _step_problem(theta, psi, i, params=P, tau_b=None):
-    terrain = G.simple_slope(jnp.asarray(theta), jnp.asarray(psi))
-    plan = G.plan_cycle(params, WALK, terrain, CFG)
-    info = G.step_info(jnp.asarray(i), CFG, params.dt)
-    dyn = F.step_dynamics(params, WALK, plan, terrain, info, CFG)
+    terrain = gait.simple_slope(jnp.asarray(theta), jnp.asarray(psi))
+    plan = gait.plan_cycle(params, WALK, terrain, CFG)
+    info = gait.step_info(jnp.asarray(i), CFG, params.dt)
+    dyn = forces.step_dynamics(params, WALK, plan, terrain, info, CFG)
     ramp = jnp.where(info.phase == 1, 15.0 * (1 - info.fraction), 0.5 * WEIGHT * math.cos(theta) * info.fraction)
-    modes = F.leg_modes(info, ramp)
+    modes = forces.leg_modes(info, ramp)
     r_ref = 0.5 * WEIGHT * math.cos(theta)
     tau_b = jnp.zeros(12) if tau_b is None else tau_b
-    A, b, Gm, h = F.build_constraints(params, dyn, modes, jnp.asarray(r_ref), jnp.asarray(-SET.s_tol * WEIGHT))
-    Q, q = F.controller_cost(params, dyn, tau_b, jnp.asarray(float(params.h_c)), SET)
+    A, b, Gm, h = forces.build_constraints(params, dyn, modes, jnp.asarray(r_ref), jnp.asarray(-SET.s_tol * WEIGHT))
+    Q, q = forces.controller_cost(params, dyn, tau_b, jnp.asarray(float(params.h_c)), SET)
     return (Q, q, A, b, Gm, h), dyn, info, modes
 
 
@@ -54,7 +53,7 @@ def _clarabel(Q, q, A, b, Gm, h):
 @pytest.mark.parametrize("step", [5, 60, 105, 140, 170, 185, 410])  # phases A, A, B, C, C, D, C
 def test_step_qp_matches_clarabel(step):
     problem, _, info, _ = _step_problem(0.2, 0.5, step, tau_b=jnp.linspace(-1.0, 1.0, 12))
-    ours = qp.solve(*problem, x_scale=F.x_scale(P, jnp.float64), iterations=SET.iterations, tol=SET.tol)
+    ours = qp.solve(*problem, x_scale=forces.x_scale(P, jnp.float64), iterations=SET.iterations, tol=SET.tol)
     ref = _clarabel(*problem)
     assert bool(ours.ok) and "Solved" in str(ref.status)
     # forces, s and r agree to a millionth of the robot's weight
@@ -87,15 +86,15 @@ def test_static_friction_limit_is_atan_mu(mu):
     for theta, feasible in ((limit - 0.004, True), (limit + 0.004, False)):
         problem, _, info, _ = _step_problem(theta, 0.0, 100, params=params)
         assert int(info.phase) == 1
-        sol = qp.solve(*problem, x_scale=F.x_scale(params, jnp.float64), iterations=30, tol=SET.tol)
+        sol = qp.solve(*problem, x_scale=forces.x_scale(params, jnp.float64), iterations=30, tol=SET.tol)
         assert bool(sol.ok) == feasible, (mu, theta)
 
 
 @pytest.fixture(scope="module")
 def paper_cycle():
     """One cycle at theta = pi/12, psi = 0 (the paper's Figs. 7-9), recorded."""
-    terrain = G.simple_slope(jnp.asarray(math.pi / 12), jnp.asarray(0.0))
-    return jax.jit(lambda: F.simulate_cycle(P, WALK, terrain, CFG, SET, record=True))()
+    terrain = gait.simple_slope(jnp.asarray(math.pi / 12), jnp.asarray(0.0))
+    return jax.jit(lambda: forces.simulate_cycle(P, WALK, terrain, CFG, SET, record=True))()
 
 
 def test_paper_cycle_is_slip_free_and_probes_every_foothold(paper_cycle):

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from jaxloco import geometry as geo
-from jaxloco.robots.leggrope import gait as G
+from jaxloco.robots.leggrope import gait
 from jaxloco.robots.leggrope.params import default_params
 
 P = default_params()
-CFG = G.WalkConfig()
-WALK = G.WalkParams()
+CFG = gait.WalkConfig()
+WALK = gait.WalkParams()
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +22,7 @@ def plans():
     """Plans on a few slopes and directions (one compiled, vmapped planner)."""
     th = jnp.array([0.0, 0.25, -0.4, 0.4, 0.1])
     ps = jnp.array([0.0, 0.7, -1.2, 1.5707963, -1.5707963])
-    f = jax.jit(jax.vmap(lambda t, p: G.plan_cycle(P, WALK, G.simple_slope(t, p), CFG)))
+    f = jax.jit(jax.vmap(lambda t, p: gait.plan_cycle(P, WALK, gait.simple_slope(t, p), CFG)))
     return th, ps, f(th, ps)
 
 
@@ -73,7 +73,7 @@ def test_plan_is_invariant_on_slopes(plans):
     moves them by millimetres."""
     th, ps, pl = plans
     massless = P.with_(link_masses=np.zeros(3))
-    f = jax.jit(jax.vmap(lambda t, p: G.plan_cycle(massless, WALK, G.simple_slope(t, p), CFG)))
+    f = jax.jit(jax.vmap(lambda t, p: gait.plan_cycle(massless, WALK, gait.simple_slope(t, p), CFG)))
     ideal = f(th, ps)
     for m in (ideal.cog_margin, ideal.grope_margin):
         np.testing.assert_allclose(m, np.broadcast_to(m[0], m.shape), atol=1e-9)
@@ -84,20 +84,20 @@ def test_plan_is_invariant_on_slopes(plans):
 def test_footsteps_and_body_placement(plans):
     th, ps, pl = plans
     for k in range(len(th)):
-        terrain = G.simple_slope(th[k], ps[k])
+        terrain = gait.simple_slope(th[k], ps[k])
         plan = jax.tree_util.tree_map(lambda x: x[k], pl)
         # every foot moved once: stride forward plus its designed sideways shift
-        uv = lambda p: G.world_xy_to_uv(terrain, p[:2])  # noqa: E731
+        uv = lambda p: gait.world_xy_to_uv(terrain, p[:2])  # noqa: E731
         for leg in range(4):
             d = uv(plan.feet[4][leg]) - uv(plan.feet[0][leg])
             np.testing.assert_allclose(d, [WALK.stride, WALK.lateral[leg]], atol=1e-12)
         # feet on the slope plane, body at body_height above it
-        n = G.slope_rotation(terrain.theta)[:, 2]
+        n = gait.slope_rotation(terrain.theta)[:, 2]
         np.testing.assert_allclose(plan.feet @ n, 0.0, atol=1e-12)
         np.testing.assert_allclose(plan.body @ n, P.body_height, atol=1e-12)
         # the whole-body COG projects vertically onto each target
         for i in range(1, 5):
-            cog = G.whole_body_cog(P, plan.R_GR, plan.body[i], plan.feet[i])
+            cog = gait.whole_body_cog(P, plan.R_GR, plan.body[i], plan.feet[i])
             np.testing.assert_allclose(cog[:2], plan.cog_target[i], atol=1e-10)
 
 
@@ -105,9 +105,9 @@ def test_trapezoid_profile_limits():
     a, v = 0.15, 0.1
     for d in (0.01, 0.0667, 0.08):
         t = jnp.linspace(0.0, 3.0, 3001)
-        s, total = G.trapezoid(t, jnp.asarray(d), a, v)
-        vel = jax.vmap(jax.grad(lambda x: G.trapezoid(x, jnp.asarray(d), a, v)[0]))(t)
-        acc = jax.vmap(jax.grad(jax.grad(lambda x: G.trapezoid(x, jnp.asarray(d), a, v)[0])))(t)
+        s, total = gait.trapezoid(t, jnp.asarray(d), a, v)
+        vel = jax.vmap(jax.grad(lambda x: gait.trapezoid(x, jnp.asarray(d), a, v)[0]))(t)
+        acc = jax.vmap(jax.grad(jax.grad(lambda x: gait.trapezoid(x, jnp.asarray(d), a, v)[0])))(t)
         assert float(jnp.max(jnp.abs(vel))) <= v + 1e-12
         assert float(jnp.max(jnp.abs(acc))) <= a + 1e-12
         assert float(s[-1]) == pytest.approx(d)
@@ -117,7 +117,7 @@ def test_trapezoid_profile_limits():
 
 
 def test_step_info_covers_the_cycle():
-    infos = jax.vmap(lambda i: G.step_info(i, CFG, P.dt))(jnp.arange(CFG.n_steps))
+    infos = jax.vmap(lambda i: gait.step_info(i, CFG, P.dt))(jnp.arange(CFG.n_steps))
     counts = np.zeros((4, 4), int)
     np.add.at(counts, (np.asarray(infos.grope), np.asarray(infos.phase)), 1)
     assert (counts == np.array(CFG.phase_lengths())[None, :]).all()
@@ -130,33 +130,33 @@ def test_motion_is_continuous_and_rests_between_phases(plans):
     plan = jax.tree_util.tree_map(lambda x: x[1], pl)
     for k in range(4):
         base = k * CFG.steps_per_grope
-        end_a = G.step_info(jnp.asarray(base + CFG.n_move - 1), CFG, P.dt)
-        body, feet = G.pose_at(P, WALK, plan, end_a, end_a.tau, CFG)
+        end_a = gait.step_info(jnp.asarray(base + CFG.n_move - 1), CFG, P.dt)
+        body, feet = gait.pose_at(P, WALK, plan, end_a, end_a.tau, CFG)
         np.testing.assert_allclose(body, plan.body[k + 1], atol=1e-12)
-        vel = jax.jacfwd(lambda t: G.pose_at(P, WALK, plan, end_a, t, CFG)[0])(end_a.tau)
+        vel = jax.jacfwd(lambda t: gait.pose_at(P, WALK, plan, end_a, t, CFG)[0])(end_a.tau)
         np.testing.assert_allclose(vel, 0.0, atol=1e-12)
-        end_c = G.step_info(jnp.asarray(base + CFG.n_move + CFG.n_unload + CFG.n_swing - 1), CFG, P.dt)
-        _, feet = G.pose_at(P, WALK, plan, end_c, end_c.tau, CFG)
+        end_c = gait.step_info(jnp.asarray(base + CFG.n_move + CFG.n_unload + CFG.n_swing - 1), CFG, P.dt)
+        _, feet = gait.pose_at(P, WALK, plan, end_c, end_c.tau, CFG)
         np.testing.assert_allclose(feet, plan.feet[k + 1], atol=1e-12)
 
 
 def test_planner_vmap_equals_loop(plans):
     th, ps, pl = plans
-    single = jax.jit(lambda t, p: G.plan_cycle(P, WALK, G.simple_slope(t, p), CFG))(th[2], ps[2])
+    single = jax.jit(lambda t, p: gait.plan_cycle(P, WALK, gait.simple_slope(t, p), CFG))(th[2], ps[2])
     np.testing.assert_allclose(single.body, pl.body[2], atol=1e-10)
     np.testing.assert_allclose(single.cog_margin, pl.cog_margin[2], atol=1e-10)
 
 
 def test_irregular_slope_keeps_inclination():
-    t = G.irregular_slope(jnp.asarray(0.3), jnp.asarray(0.0), jnp.asarray(0.8), jax.random.PRNGKey(3))
+    t = gait.irregular_slope(jnp.asarray(0.3), jnp.asarray(0.0), jnp.asarray(0.8), jax.random.PRNGKey(3))
     np.testing.assert_allclose(jnp.arccos(t.normals[..., 2]), 0.3, atol=1e-12)
     assert float(jnp.std(jnp.arctan2(t.normals[..., 1], t.normals[..., 0]))) > 0.05
-    same = replace(t, normals=G.simple_slope(jnp.asarray(0.3), jnp.asarray(0.0)).normals)
+    same = replace(t, normals=gait.simple_slope(jnp.asarray(0.3), jnp.asarray(0.0)).normals)
     np.testing.assert_allclose(same.normals[..., 2], np.cos(0.3))
 
 
 # ------------------------------------------------------- the mirrored numbering (issue 18)
-MIRRORED = G.DESIGNS["mirrored"]
+MIRRORED = gait.DESIGNS["mirrored"]
 
 
 @pytest.fixture(scope="module")
@@ -167,16 +167,16 @@ def mirrored_plans():
 
     def plans_of(design):
         walk, cfg = design.walk(), replace(design.config(), cog_rule="collapse_safe")
-        return jax.jit(jax.vmap(lambda t: G.plan_cycle(P, walk, G.simple_slope(t, 0.0), cfg)))(th)
+        return jax.jit(jax.vmap(lambda t: gait.plan_cycle(P, walk, gait.simple_slope(t, 0.0), cfg)))(th)
 
-    return th, plans_of(MIRRORED), plans_of(G.DESIGNS["literal"])
+    return th, plans_of(MIRRORED), plans_of(gait.DESIGNS["literal"])
 
 
 def test_mirrored_numbering_crawls_forward_along_x_r(mirrored_plans):
     """L1 left front, L2 left rear, L3 right rear, L4 right front (seen from above): the
     order L2, L1, L3, L4 is physical legs 3, 0, 2, 1 (each side rear then front, the
     classical crawl), and one cycle carries the body `stride` along +x_R."""
-    assert MIRRORED.order == (3, 0, 2, 1) and G.DESIGNS["literal"].order == (1, 0, 2, 3)
+    assert MIRRORED.order == (3, 0, 2, 1) and gait.DESIGNS["literal"].order == (1, 0, 2, 3)
     _, pl, _ = mirrored_plans
     for i in range(2):
         R_GR = pl.R_GR[i]
@@ -205,8 +205,8 @@ def test_collapse_safe_design_gropes_to_r_ref_inside_the_other_three_legs(mirror
     robot standing); the literal design with the same rule reaches under 5 mm."""
     th, pl, lit = mirrored_plans
     for i in range(len(th)):
-        terrain = G.simple_slope(th[i], 0.0)
-        uv = lambda p: np.asarray(G.world_xy_to_uv(terrain, p[:2]))  # noqa: E731
+        terrain = gait.simple_slope(th[i], 0.0)
+        uv = lambda p: np.asarray(gait.world_xy_to_uv(terrain, p[:2]))  # noqa: E731
         for k, g in enumerate(MIRRORED.order):
             feet = np.stack([uv(f) for f in pl.feet[i, k + 1]])  # the groped foot landed
             c = uv(pl.cog_target[i, k + 1])
@@ -233,5 +233,5 @@ def test_designer_starts_from_the_shipped_design_and_keeps_its_score():
     stance, lateral, score = design.search_footsteps(
         P, MIRRORED.walk(), MIRRORED.config(), objective="collapse", iterations=1, population=4, elite=2
     )
-    assert score >= G.MIRRORED_DESIGN_MARGIN - 5e-5
+    assert score >= gait.MIRRORED_DESIGN_MARGIN - 5e-5
     assert stance.shape == (4, 2) and lateral.shape == (4,)

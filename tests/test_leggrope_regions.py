@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from jaxloco import geometry as geo
-from jaxloco.robots.leggrope import regions as R
+from jaxloco.robots.leggrope import regions
 
 PI, PJ, PK = jnp.array([0.0, 0.0]), jnp.array([1.0, 0.0]), jnp.array([0.3, 1.0])
 HALF = jnp.asarray(0.5)
 # distances of many points at once (one compiled call instead of op-by-op loops)
 poly_dist = jax.jit(jax.vmap(geo.polygon_signed_distance, (0, None, None)))
-union_dist = jax.jit(jax.vmap(R.union_signed_distance, (0, None, None)))
+union_dist = jax.jit(jax.vmap(regions.union_signed_distance, (0, None, None)))
 
 
 def _same_polygon(vertices, valid, expected):
@@ -25,21 +25,21 @@ def _same_polygon(vertices, valid, expected):
 
 
 def test_cog_region_half_is_medial_triangle():
-    v, ok = R.cog_region(PI, PJ, PK, HALF, HALF, HALF)
+    v, ok = regions.cog_region(PI, PJ, PK, HALF, HALF, HALF)
     _same_polygon(v, ok, [(PI + PJ) / 2, (PJ + PK) / 2, (PK + PI) / 2])
 
 
 def test_groping_region_fixed_cog_half_is_congruent_triangle():
     pg = jnp.array([0.45, 0.3])
-    v, ok = R.groping_region_fixed_cog(pg, PI, PJ, HALF, HALF, HALF)
+    v, ok = regions.groping_region_fixed_cog(pg, PI, PJ, HALF, HALF, HALF)
     # congruent to triangle (p_g, p_i, p_j): its point reflection through p_g (Fig. 4b)
     _same_polygon(v, ok, [pg, 2 * pg - PI, 2 * pg - PJ])
 
 
 def test_groping_region_half_is_trapezoid_and_union_is_antimedial_triangle():
-    v, ok = R.groping_region(PI, PJ, PK, HALF, HALF, HALF, HALF)
+    v, ok = regions.groping_region(PI, PJ, PK, HALF, HALF, HALF, HALF)
     _same_polygon(v, ok, [PI, PJ, PK + PI - PJ, PK + PJ - PI])  # Fig. 4c
-    V, OK = R.groping_region_all(jnp.stack([PI, PJ, PK]), jnp.full(3, 0.5), HALF)
+    V, OK = regions.groping_region_all(jnp.stack([PI, PJ, PK]), jnp.full(3, 0.5), HALF)
     anti = np.array([PJ + PK - PI, PK + PI - PJ, PI + PJ - PK])  # Fig. 4d
     rng = np.random.default_rng(1)
     pts = rng.uniform(-1.5, 2.5, (400, 2))
@@ -65,8 +65,8 @@ def test_groping_region_half_is_trapezoid_and_union_is_antimedial_triangle():
 )
 def test_table2a_patterns(h, pattern, n_vertices):
     h = tuple(jnp.asarray(x) for x in h)
-    assert int(R.cog_region_pattern(*h)) == pattern
-    _, ok = R.cog_region(PI, PJ, PK, *h)
+    assert int(regions.cog_region_pattern(*h)) == pattern
+    _, ok = regions.cog_region(PI, PJ, PK, *h)
     assert int(jnp.sum(ok)) == n_vertices
 
 
@@ -76,8 +76,8 @@ def test_table2a_patterns(h, pattern, n_vertices):
 )
 def test_table2b_patterns(h, pattern, n_vertices):
     h = tuple(jnp.asarray(x) for x in h)
-    assert int(R.groping_region_pattern(*h)) == pattern
-    _, ok = R.groping_region_fixed_cog(jnp.array([0.45, 0.3]), PI, PJ, *h)
+    assert int(regions.groping_region_pattern(*h)) == pattern
+    _, ok = regions.groping_region_fixed_cog(jnp.array([0.45, 0.3]), PI, PJ, *h)
     assert int(jnp.sum(ok)) == n_vertices
 
 
@@ -92,7 +92,7 @@ def test_groping_region_is_exactly_eq8(h):
     """Inside the polygon <=> the weights of Eq. 7 satisfy Eq. 8 (checked pointwise)."""
     hi, hj, hg = h
     pg = jnp.array([0.45, 0.3])
-    v, ok = R.groping_region_fixed_cog(pg, PI, PJ, *map(jnp.asarray, h))
+    v, ok = regions.groping_region_fixed_cog(pg, PI, PJ, *map(jnp.asarray, h))
     rng = np.random.default_rng(2)
     inside_count = 0
     pts = np.asarray(v)[np.asarray(ok)]
@@ -117,7 +117,7 @@ def test_printed_eq10_is_only_a_relaxation():
     p = (1 + a + b) * pg - a * np.asarray(PI) - b * np.asarray(PJ)
     wi, _, wg = _eq8_weights(p, pg, np.asarray(PI), np.asarray(PJ))
     assert wi > hi  # ... but h^_i = a h_grp exceeds h_ref^i: Eq. 8 is violated
-    v, ok = R.groping_region_fixed_cog(jnp.asarray(pg), PI, PJ, *map(jnp.asarray, (hi, hj, hg)))
+    v, ok = regions.groping_region_fixed_cog(jnp.asarray(pg), PI, PJ, *map(jnp.asarray, (hi, hj, hg)))
     assert float(geo.polygon_signed_distance(jnp.asarray(p), v, ok)) < 0
 
 
@@ -125,13 +125,13 @@ def test_grope_feasible_region_contains_union_and_equals_it_at_half():
     stance = jnp.stack([PI, PJ, PK])
     pg = jnp.array([0.45, 0.35])
     # h_ref = 1/2: reflection of the stance triangle through the COG
-    v, ok = R.grope_feasible_region(pg, stance, jnp.full(3, 0.5), HALF)
+    v, ok = regions.grope_feasible_region(pg, stance, jnp.full(3, 0.5), HALF)
     _same_polygon(v, ok, [2 * pg - PI, 2 * pg - PJ, 2 * pg - PK])
     # general h_ref: every point of some pi_grp,g is in the step-D region
     h = jnp.array([0.55, 0.45, 0.6])
     hg = jnp.asarray(0.45)
-    Vf, OKf = R.groping_regions_fixed_cog(pg, stance, h, hg)
-    vd, okd = R.grope_feasible_region(pg, stance, h, hg)
+    Vf, OKf = regions.groping_regions_fixed_cog(pg, stance, h, hg)
+    vd, okd = regions.grope_feasible_region(pg, stance, h, hg)
     rng = np.random.default_rng(3)
     pts = jnp.asarray(rng.uniform(-1.0, 2.0, (400, 2)))
     in_union = np.asarray(union_dist(pts, Vf, OKf)) > 1e-9
@@ -143,9 +143,9 @@ def test_groping_region_union_is_hull_of_vertex_images():
     """pi_grp (float leg k) equals the union over COGs in pi_g of pi_grp,g: every sampled
     (COG, a, b) image lies inside, and the polygon's vertices are attained."""
     h = tuple(jnp.asarray(x) for x in (0.55, 0.45, 0.6, 0.5))
-    v, ok = R.groping_region(PI, PJ, PK, *h)
-    cog_v, cog_ok = R.cog_region(PI, PJ, PK, *h[:3])
-    ab_v, ab_ok = R._grope_weights_polygon(h[0], h[1], h[3])
+    v, ok = regions.groping_region(PI, PJ, PK, *h)
+    cog_v, cog_ok = regions.cog_region(PI, PJ, PK, *h[:3])
+    ab_v, ab_ok = regions._grope_weights_polygon(h[0], h[1], h[3])
     cv, av = np.asarray(cog_v)[np.asarray(cog_ok)], np.asarray(ab_v)[np.asarray(ab_ok)]
     rng = np.random.default_rng(4)
     c = rng.dirichlet(np.ones(len(cv)), 300) @ cv

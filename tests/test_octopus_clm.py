@@ -11,14 +11,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxloco.robots.octopus import clm, scenarios
+from jaxloco.robots.octopus import clm, params, scenarios
 from jaxloco.robots.octopus import clm_rules as cr
 from jaxloco.robots.octopus import kinematics as kin
 from jaxloco.robots.octopus import model as octo_model
-from jaxloco.robots.octopus import params as P
 from jaxloco.sim.rollout import rollout
 
-TIP_SITES = tuple(f"{a}_tip" for a in P.ARM_NAMES)
+TIP_SITES = tuple(f"{a}_tip" for a in params.ARM_NAMES)
 
 
 def _scenario(kind: str, horizon_s: float, record_every: int = 5):
@@ -41,13 +40,13 @@ def test_clm_params_merge_and_start_pose():
         assert k in scenarios.PARAM_DEFAULTS
     batch = scenarios.params_batch(2, clm_speed=0.02, T0=np.array([10.0, 20.0]))
     assert batch["clm_speed"].shape == (2,) and float(batch["T0"][1]) == 20.0
-    assert float(batch["speed"][0]) == pytest.approx(P.CRAWLER_MAX_SPEED)  # CCM keys unchanged
+    assert float(batch["speed"][0]) == pytest.approx(params.CRAWLER_MAX_SPEED)  # CCM keys unchanged
     with pytest.raises(KeyError):
         scenarios.params_batch(1, not_a_gain=1.0)
     arms, flips = clm.start_pose()
     np.testing.assert_allclose(arms, octo_model.home_arm_angles())
-    tips = np.asarray(kin.arm_tips(P.default_params(), jnp.asarray(arms)))
-    np.testing.assert_allclose(tips, P.TABLE2_INIT, atol=1e-5)
+    tips = np.asarray(kin.arm_tips(params.default_params(), jnp.asarray(arms)))
+    np.testing.assert_allclose(tips, params.TABLE2_INIT, atol=1e-5)
     assert flips[0] == flips[1] == clm.PARAM_DEFAULTS["front_start"] and flips[2] == flips[3] == 0.0
     with pytest.raises(ValueError):
         scenarios.make_scenario("flat", initial_pose="walking")
@@ -65,7 +64,7 @@ def test_controller_is_pure_jax_with_fixed_shapes():
     s = ctrl.init(p, obs)
     batch = jax.tree_util.tree_map(lambda x: jnp.stack([x, x]), (p, s, obs))
     s2, actions = jax.jit(jax.vmap(ctrl.step))(*batch)
-    assert actions.shape == (2, len(P.ACTUATOR_NAMES))
+    assert actions.shape == (2, len(params.ACTUATOR_NAMES))
     assert jax.tree_util.tree_structure(s2) == jax.tree_util.tree_structure(s)
     for a, b in zip(jax.tree_util.tree_leaves(s), jax.tree_util.tree_leaves(s2)):
         assert b.shape == (2, *a.shape) and a.dtype == b.dtype
@@ -77,7 +76,7 @@ def test_controller_is_pure_jax_with_fixed_shapes():
 def test_tips_move_along_the_world_vertical():
     """The climbing rule moves the EPRAs of the pushing arms straight down in the level
     frame {C}, whatever the attitude (Eq. 28 in task space), and leaves the others."""
-    prm = P.default_params()
+    prm = params.default_params()
     q = jnp.asarray(octo_model.home_arm_angles())
     move = jnp.array([True, False, True, True])
     for a_p, a_r in ((0.0, 0.0), (0.3, -0.1)):
@@ -177,7 +176,7 @@ def test_clm_walks_past_a_block_beside_its_right_side():
     riding = (R["arm_phase"] == cr.PLACED) & (z > 0.5)
     assert riding[:, right].any() and not riding[:, ~right].any()
     first = np.argmax(riding[:, right].any(axis=1))
-    assert (z[first:, right] < P.ROLLER_RADIUS + 0.02).any()  # back on the floor afterwards
+    assert (z[first:, right] < params.ROLLER_RADIUS + 0.02).any()  # back on the floor afterwards
     assert z[:, ~right][(R["arm_phase"] == cr.PLACED)[:, ~right]].max() < 0.2
     assert row["max_abs_roll"] < 0.3
 
@@ -344,7 +343,11 @@ def test_clm_stops_at_a_pit_and_picks_new_targets():
     # the front rollers end in support on the platform top, short of the edge
     placed = R["arm_phase"][-1] == cr.PLACED
     ends = R["rollers"][-1][front & placed]
-    assert len(ends) >= 1 and np.allclose(ends[:, 2], height + P.ROLLER_RADIUS, atol=0.02) and (ends[:, 0] < edge).all()
+    assert (
+        len(ends) >= 1
+        and np.allclose(ends[:, 2], height + params.ROLLER_RADIUS, atol=0.02)
+        and (ends[:, 0] < edge).all()
+    )
     # stopped: the COG moves less than 2 cm in the last 10 s, and stays short of the edge
     cog = R["cog"]
     assert abs(cog[-1, 0] - cog[-50, 0]) < 0.02 and cog[-1, 0] < edge - 0.3

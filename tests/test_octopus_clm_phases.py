@@ -9,12 +9,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxloco.robots.octopus import clm
+from jaxloco.robots.octopus import clm, params
 from jaxloco.robots.octopus import clm_rules as cr
 from jaxloco.robots.octopus import kinematics as kin
-from jaxloco.robots.octopus import params as P
 
-KP = P.default_params()
+KP = params.default_params()
 DT = clm.CONTROL_DT
 
 
@@ -43,7 +42,7 @@ def test_init_state_is_typed_and_walking(p):
     s = clm.clm_init(p, _obs())
     assert isinstance(s, clm.ClmState) and isinstance(s.arms, clm.ArmState)
     assert int(s.phase) == clm.WALK and (np.asarray(s.arms.arm_phase) == cr.PLACED).all()
-    np.testing.assert_allclose(s.arms.contacts, P.TABLE2_INIT, atol=1e-5)
+    np.testing.assert_allclose(s.arms.contacts, params.TABLE2_INIT, atol=1e-5)
     np.testing.assert_allclose(s.flip, [p["front_start"], p["front_start"], 0.0, 0.0])
 
 
@@ -257,10 +256,10 @@ def test_a_front_arm_stopped_high_but_short_of_its_target_is_on_the_step(p):
     arm = 1  # RF
     s = clm.clm_init(p, _obs())
     obs = _obs()
-    target = jnp.asarray(P.TABLE2_TARGET[arm])
+    target = jnp.asarray(params.TABLE2_TARGET[arm])
     for dz, on_step in ((0.2, True), (0.0, False)):
         tip = target + jnp.array([-0.17, 0.0, dz])
-        q_all, _ = kin.inverse_kinematics_all(KP, jnp.asarray(P.TABLE2_TARGET).at[arm].set(tip))
+        q_all, _ = kin.inverse_kinematics_all(KP, jnp.asarray(params.TABLE2_TARGET).at[arm].set(tip))
         q = jnp.asarray(obs["arm_q"]).reshape(4, 3).at[arm].set(q_all[arm])
         tau = jnp.zeros((4, 3)).at[arm, 1].set(2.0 * float(p["collision_torque"]))
         arms = s.arms._replace(arm_phase=s.arms.arm_phase.at[arm].set(cr.OVER), active=jnp.asarray(arm, jnp.int32),

@@ -16,13 +16,13 @@ from jaxloco import stability
 from jaxloco.robots.octopus import ccm, clm, scenarios
 from jaxloco.robots.octopus import kinematics as kin
 from jaxloco.robots.octopus import model as octo_model
-from jaxloco.robots.octopus import params as P
+from jaxloco.robots.octopus import params as octopus_params
 from jaxloco.sim import terrain
 from jaxloco.sim.data import FIELDS, SimData
 from jaxloco.sim.rollout import rollout
 from jaxloco.sim.scenario import Controller
 
-WEIGHT = P.TOTAL_MASS * P.G
+WEIGHT = octopus_params.TOTAL_MASS * octopus_params.G
 N_SITES = len(scenarios.CONTACT_SITES)
 N_SUPPORT = len(scenarios.SUPPORT_BODIES)
 ARMS = slice(N_SITES - scenarios.N_ARM_SITES, N_SITES)
@@ -98,7 +98,7 @@ def test_touch_sites_line_up_with_contact_sites():
     mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
     mujoco.mj_kinematics(m, d)
     assert scenarios.CONTACT_TOUCH == octo_model.touch_names()[:N_SITES]
-    assert len(octo_model.touch_names()) == 2 * (P.MAIN_WHEELS + 2 * P.FLIPPER_WHEELS) + 4
+    assert len(octo_model.touch_names()) == 2 * (octopus_params.MAIN_WHEELS + 2 * octopus_params.FLIPPER_WHEELS) + 4
     assert scenarios.SUPPORT_TOUCH == octo_model.touch_names() and N_SUPPORT == len(scenarios.SUPPORT_TOUCH)
     spheres = {m.body(m.geom_bodyid[g]).name for g in range(m.ngeom)
                if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE and m.geom_contype[g]}
@@ -117,7 +117,7 @@ def test_touch_sites_line_up_with_contact_sites():
         expected = [0.0, 0.0, 0.0] if site.startswith("arm") else [0.0, 0.0, radius]
         np.testing.assert_allclose(offset, expected, atol=1e-9)
     # sites carry no mass and never collide: the model is still 100 kg
-    assert m.body_subtreemass[m.body("chassis").id] == pytest.approx(P.TOTAL_MASS, abs=1e-9)
+    assert m.body_subtreemass[m.body("chassis").id] == pytest.approx(octopus_params.TOTAL_MASS, abs=1e-9)
 
 
 def test_touch_sensors_read_the_contact_forces_on_flat_ground():
@@ -142,7 +142,7 @@ def test_touch_sensors_read_the_contact_forces_on_flat_ground():
     for name, value in touch.items():
         assert value == pytest.approx(by_body[m.site_bodyid[m.site(name).id]], abs=1e-6)
     assert sum(touch.values()) == pytest.approx(WEIGHT, rel=0.01)
-    assert all(touch[f"{a}_touch"] > scenarios.LOAD_MIN for a in P.ARM_NAMES)
+    assert all(touch[f"{a}_touch"] > scenarios.LOAD_MIN for a in octopus_params.ARM_NAMES)
 
 
 def test_support_set_matches_mujoco_contacts_on_flat_ground():
@@ -184,7 +184,7 @@ def test_support_point_on_a_step_edge_matches_mujoco():
         assert rec["contact"][i] or force < scenarios.LOAD_MIN
     for i, pos in edge:
         np.testing.assert_allclose(rec["contact_points"][i, [0, 2]], [0.15, 0.1], atol=1e-3)  # the edge
-        low = d.xpos[m.body(scenarios.SUPPORT_BODIES[i]).id] - [0.0, 0.0, P.MAIN_WHEEL_RADIUS]
+        low = d.xpos[m.body(scenarios.SUPPORT_BODIES[i]).id] - [0.0, 0.0, octopus_params.MAIN_WHEEL_RADIUS]
         assert np.linalg.norm(low - pos) > 0.01
     # the margin over the set agrees with the one over MuJoCo's loaded contacts (the
     # centres' vertical would put the front edge of the polygon about 13 mm behind)
@@ -226,15 +226,15 @@ def clm_stance_and_hover():
     rollers commanded 10 mm above it (Table 2 EPRAs raised, inverse kinematics); the
     records also hold the roller centres."""
     arms, flips = clm.start_pose()
-    raised = P.TABLE2_INIT.copy()
+    raised = octopus_params.TABLE2_INIT.copy()
     raised[:, 2] += 0.01
-    hover, reach = kin.inverse_kinematics_all(P.OctopusParams(), jnp.asarray(raised))
+    hover, reach = kin.inverse_kinematics_all(octopus_params.OctopusParams(), jnp.asarray(raised))
     assert np.all(np.asarray(reach) > 0.0)
     out = []
     for target in (arms, np.asarray(hover)):
         sc = scenarios.make_scenario("flat", _hold(target, flips), horizon_s=2.0, record_every=25,
                                      initial_pose="clm")
-        rollers = np.array([sc.model.body(f"{a}_roller").id for a in P.ARM_NAMES])
+        rollers = np.array([sc.model.body(f"{a}_roller").id for a in octopus_params.ARM_NAMES])
         base = sc.record
 
         def record(p, data, obs, c, e, base=base, rollers=rollers):
@@ -256,7 +256,7 @@ def test_loaded_contacts_standing_in_clm_start_pose(clm_stance_and_hover):
     assert (touch[ARMS] > scenarios.LOAD_MIN).all() and contact[ARMS].all()
     assert contact[:4].all() and contact[6:8].all() and not contact[4:6].any()
     on = {b for b, c in zip(scenarios.SUPPORT_BODIES, contact, strict=True) if c}
-    assert {f"wheel_{s}{k + 1}" for s in "lr" for k in range(P.MAIN_WHEELS)} <= on
+    assert {f"wheel_{s}{k + 1}" for s in "lr" for k in range(octopus_params.MAIN_WHEELS)} <= on
     assert not any(b.startswith(("flipper_fl", "flipper_fr")) for b in on)
     # on flat ground every support point is on the ground, under its wheel's centre
     np.testing.assert_allclose(r.records["contact_points"][0, -1, contact, 2], 0.0, atol=1e-3)
@@ -267,7 +267,7 @@ def test_hovering_roller_is_not_support(clm_stance_and_hover):
     r = clm_stance_and_hover[1]
     touch, load = r.records["touch"][0, -1], r.records["track_load"][0, -1]
     assert _total_load(touch, load) == pytest.approx(WEIGHT, rel=0.02)  # all on the tracks
-    gap = r.records["rollers"][0, -1, :, 2] - P.ROLLER_RADIUS
+    gap = r.records["rollers"][0, -1, :, 2] - octopus_params.ROLLER_RADIUS
     # the rollers hover a few mm above the ground ...
     assert ((gap > 0.003) & (gap < 0.02)).all()
     # ... carry nothing, so they are no support
@@ -288,7 +288,7 @@ def test_contact_needs_load_or_seat():
     sc = scenarios.make_scenario("step1", horizon_s=0.1, record_every=5)
     p = {k: v[0] for k, v in scenarios.params_batch(1).items()}
     d, h = float(p["distance"]), float(p["height"])
-    y, r = P.CRAWLER_Y, P.MAIN_WHEEL_RADIUS
+    y, r = octopus_params.CRAWLER_Y, octopus_params.MAIN_WHEEL_RADIUS
     k_rear, k_edge, k_riser = (scenarios.SUPPORT_BODIES.index(b) for b in ("wheel_l1", "wheel_l3", "wheel_r4"))
     ids = [sc.model.body(scenarios.SUPPORT_BODIES[k]).id for k in (k_rear, k_edge, k_riser)]
 

@@ -12,9 +12,9 @@ from jax.test_util import check_grads
 from jaxloco import geometry as geo
 from jaxloco.robots.octopus import kinematics as kin
 from jaxloco.robots.octopus import model as octo_model
-from jaxloco.robots.octopus import params as P
+from jaxloco.robots.octopus import params
 
-PR = P.default_params()
+PR = params.default_params()
 RNG = np.random.default_rng(7)
 Q_SAMPLES = np.column_stack(
     [RNG.uniform(-3.0, 3.0, 30), RNG.uniform(-1.6, 1.2, 30), RNG.uniform(-0.4, 2.7, 30)]
@@ -31,8 +31,8 @@ def _set_arms(model, data, qs, root_pos=(0.0, 0.0, 0.0), root_quat=(1.0, 0.0, 0.
     data.qpos[:] = model.qpos0
     data.qpos[:3] = root_pos
     data.qpos[3:7] = root_quat
-    for k, arm in enumerate(P.ARM_NAMES):
-        for j, joint in enumerate(P.ARM_JOINTS):
+    for k, arm in enumerate(params.ARM_NAMES):
+        for j, joint in enumerate(params.ARM_JOINTS):
             data.qpos[model.joint(f"{arm}_{joint}").qposadr[0]] = qs[k][j]
 
 
@@ -40,7 +40,7 @@ def _set_arms(model, data, qs, root_pos=(0.0, 0.0, 0.0), root_quat=(1.0, 0.0, 0.
 def test_arm_numbering_and_bases():
     bases = np.asarray(PR.arm_bases())
     # 1 LF, 2 RF, 3 LR, 4 RR (Table 2: P1 (+,+), P2 (+,-), P3 (-,+), P4 (-,-))
-    np.testing.assert_array_equal(np.sign(bases[:, :2]), np.sign(P.TABLE2_INIT[:, :2]))
+    np.testing.assert_array_equal(np.sign(bases[:, :2]), np.sign(params.TABLE2_INIT[:, :2]))
     np.testing.assert_allclose(np.abs(bases), [[0.25, 0.25, 0.0]] * 4)
     # Eqs. 4-6 for the left-front arm: x = m/2 + x', y = n/2 + y', z = z'
     q = jnp.array([0.3, 0.2, 0.9])
@@ -50,15 +50,19 @@ def test_arm_numbering_and_bases():
 
 def test_zero_pose_and_eq3_reading():
     # theta = 0: arm stretched along +x, forearm d3 to the right, at boom-axis height
-    np.testing.assert_allclose(kin.arm_tip_local(PR, jnp.zeros(3)), [P.L1 + P.L2, -P.D3, 0.0], atol=1e-15)
+    np.testing.assert_allclose(
+        kin.arm_tip_local(PR, jnp.zeros(3)), [params.L1 + params.L2, -params.D3, 0.0], atol=1e-15
+    )
     # Eq. 3 as printed (-l1 cos t2) would not keep the boom end at distance l1 from the
     # boom axis; the sin reading does, for every boom angle.
     t2s = np.linspace(-1.5, 1.5, 7)
     ours = [
         float(jnp.linalg.norm(kin.arm_points(PR, 0, jnp.array([0.4, t2, 0.0]))[1] - PR.arm_bases()[0])) for t2 in t2s
     ]
-    np.testing.assert_allclose(ours, np.hypot(P.L1, P.D3), atol=1e-14)
-    printed = np.hypot(np.hypot(P.L1 * np.cos(t2s), P.D3), P.L1 * np.cos(t2s))  # (x', y', z') with l2 = 0
+    np.testing.assert_allclose(ours, np.hypot(params.L1, params.D3), atol=1e-14)
+    printed = np.hypot(
+        np.hypot(params.L1 * np.cos(t2s), params.D3), params.L1 * np.cos(t2s)
+    )  # (x', y', z') with l2 = 0
     assert np.ptp(printed) > 0.3
     # boom > 0 lowers the endpoint (Eq. 28 pushes the body up with +Delta_E)
     assert float(kin.arm_tip_local(PR, jnp.array([0.0, 0.1, 0.0]))[2]) < 0
@@ -79,8 +83,8 @@ def test_fk_against_mujoco_sites(mj, arm):
     """The tip site of the MJCF (chassis at the origin: world = {R}) equals Eqs. 1-6, and the
     elbow body sits where `arm_points` says, for random joint angles."""
     model, data = mj
-    name = P.ARM_NAMES[arm]
-    dofs = [model.joint(f"{name}_{j}").dofadr[0] for j in P.ARM_JOINTS]
+    name = params.ARM_NAMES[arm]
+    dofs = [model.joint(f"{name}_{j}").dofadr[0] for j in params.ARM_JOINTS]
     for q in Q_SAMPLES:
         qs = np.zeros((4, 3))
         qs[arm] = q
@@ -107,7 +111,7 @@ def test_fk_against_mujoco_with_moving_chassis(mj):
         mujoco.mj_kinematics(model, data)
         R = data.body("chassis").xmat.reshape(3, 3)
         o = data.body("chassis").xpos
-        tips = np.stack([R.T @ (data.site(f"{a}_tip").xpos - o) for a in P.ARM_NAMES])
+        tips = np.stack([R.T @ (data.site(f"{a}_tip").xpos - o) for a in params.ARM_NAMES])
         np.testing.assert_allclose(tips, kin.arm_tips(PR, jnp.asarray(qs)), atol=1e-9)
         # the IMU site is the {R} origin
         np.testing.assert_allclose(data.site("imu").xpos, o, atol=1e-12)
@@ -117,12 +121,12 @@ def test_fk_against_mujoco_with_moving_chassis(mj):
 @pytest.mark.parametrize("table", ["init", "target"])
 def test_table2_points_reachable_and_round_trip(mj, table):
     model, _ = mj
-    points = jnp.asarray(P.TABLE2_INIT if table == "init" else P.TABLE2_TARGET)
+    points = jnp.asarray(params.TABLE2_INIT if table == "init" else params.TABLE2_TARGET)
     qs, margin = kin.inverse_kinematics_all(PR, points)
     assert bool(jnp.all(margin > 0.05)), margin  # at least 5 cm inside the workspace
     np.testing.assert_allclose(kin.arm_tips(PR, qs), points, atol=1e-10)
-    for k, arm in enumerate(P.ARM_NAMES):
-        for j, joint in enumerate(P.ARM_JOINTS):
+    for k, arm in enumerate(params.ARM_NAMES):
+        for j, joint in enumerate(params.ARM_JOINTS):
             lo, hi = model.joint(f"{arm}_{joint}").range
             assert lo < float(qs[k, j]) < hi, (arm, joint, float(qs[k, j]))
     assert bool(jnp.all(qs[:, 2] > 0))  # elbow-up branch
@@ -131,16 +135,18 @@ def test_table2_points_reachable_and_round_trip(mj, table):
 
 def test_home_keyframe_is_table2_start_pose(mj):
     model, data = mj
-    qs, _ = kin.inverse_kinematics_all(PR, jnp.asarray(P.TABLE2_INIT))
+    qs, _ = kin.inverse_kinematics_all(PR, jnp.asarray(params.TABLE2_INIT))
     np.testing.assert_allclose(octo_model.home_arm_angles(), qs, atol=1e-6)
     mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
     mujoco.mj_kinematics(model, data)
     base = data.body("chassis").xpos
-    tips = np.stack([data.site(f"{a}_tip").xpos - base for a in P.ARM_NAMES])
-    np.testing.assert_allclose(tips, P.TABLE2_INIT, atol=2e-6)
+    tips = np.stack([data.site(f"{a}_tip").xpos - base for a in params.ARM_NAMES])
+    np.testing.assert_allclose(tips, params.TABLE2_INIT, atol=2e-6)
     # rollers and crawler wheels touch the ground z = 0 together
-    assert abs(base[2] - P.BASE_HEIGHT) < 1e-12
-    np.testing.assert_allclose([data.site(f"{a}_tip").xpos[2] for a in P.ARM_NAMES], P.ROLLER_RADIUS, atol=2e-6)
+    assert abs(base[2] - params.BASE_HEIGHT) < 1e-12
+    np.testing.assert_allclose(
+        [data.site(f"{a}_tip").xpos[2] for a in params.ARM_NAMES], params.ROLLER_RADIUS, atol=2e-6
+    )
 
 
 @pytest.mark.parametrize("arm", range(4))
@@ -192,14 +198,14 @@ def test_attitude_and_level_rotation_match_eqs_12_to_16():
 
 
 # ------------------------------------------------------------------ terrain exploration
-def _tips_on(height_fn, xy=P.TABLE2_INIT[:, :2]):
+def _tips_on(height_fn, xy=params.TABLE2_INIT[:, :2]):
     xy = np.asarray(xy, float)
     z = np.array([height_fn(x, y) for x, y in xy])
     return jnp.asarray(np.column_stack([xy, z]))
 
 
 def test_flat_terrain_is_case1():
-    est = kin.explore_terrain(PR, jnp.asarray(P.TABLE2_INIT))
+    est = kin.explore_terrain(PR, jnp.asarray(params.TABLE2_INIT))
     assert int(est.case) == kin.CASE_FLAT
     np.testing.assert_allclose([est.pitch, est.roll, est.step_height], 0.0, atol=1e-14)
     # a level robot pitched on flat ground still sees flat terrain in {C}
@@ -215,7 +221,7 @@ def test_flat_terrain_is_case1():
 @pytest.mark.parametrize("layout", ["init", "target"])
 @pytest.mark.parametrize("height", [0.1, 0.3, 0.4])
 def test_upward_step_is_case2_and_h_est_is_its_height(layout, height):
-    xy = (P.TABLE2_INIT if layout == "init" else P.TABLE2_TARGET)[:, :2]
+    xy = (params.TABLE2_INIT if layout == "init" else params.TABLE2_TARGET)[:, :2]
     tips = _tips_on(lambda x, y: -0.433 + (height if x > 0 else 0.0), xy)
     est = kin.explore_terrain(PR, tips)
     assert int(est.case) == kin.CASE_UP
@@ -255,7 +261,7 @@ def test_twist_reads_flat():
 
 
 def test_case_thresholds():
-    s = jnp.asarray(P.SIGMA)
+    s = jnp.asarray(params.SIGMA)
     cases = [
         ((0.0, 0.049), kin.CASE_FLAT),
         ((0.051, 0.449), kin.CASE_UP),
@@ -276,7 +282,7 @@ def test_case_thresholds():
 def test_tilted_plane_pitch_and_roll(layout):
     """Rollers on a plane: (T_P, T_R) is the attitude of a robot resting on that plane, for
     asymmetric (init) and symmetric (target) layouts, robot level or tilted."""
-    xy = (P.TABLE2_INIT if layout == "init" else P.TABLE2_TARGET)[:, :2]
+    xy = (params.TABLE2_INIT if layout == "init" else params.TABLE2_TARGET)[:, :2]
     rng = np.random.default_rng(11)
     for _ in range(6):
         t_p, t_r = rng.uniform(-0.4, 0.4, 2)
@@ -291,7 +297,7 @@ def test_tilted_plane_pitch_and_roll(layout):
         est2 = kin.explore_terrain(PR, tips_r, a_p, a_r)
         np.testing.assert_allclose([est2.pitch, est2.roll], [t_p, t_r], atol=1e-12)
     # symmetric layout: the joint solve is Eq. 7 and corrected Eq. 8
-    tips = _tips_on(lambda x, y: 0.1 * x - 0.2 * y, P.TABLE2_TARGET[:, :2])
+    tips = _tips_on(lambda x, y: 0.1 * x - 0.2 * y, params.TABLE2_TARGET[:, :2])
     est = kin.explore_terrain(PR, tips)
     x, y, z = (np.asarray(tips)[:, i] for i in range(3))
     eq7 = (z[0] + z[1] - z[2] - z[3]) / (x[0] + x[1] - x[2] - x[3])
@@ -316,7 +322,9 @@ def test_robot_standing_on_slope_reads_its_own_attitude(mj):
         _set_arms(model, data, qs, root_quat=quat)
         mujoco.mj_forward(model, data)
         a = kin.attitude_from_quat(jnp.asarray(data.sensor("imu_quat").data))
-        enc = jnp.asarray([[data.sensor(f"{arm}_{j}_pos").data[0] for j in P.ARM_JOINTS] for arm in P.ARM_NAMES])
+        enc = jnp.asarray(
+            [[data.sensor(f"{arm}_{j}_pos").data[0] for j in params.ARM_JOINTS] for arm in params.ARM_NAMES]
+        )
         est = kin.explore_terrain(PR, kin.arm_tips(PR, enc), a[0], a[1])
         assert int(est.case) == case, (pitch, roll)
         np.testing.assert_allclose([est.pitch, est.roll], [-pitch, -roll], atol=1e-5)
@@ -328,7 +336,7 @@ def test_cog_constant_matches_model(mj):
     mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
     mujoco.mj_forward(model, data)
     cog = data.subtree_com[model.body("chassis").id] - data.body("chassis").xpos
-    np.testing.assert_allclose(cog, P.COG_R, atol=1e-3)
+    np.testing.assert_allclose(cog, params.COG_R, atol=1e-3)
 
 
 def test_cog_height_kinematic_any_attitude(mj):
@@ -347,7 +355,7 @@ def test_cog_height_kinematic_any_attitude(mj):
         a = kin.attitude_from_quat(jnp.asarray(data.sensor("imu_quat").data))
         h = kin.cog_height(PR, kin.arm_tips(PR, jnp.asarray(qs)), a[0], a[1])
         rear = 0.5 * (data.site("arm3_tip").xpos + data.site("arm4_tip").xpos)
-        expected = data.subtree_com[model.body("chassis").id][2] - (rear[2] - P.ROLLER_RADIUS)
+        expected = data.subtree_com[model.body("chassis").id][2] - (rear[2] - params.ROLLER_RADIUS)
         assert float(h) == pytest.approx(expected, abs=1.5e-3)
 
 
@@ -371,11 +379,11 @@ def test_cog_height_on_flat_ground_equals_mujoco():
     data.qpos[2] += 0.01
     mujoco.mj_step(model, data, nstep=500)
     a = kin.attitude_from_quat(jnp.asarray(data.sensor("imu_quat").data))
-    enc = jnp.asarray([[data.sensor(f"{arm}_{j}_pos").data[0] for j in P.ARM_JOINTS] for arm in P.ARM_NAMES])
+    enc = jnp.asarray([[data.sensor(f"{arm}_{j}_pos").data[0] for j in params.ARM_JOINTS] for arm in params.ARM_NAMES])
     h = kin.cog_height(PR, kin.arm_tips(PR, enc), a[0], a[1])
     com_z = data.subtree_com[model.body("chassis").id][2]
     assert float(h) == pytest.approx(com_z, abs=1.5e-3)
-    assert float(h) == pytest.approx(P.BASE_HEIGHT + P.COG_R[2], abs=1.5e-3)  # 0.273 m
+    assert float(h) == pytest.approx(params.BASE_HEIGHT + params.COG_R[2], abs=1.5e-3)  # 0.273 m
 
 
 def test_travelled_distance_closed_form():
@@ -406,8 +414,8 @@ def test_gradients():
     check_grads(h, (qs, jnp.array([0.1, -0.05])), order=2, modes=("fwd", "rev"))
     # through the parameters too (e.g. for tuning l2)
     check_grads(lambda l2: kin.arm_tip(PR.with_(l2=l2), 2, q), (jnp.asarray(0.68),), order=1)
-    check_grads(lambda t: kin.inverse_kinematics(PR, 0, t)[0], (jnp.asarray(P.TABLE2_TARGET[0]),), order=1)
-    tips = jnp.asarray(P.TABLE2_INIT) + jnp.array([[0.0, 0.0, 0.1], [0.0, 0.0, 0.12], [0, 0, 0], [0, 0, 0.01]])
+    check_grads(lambda t: kin.inverse_kinematics(PR, 0, t)[0], (jnp.asarray(params.TABLE2_TARGET[0]),), order=1)
+    tips = jnp.asarray(params.TABLE2_INIT) + jnp.array([[0.0, 0.0, 0.1], [0.0, 0.0, 0.12], [0, 0, 0], [0, 0, 0.01]])
     check_grads(lambda t: jnp.stack(kin.explore_terrain(PR, t, 0.1, 0.05)[1:4]), (tips,), order=1)
 
 

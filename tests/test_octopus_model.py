@@ -7,7 +7,7 @@ import pytest
 
 from jaxloco.errors import SpecError
 from jaxloco.robots.octopus import model as octo_model
-from jaxloco.robots.octopus import params as P
+from jaxloco.robots.octopus import params
 from jaxloco.sim import terrain
 
 
@@ -62,16 +62,16 @@ def test_options_and_counts(model):
 
 
 def test_names(model):
-    assert [model.actuator(i).name for i in range(model.nu)] == list(P.ACTUATOR_NAMES)
-    for arm in P.ARM_NAMES:
-        for j in P.ARM_JOINTS + ("roller",):
+    assert [model.actuator(i).name for i in range(model.nu)] == list(params.ACTUATOR_NAMES)
+    for arm in params.ARM_NAMES:
+        for j in params.ARM_JOINTS + ("roller",):
             model.joint(f"{arm}_{j}")
         assert model.joint(f"{arm}_roller").type == mujoco.mjtJoint.mjJNT_BALL
-        for j in P.ARM_JOINTS:
+        for j in params.ARM_JOINTS:
             assert model.sensor(f"{arm}_{j}_pos").type == mujoco.mjtSensor.mjSENS_JOINTPOS
             assert model.sensor(f"{arm}_{j}_torque").type == mujoco.mjtSensor.mjSENS_ACTUATORFRC
         model.site(f"{arm}_tip")
-    for name in P.FLIPPER_NAMES:
+    for name in params.FLIPPER_NAMES:
         model.joint(name)
         model.site(f"{name}_tip")
         model.sensor(f"{name}_pos")
@@ -87,7 +87,7 @@ def test_names(model):
     actuated = {
         model.actuator_trnid[i, 0] for i in range(model.nu) if model.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT
     }
-    assert all(model.joint(f"{a}_roller").id not in actuated for a in P.ARM_NAMES)
+    assert all(model.joint(f"{a}_roller").id not in actuated for a in params.ARM_NAMES)
 
 
 def test_collision_bits_match_terrain(model):
@@ -110,7 +110,7 @@ def test_collision_bits_match_terrain(model):
 
 # ------------------------------------------------------------------ Table 3
 def test_total_mass_100kg(model):
-    assert model.body_subtreemass[model.body("chassis").id] == pytest.approx(P.TOTAL_MASS, abs=1e-9)
+    assert model.body_subtreemass[model.body("chassis").id] == pytest.approx(params.TOTAL_MASS, abs=1e-9)
 
 
 def _bbox(model, data):
@@ -140,9 +140,9 @@ def test_envelope_pose_bounding_box_is_table3(model):
     mujoco.mj_kinematics(model, data)
     lo, hi = _bbox(model, data)
     assert lo[2] == pytest.approx(0.0, abs=1e-6)  # crawler bottom on the ground
-    np.testing.assert_allclose(hi - lo, P.ENVELOPE, rtol=0.02)
+    np.testing.assert_allclose(hi - lo, params.ENVELOPE, rtol=0.02)
     # height: rollers of the front arms at base height + l1 + l2 + roller radius
-    assert hi[2] == pytest.approx(P.BASE_HEIGHT + P.L1 + P.L2 + P.ROLLER_RADIUS, abs=1e-6)
+    assert hi[2] == pytest.approx(params.BASE_HEIGHT + params.L1 + params.L2 + params.ROLLER_RADIUS, abs=1e-6)
 
 
 def test_home_pose_footprint(model):
@@ -155,11 +155,11 @@ def test_home_pose_footprint(model):
     for side in ("l", "r"):
         for end in ("front", "rear"):
             assert data.site(f"crawler_{side}_{end}").xpos[2] == pytest.approx(0.0, abs=1e-12)
-    for name in P.FLIPPER_NAMES:
+    for name in params.FLIPPER_NAMES:
         assert data.site(f"{name}_tip").xpos[2] == pytest.approx(0.0, abs=1e-9)
     com = data.subtree_com[model.body("chassis").id]
-    chassis_bottom = P.BASE_HEIGHT + octo_model.CHASSIS_Z - octo_model.CHASSIS_HALF[2]
-    assert chassis_bottom < com[2] < P.BASE_HEIGHT  # inside the chassis height range
+    chassis_bottom = params.BASE_HEIGHT + octo_model.CHASSIS_Z - octo_model.CHASSIS_HALF[2]
+    assert chassis_bottom < com[2] < params.BASE_HEIGHT  # inside the chassis height range
 
 
 # ------------------------------------------------------------------ dynamics
@@ -168,17 +168,17 @@ def test_drop_and_settle_with_zero_commands():
     stopped, servos holding 0): no divergence in 2 s, at rest on the crawlers, level."""
     m, d = _world()
     mujoco.mj_resetData(m, d)
-    d.qpos[2] = P.BASE_HEIGHT + 0.05
+    d.qpos[2] = params.BASE_HEIGHT + 0.05
     heights = []
     for _ in range(10):
         mujoco.mj_step(m, d, nstep=100)
         assert np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))
         heights.append(d.qpos[2])
     assert np.abs(d.qvel).max() < 1e-3
-    assert d.qpos[2] == pytest.approx(P.BASE_HEIGHT, abs=2e-3)  # on the wheels (small contact penetration)
+    assert d.qpos[2] == pytest.approx(params.BASE_HEIGHT, abs=2e-3)  # on the wheels (small contact penetration)
     assert np.ptp(heights[-5:]) < 1e-4
     assert _up(d.qpos[3:7]) > 0.9999 and np.linalg.norm(d.qpos[:2]) < 2e-3
-    assert max(abs(d.joint(n).qpos[0]) for n in P.FLIPPER_NAMES) < 0.02
+    assert max(abs(d.joint(n).qpos[0]) for n in params.FLIPPER_NAMES) < 0.02
 
 
 def test_home_pose_settles_on_crawlers_and_rollers():
@@ -190,10 +190,10 @@ def test_home_pose_settles_on_crawlers_and_rollers():
     touching = {m.geom(d.contact[i].geom2).name for i in range(d.ncon)} | {
         m.geom(d.contact[i].geom1).name for i in range(d.ncon)
     }
-    assert {f"{a}_roller" for a in P.ARM_NAMES} <= touching
-    assert {f"wheel_{s}{k}" for s in "lr" for k in (1, P.MAIN_WHEELS)} <= touching
+    assert {f"{a}_roller" for a in params.ARM_NAMES} <= touching
+    assert {f"wheel_{s}{k}" for s in "lr" for k in (1, params.MAIN_WHEELS)} <= touching
     # the arms carry part of the weight: the booms hold a torque
-    assert all(abs(d.sensor(f"{a}_boom_torque").data[0]) > 1.0 for a in P.ARM_NAMES)
+    assert all(abs(d.sensor(f"{a}_boom_torque").data[0]) > 1.0 for a in params.ARM_NAMES)
 
 
 @pytest.mark.parametrize("speed", [0.063, -0.04])
@@ -223,13 +223,13 @@ def test_speed_limited_to_table3():
     mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
     d.ctrl[0] = d.ctrl[1] = 0.2  # clamped to 63 mm/s by ctrlrange
     mujoco.mj_step(m, d, nstep=1000)
-    assert d.qvel[0] <= P.CRAWLER_MAX_SPEED * 1.02
+    assert d.qvel[0] <= params.CRAWLER_MAX_SPEED * 1.02
 
 
 def test_skid_steer_turns_left():
     m, d = _world()
     mujoco.mj_resetData(m, d)
-    d.qpos[2] = P.BASE_HEIGHT
+    d.qpos[2] = params.BASE_HEIGHT
     d.ctrl[0], d.ctrl[1] = -0.05, 0.05
     mujoco.mj_step(m, d, nstep=1000)
     assert _yaw(d.qpos[3:7]) > 0.15 and np.linalg.norm(d.qpos[:2]) < 0.05  # turns on the spot (skid)
@@ -239,10 +239,10 @@ def test_flipper_positive_angle_lifts_tip():
     m, d = _world()
     mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
     mujoco.mj_step(m, d, nstep=100)
-    for name in P.FLIPPER_NAMES:
+    for name in params.FLIPPER_NAMES:
         d.ctrl[m.actuator(name).id] = 0.6
     mujoco.mj_step(m, d, nstep=500)
-    for name in P.FLIPPER_NAMES:
+    for name in params.FLIPPER_NAMES:
         assert d.joint(name).qpos[0] == pytest.approx(0.6, abs=0.02)
         assert d.site(f"{name}_tip").xpos[2] > 0.1
     assert _up(d.qpos[3:7]) > 0.999
@@ -263,8 +263,8 @@ def test_crawlers_and_flippers_climb_a_200mm_step():
     d = mujoco.MjData(m)
     qpos, ctrl = octo_model.pose_qpos_ctrl(m, np.zeros((4, 3)), [1.2, 1.2, 0.0, 0.0])
     d.qpos[:], d.ctrl[:] = qpos, ctrl
-    d.ctrl[0] = d.ctrl[1] = P.CRAWLER_MAX_SPEED
-    front = [m.actuator(n).id for n in P.FLIPPER_NAMES[:2]]
+    d.ctrl[0] = d.ctrl[1] = params.CRAWLER_MAX_SPEED
+    front = [m.actuator(n).id for n in params.FLIPPER_NAMES[:2]]
     lowering = False
     for _ in range(int(40.0 / m.opt.timestep)):
         mujoco.mj_step(m, d)
@@ -273,7 +273,7 @@ def test_crawlers_and_flippers_climb_a_200mm_step():
             d.ctrl[front] = max(0.0, d.ctrl[front[0]] - 0.3 * m.opt.timestep)
     assert np.all(np.isfinite(d.qpos))
     assert d.qpos[0] > edge + 0.5  # the whole robot is on the step
-    assert d.qpos[2] == pytest.approx(h + P.BASE_HEIGHT, abs=0.01) and _up(d.qpos[3:7]) > 0.999
+    assert d.qpos[2] == pytest.approx(h + params.BASE_HEIGHT, abs=0.01) and _up(d.qpos[3:7]) > 0.999
 
 
 def _roller_drag_forces(roller=octo_model.add_roller):
@@ -325,7 +325,7 @@ def _gimbal_roller(parent, arm, pos):
     for jname, axis in (("roller_a", [0, 0, 1]), ("roller_b", [0, 1, 0])):
         roller.add_joint(name=f"{arm}_{jname}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis,
                          damping=octo_model.ROLLER_DAMPING, armature=octo_model.ROLLER_ARMATURE)
-    roller.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[P.ROLLER_RADIUS, 0, 0], mass=P.MASS_ROLLER,
+    roller.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[params.ROLLER_RADIUS, 0, 0], mass=params.MASS_ROLLER,
                     **octo_model.COLLIDE)
     return roller
 

@@ -5,8 +5,7 @@ fails the 400 mm step)."""
 import numpy as np
 import pytest
 
-from jaxloco.robots.octopus import ccm, scenarios
-from jaxloco.robots.octopus import params as P
+from jaxloco.robots.octopus import ccm, params, scenarios
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.rollout import rollout
 
@@ -68,6 +67,6 @@ def test_ccm_climbs_150mm_and_fails_400mm():
     # ... after trying: the flipper tips stayed below the edge, so the front flippers went
     # up to their limit against the riser (RAISE), and the front could not climb its face
     assert ccm.RAISE in r.records["phase"][1].tolist() and ccm.RAISE not in r.records["phase"][0].tolist()
-    assert r.records["flipper_q"][1, -1, :2].min() > P.FLIPPER_LIMIT - 0.1
+    assert r.records["flipper_q"][1, -1, :2].min() > params.FLIPPER_LIMIT - 0.1
     assert high["max_pitch"] < 0.1
-    assert P.CRAWLER_MAX_SPEED == pytest.approx(scenarios.PARAM_DEFAULTS["speed"])
+    assert params.CRAWLER_MAX_SPEED == pytest.approx(scenarios.PARAM_DEFAULTS["speed"])

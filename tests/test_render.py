@@ -113,7 +113,7 @@ def test_titan_replay_is_the_rows_plan(titan_replay):
     # the legs reach the planned footholds: MuJoCo's foot sites at the end of each step are
     # the plan's foot centres (IK in jaxloco, FK in MuJoCo), relative to the trunk
     from jaxloco.render.kinematic import titan_plan
-    from jaxloco.robots.titan import kinematics as K
+    from jaxloco.robots.titan import kinematics
 
     start_state, plan, _, _ = titan_plan(r.row.values)
     feet = np.concatenate([np.asarray(start_state.feet)[None], np.asarray(plan.feet)])
@@ -122,8 +122,8 @@ def test_titan_replay_is_the_rows_plan(titan_replay):
     per = (r.n_states - 1) // (feet.shape[0] - 1)
     for k in range(feet.shape[0]):
         r.set_state(data, k * per)
-        mj = np.stack([_site(data, f"{leg}_foot") for leg in K.LEG_NAMES]) - data.body("body").xpos
-        want = (feet[k] - cog[k]) @ rot.T + K.FOOT_RADIUS * rot[:, 2]
+        mj = np.stack([_site(data, f"{leg}_foot") for leg in kinematics.LEG_NAMES]) - data.body("body").xpos
+        want = (feet[k] - cog[k]) @ rot.T + kinematics.FOOT_RADIUS * rot[:, 2]
         np.testing.assert_allclose(mj, want, atol=1e-5)  # the MJCF stores lengths to ~1e-6 m
 
 

@@ -21,26 +21,22 @@ import pytest
 import jaxloco.sweep
 import jaxloco.tune
 from jaxloco import specs
-from jaxloco.robots.snake import analysis as A
-from jaxloco.robots.snake import control as C
-from jaxloco.robots.snake import experiments as E
-from jaxloco.robots.snake import params as P
-from jaxloco.robots.snake import tuning as TU
+from jaxloco.robots.snake import analysis, control, experiments, params, tuning
 
 SWEEPS = specs.DIRECTORY  # the bundled specs
 HORIZON, DT = 2.0, 0.05
-DEFAULTS = {p.name: p.default for p in A.PARAMS}
+DEFAULTS = {p.name: p.default for p in analysis.PARAMS}
 SWEPT = {  # three rows: paper gains; k_eta 0.5 in the reverse mode order; a low zigzag
     "k_eta": [0.1, 0.5, 0.1],
     "mode_order": [0, 1, 2],
     "amplitude": [1.1, 1.1, 0.5],
 }
-STATUS = {name: i for i, name in enumerate(A.STATUSES)}
+STATUS = {name: i for i, name in enumerate(analysis.STATUSES)}
 
 
 def _row_values(i: int) -> dict[str, jax.Array]:
     values = {}
-    for p in A.PARAMS:
+    for p in analysis.PARAMS:
         if not p.sweepable:
             continue
         v = SWEPT[p.name][i] if p.name in SWEPT else DEFAULTS[p.name]
@@ -52,26 +48,26 @@ def _row_values(i: int) -> dict[str, jax.Array]:
 def rows():
     """(batch metrics, [run_one metrics and records per row])."""
     fixed = {k: v for k, v in DEFAULTS.items() if k not in SWEPT} | {"horizon": HORIZON, "dt": DT}
-    batch_fn = jax.jit(A.make_batch_fn(fixed))
+    batch_fn = jax.jit(analysis.make_batch_fn(fixed))
     swept = {k: jnp.asarray(v, jnp.int32 if k == "mode_order" else jnp.float64) for k, v in SWEPT.items()}
     keys = jnp.zeros((3, 2), jnp.uint32)
     batch = {k: np.asarray(v) for k, v in batch_fn(swept, keys).items()}
-    config = A.rollout_config(HORIZON, DT, False)
-    one = jax.jit(lambda v: A.run_one(v, config))
+    config = analysis.rollout_config(HORIZON, DT, False)
+    one = jax.jit(lambda v: analysis.run_one(v, config))
     singles = [jax.tree_util.tree_map(np.asarray, one(_row_values(i))) for i in range(3)]
     return batch, singles
 
 
 def test_batch_fn_equals_run_one_row_by_row(rows):
     batch, singles = rows
-    assert set(batch) == {m.name for m in A.METRICS} | {"status"}
+    assert set(batch) == {m.name for m in analysis.METRICS} | {"status"}
     for i, (m, recs) in enumerate(singles):
         for key in batch:
             np.testing.assert_allclose(batch[key][i], m[key], rtol=1e-9, atol=1e-12, err_msg=f"row {i}: {key}")
         assert recs["t"].shape == (round(HORIZON / DT) + 1,)
         # the rows' own settings reached the rollout: the mode schedule of their order
-        order = A.MODE_ORDERS[SWEPT["mode_order"][i]]
-        switching = recs["t"] >= E.SWITCH_AT - 1e-9
+        order = analysis.MODE_ORDERS[SWEPT["mode_order"][i]]
+        switching = recs["t"] >= experiments.SWITCH_AT - 1e-9
         assert np.all(recs["sigma"][~switching] == 1)
         assert np.all(recs["sigma"][switching] == order[0])  # t in [2, 3)
     # the three rows differ where they should
@@ -86,7 +82,7 @@ def test_statuses_agree_with_the_metrics(rows):
         assert m["max_pos_error"] == pytest.approx(pos, rel=1e-12)
         assert m["max_att_error"] == pytest.approx(att, rel=1e-12)
         assert bool(m["head_ok"]) == (pos <= 0.03 and att <= 0.1)
-        ratio = np.abs(recs["phi"][:, P.N_H :]).max(axis=1) / P.YAW_LIMIT
+        ratio = np.abs(recs["phi"][:, params.N_H :]).max(axis=1) / params.YAW_LIMIT
         below = ratio <= DEFAULTS["recover_ratio"]
         assert bool(m["recovered"]) == below.any()
         expected_t = recs["t"][np.argmax(below)] if below.any() else recs["t"][-1] + DT
@@ -117,13 +113,13 @@ def test_limit_loss_formula_and_its_limits():
     error = np.zeros((n, 7))
 
     def loss(phi, error, w_limit=1.0):
-        return float(A.limit_loss({"phi": jnp.asarray(phi), "error": jnp.asarray(error)}, r0, w_limit))
+        return float(analysis.limit_loss({"phi": jnp.asarray(phi), "error": jnp.asarray(error)}, r0, w_limit))
 
-    phi[:, P.N_H :] = P.YAW_LIMIT  # every base joint at its limit
+    phi[:, params.N_H :] = params.YAW_LIMIT  # every base joint at its limit
     assert loss(phi, error) == pytest.approx(6.0, abs=1e-5)
-    phi[:, P.N_H :] = 0.3 * P.YAW_LIMIT
+    phi[:, params.N_H :] = 0.3 * params.YAW_LIMIT
     assert loss(phi, error) < 1e-6
-    phi[:, :P.N_H] = 1.5  # head joints (and psi_3) do not count
+    phi[:, :params.N_H] = 1.5  # head joints (and psi_3) do not count
     assert loss(phi, error) < 1e-6
     error[:, 0] = 0.03
     assert loss(phi, error) == pytest.approx(1.0, rel=1e-5)
@@ -134,7 +130,7 @@ def test_limit_loss_formula_and_its_limits():
     # a random case against the formula
     phi = rng.uniform(-1.1, 1.1, (n, 12))
     error = rng.normal(0, 0.02, (n, 7))
-    ratio = np.abs(phi[:, P.N_H :]) / P.YAW_LIMIT
+    ratio = np.abs(phi[:, params.N_H :]) / params.YAW_LIMIT
     head = np.mean(np.sum(error[:, :3] ** 2, 1) / 0.03**2 + np.sum(error[:, 3:6] ** 2, 1) / 0.1**2)
     joints = np.mean(np.sum(T * _softplus((ratio - r0) / T) / (1 - r0), axis=1))
     assert loss(phi, error, 2.5) == pytest.approx(head + 2.5 * joints, rel=1e-10)
@@ -157,8 +153,8 @@ def test_sweep_table_and_summary(swept, rows):
     assert t["row"] == [0, 1, 2] and t["k_eta"] == SWEPT["k_eta"] and t["amplitude"] == SWEPT["amplitude"]
     batch, _ = rows
     np.testing.assert_allclose(t["loss"], batch["loss"], rtol=1e-9)
-    assert t["status"] == [A.STATUSES[int(s)] for s in batch["status"]]
-    summary = A.summarize(swept.table)
+    assert t["status"] == [analysis.STATUSES[int(s)] for s in batch["status"]]
+    summary = analysis.summarize(swept.table)
     assert summary == swept.summary  # the runner used the analysis' summarize
     assert summary.title.endswith("1/3 rows recovered with the head held")
     assert summary.columns[0] == "row" and all(len(r) == len(summary.columns) for r in summary.rows)
@@ -172,7 +168,7 @@ def test_sweep_table_and_summary(swept, rows):
         i = int(r[0].split()[-1])
         assert {f"{t['k_eta'][i]:g}", f"{t['mode_order'][i]:g}", f"{t['amplitude'][i]:g}"} <= set(r[1:])
     assert (
-        len(summary.columns) == len(A.summarize(swept.table.slice(0, 2)).columns) + 1
+        len(summary.columns) == len(analysis.summarize(swept.table.slice(0, 2)).columns) + 1
     )  # amplitude varies in 3 rows only
 
 
@@ -181,7 +177,7 @@ def test_sweep_table_and_summary(swept, rows):
 def tuned(tmp_path_factory):
     out = tmp_path_factory.mktemp("snake_kv_tune") / "out"
     spec = {
-        "tune": {"objective": "snake.kv", "params": [t.name for t in TU.TUNABLES], "steps": 3,
+        "tune": {"objective": "snake.kv", "params": [t.name for t in tuning.TUNABLES], "steps": 3,
                  "learning_rate": 0.15, "formats": ["parquet"]},
         "settings": {"horizon": HORIZON, "dt": DT},
     }
@@ -194,8 +190,8 @@ def test_three_adam_steps_lower_the_loss_and_report_the_paper_row(tuned, rows):
     initial, best, paper = tuned.row("initial"), tuned.row("tuned"), tuned.row("paper")
     assert best["loss"] < initial["loss"]
     assert best["loss"] == min(curve["loss"])
-    assert tuned.values("initial") == pytest.approx(TU.PAPER)  # the defaults are the paper's
-    assert {k: paper[k] for k in TU.PAPER} == pytest.approx(TU.PAPER)
+    assert tuned.values("initial") == pytest.approx(tuning.PAPER)  # the defaults are the paper's
+    assert {k: paper[k] for k in tuning.PAPER} == pytest.approx(tuning.PAPER)
     assert paper["loss"] == pytest.approx(initial["loss"], rel=1e-12)
     # the loss is the sweep's: row 0 of the batch has the same settings (2 s, paper K_V)
     batch, _ = rows
@@ -209,12 +205,12 @@ def test_loss_gradient_matches_finite_differences():
     differences of the same loss in each tunable (relative step 1e-5). The settings are
     the `tuned` fixture's, so the program is the one the tune runner compiled (JAX's
     persistent cache then skips the compilation when this module runs as a whole)."""
-    settings = {p.name: p.default for p in TU.SETTINGS} | {"horizon": HORIZON, "dt": DT}
-    loss_fn = TU.KV_TUNE.make_loss(settings)
+    settings = {p.name: p.default for p in tuning.SETTINGS} | {"horizon": HORIZON, "dt": DT}
+    loss_fn = tuning.KV_TUNE.make_loss(settings)
     evaluate = jax.jit(jax.value_and_grad(loss_fn, has_aux=True))
-    values = {t.name: jnp.asarray(t.default, jnp.float64) for t in TU.TUNABLES}
+    values = {t.name: jnp.asarray(t.default, jnp.float64) for t in tuning.TUNABLES}
     (loss, aux), grad = evaluate(values)
-    assert set(aux) == set(TU.AUX) and np.isfinite(float(loss))
+    assert set(aux) == set(tuning.AUX) and np.isfinite(float(loss))
     assert abs(float(grad["k_eta"])) > 1e-3  # k_eta matters
     for name, value in values.items():
         h = 1e-5 * float(value)
@@ -234,8 +230,8 @@ def test_committed_spec_files_load_and_validate():
     assert 15.0 in sweep.swept["kv_head_yaw"] and 9.6 in sweep.swept["kv_base"]  # the paper's K_V is a row
     assert len(jaxloco.sweep.expand(sweep)) == 288
     tune = jaxloco.tune.load_spec(SWEEPS / "snake_kv_tune.toml")
-    assert tune.objective is TU.KV_TUNE and tune.steps == 40 and tune.optimizer == "adam"
-    assert set(tune.params) == {t.name for t in TU.TUNABLES}
+    assert tune.objective is tuning.KV_TUNE and tune.steps == 40 and tune.optimizer == "adam"
+    assert set(tune.params) == {t.name for t in tuning.TUNABLES}
     assert tune.settings["horizon"] == 20.0 and tune.settings["dt"] == 0.05
-    assert dict(tune.init) == pytest.approx(TU.PAPER)
-    assert C.PAPER_KV_BASE == TU.PAPER["kv_base"]
+    assert dict(tune.init) == pytest.approx(tuning.PAPER)
+    assert control.PAPER_KV_BASE == tuning.PAPER["kv_base"]

@@ -8,9 +8,7 @@ import pyarrow as pa
 import pytest
 
 from jaxloco import analysis
-from jaxloco.robots.snake import contact as CT
-from jaxloco.robots.snake import params as P
-from jaxloco.robots.snake import scenarios as SC
+from jaxloco.robots.snake import contact, params, scenarios
 
 
 def test_push_force_keeps_the_first_contact_and_ignores_impacts():
@@ -18,10 +16,10 @@ def test_push_force_keeps_the_first_contact_and_ignores_impacts():
     f[10:30] = np.linspace(0.0, 20.0, 20)  # the push builds up
     f[30:33] = 0.0  # the gripper slid off
     f[45] = 500.0  # something hits the plate afterwards
-    assert CT.push_force(f, window=1) == pytest.approx(20.0)
-    assert CT.push_force(f) == pytest.approx(np.mean(f[25:30]))  # 0.1 s average at the peak
-    assert CT.push_force(np.zeros(20)) == 0.0
-    assert CT.push_force(np.full(20, 7.0)) == pytest.approx(7.0)  # never lost: to the end
+    assert contact.push_force(f, window=1) == pytest.approx(20.0)
+    assert contact.push_force(f) == pytest.approx(np.mean(f[25:30]))  # 0.1 s average at the peak
+    assert contact.push_force(np.zeros(20)) == 0.0
+    assert contact.push_force(np.full(20, 7.0)) == pytest.approx(7.0)  # never lost: to the end
 
 
 def test_postures_put_the_head_where_the_paper_says():
@@ -29,49 +27,49 @@ def test_postures_put_the_head_where_the_paper_says():
     +x; psi_3 at its SCP target; the L-shaped base bent by about 90 deg in all."""
     import jax.numpy as jnp
 
-    from jaxloco.robots.snake import kinematics as K
+    from jaxloco.robots.snake import kinematics
     for name in ("iii", "v", "viii"):
-        z, y, base = CT.POSTURES[name]
-        phi, b = CT.head_posture(z, y, base)
-        w = np.asarray(K.base_frame_pose(jnp.asarray(b), jnp.asarray(phi)))
+        z, y, base = contact.POSTURES[name]
+        phi, b = contact.head_posture(z, y, base)
+        w = np.asarray(kinematics.base_frame_pose(jnp.asarray(b), jnp.asarray(phi)))
         assert w[2] == pytest.approx(z, abs=0.005) and w[1] - 0.0 == pytest.approx(y, abs=0.005)
         assert np.abs(w[3:]).max() < 0.02
-        assert phi[P.SCP_INDEX] == pytest.approx(P.SCP_TARGET, abs=0.02)
+        assert phi[params.SCP_INDEX] == pytest.approx(params.SCP_TARGET, abs=0.02)
         if base == "L":
-            assert 1.2 < phi[P.N_H:].sum() < 1.9
+            assert 1.2 < phi[params.N_H:].sum() < 1.9
     with pytest.raises(analysis.SpecError, match="base"):
-        CT.head_posture(0.35, 0.0, "U")
+        contact.head_posture(0.35, 0.0, "U")
 
 
 def test_plate_sits_beyond_the_gripper_square_to_the_push():
     """In the model: the plate's thin axis along each push and PLATE_GAP between the
     gripper's surface and the plate's face."""
-    phi, base = CT.head_posture(*CT.POSTURES["ii"])
-    m = SC.build_model(CT.PLATE)[0]
+    phi, base = contact.head_posture(*contact.POSTURES["ii"])
+    m = scenarios.build_model(contact.PLATE)[0]
     d = mujoco.MjData(m)
     import jax.numpy as jnp
 
-    from jaxloco.robots.snake import kinematics as K
-    w = np.asarray(K.base_frame_pose(jnp.asarray(base), jnp.asarray(phi)))
-    tip, mid = w[:3] + [P.GRIPPER_TIP, 0, 0], w[:3] + [CT.GRIPPER_MID, 0, 0]
-    for direction, push in enumerate(CT.PUSH):
-        pos, quat = CT.plate_pose(phi, base, direction)
+    from jaxloco.robots.snake import kinematics
+    w = np.asarray(kinematics.base_frame_pose(jnp.asarray(base), jnp.asarray(phi)))
+    tip, mid = w[:3] + [params.GRIPPER_TIP, 0, 0], w[:3] + [contact.GRIPPER_MID, 0, 0]
+    for direction, push in enumerate(contact.PUSH):
+        pos, quat = contact.plate_pose(phi, base, direction)
         d.mocap_pos[m.body_mocapid[m.body("plate").id]] = pos
         d.mocap_quat[m.body_mocapid[m.body("plate").id]] = quat
         mujoco.mj_kinematics(m, d)
         R = d.geom_xmat[m.geom("plate").id].reshape(3, 3)
         assert abs(R[:, 0] @ push) == pytest.approx(1.0, abs=1e-9)  # thin side along the push
-        face = pos - push * CT.PLATE_HALF[0]
-        surface = tip if direction == 0 else mid + push * P.GRIPPER_RADIUS
-        assert (face - surface) @ push == pytest.approx(CT.PLATE_GAP, abs=1e-9)
+        face = pos - push * contact.PLATE_HALF[0]
+        surface = tip if direction == 0 else mid + push * params.GRIPPER_RADIUS
+        assert (face - surface) @ push == pytest.approx(contact.PLATE_GAP, abs=1e-9)
 
 
 @pytest.fixture(scope="module")
 def rows():
     """Posture (iii), two trials, short ramp and hold (one compile for the module)."""
-    assert analysis.get("snake.contact") is CT.CONTACT
-    fixed = {p.name: p.default for p in CT.PARAMS} | {"ramp": 2.0, "hold": 1.0, "settle": 1.0, "nthread": 2}
-    fn = CT.make_batch_fn(fixed)
+    assert analysis.get("snake.contact") is contact.CONTACT
+    fixed = {p.name: p.default for p in contact.PARAMS} | {"ramp": 2.0, "hold": 1.0, "settle": 1.0, "nthread": 2}
+    fn = contact.make_batch_fn(fixed)
     swept = {"posture": np.array(["iii", "iii"])}
     keys = np.array([[0, 0], [0, 1]], np.uint32)
     return fn, swept, keys, fn(swept, keys)
@@ -79,7 +77,7 @@ def rows():
 
 def test_each_row_pushes_the_plate_three_ways(rows):
     _, _, _, out = rows
-    assert set(out) == {m.name for m in CT.METRICS} | {"status"}
+    assert set(out) == {m.name for m in contact.METRICS} | {"status"}
     assert list(out["status"]) == [0, 0]
     for f in ("fx", "fy", "fz"):
         assert np.all((out[f] > 1.0) & (out[f] < 200.0)), (f, out[f])  # touched, no impact spike
@@ -94,18 +92,18 @@ def test_a_row_alone_equals_the_row_in_a_batch(rows):
 
 
 def test_summary_has_the_papers_forces_and_checks_the_trends():
-    names = list(CT.POSTURE_NAMES)
-    paper = np.array([[m for m, _ in CT.PAPER_FORCES[k]] for k in names])
+    names = list(contact.POSTURE_NAMES)
+    paper = np.array([[m for m, _ in contact.PAPER_FORCES[k]] for k in names])
     table = pa.table({"posture": names, "status": ["ok"] * len(names), "fx": paper[:, 0], "fy": paper[:, 1],
                       "fz": paper[:, 2]})
-    s = CT.summarize(table)
+    s = contact.summarize(table)
     assert [r[0] for r in s.rows] == [f"({k})" for k in names]
     assert s.rows[2][5] == "30.4 ± 0.0 / 30.4 ± 1.7" and all(r[-1] == "yes" for r in s.rows)
     # the paper's own means satisfy the paper's trends
     assert all(t.endswith(": holds") for t in s.notes[1:]) and len(s.notes) == 5
     flipped = pa.table({"posture": names, "status": ["ok"] * len(names), "fx": paper[::-1, 0], "fy": paper[:, 1],
                         "fz": paper[:, 2]})
-    assert any(t.endswith("does not hold") for t in CT.summarize(flipped).notes[1:])
+    assert any(t.endswith("does not hold") for t in contact.summarize(flipped).notes[1:])
 
 
 def test_contact_force_plot_has_ours_and_the_papers_bars():
@@ -120,4 +118,4 @@ def test_contact_force_plot_has_ours_and_the_papers_bars():
     ax = fig.axes[0]
     heights = [p.get_height() for p in ax.patches]
     assert heights[0] == 2.0 and np.isnan(heights[1])  # ours: (i) the mean of the ok trials, (ii) none ok
-    assert heights[2:] == [CT.PAPER_FORCES["i"][0][0], CT.PAPER_FORCES["ii"][0][0]]
+    assert heights[2:] == [contact.PAPER_FORCES["i"][0][0], contact.PAPER_FORCES["ii"][0][0]]

@@ -25,27 +25,25 @@ import pytest
 from jax.test_util import check_grads
 from scipy.spatial import ConvexHull
 
-from jaxloco.robots.snake import control as C
-from jaxloco.robots.snake import kinematics as K
-from jaxloco.robots.snake import model as M
-from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import control, kinematics, params
+from jaxloco.robots.snake import model as snake_model
 
-MODES = np.asarray(P.MODES)
-_AUG = jax.jit(K.augmented_matrices, static_argnames="point")
-_PINV = jax.jit(C.weighted_pinv)
-_TERMS = jax.jit(C.control_terms, static_argnames="point")
-_COST = jax.jit(C.cost, static_argnames="point")
-_ETA = jax.jit(C.eta, static_argnames="point")
-_COM = jax.jit(K.center_of_mass)
-_TIP = jax.jit(lambda base, phi: K.tip_from_head(K.base_frame_pose(base, phi)))
+MODES = np.asarray(params.MODES)
+_AUG = jax.jit(kinematics.augmented_matrices, static_argnames="point")
+_PINV = jax.jit(control.weighted_pinv)
+_TERMS = jax.jit(control.control_terms, static_argnames="point")
+_COST = jax.jit(control.cost, static_argnames="point")
+_ETA = jax.jit(control.eta, static_argnames="point")
+_COM = jax.jit(kinematics.center_of_mass)
+_TIP = jax.jit(lambda base, phi: kinematics.tip_from_head(kinematics.base_frame_pose(base, phi)))
 
 
 def _posture(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Random head-raising posture with a bent base flat on the ground: (base, phi, w)
     with w the gripper-tip pose (the controlled point)."""
     rng = np.random.default_rng(seed)
-    phi = P.INITIAL_PHI + rng.uniform(-0.3, 0.3, P.N_PHI)
-    phi[P.N_H :] = rng.uniform(-0.7, 0.7, P.N_B)
+    phi = params.INITIAL_PHI + rng.uniform(-0.3, 0.3, params.N_PHI)
+    phi[params.N_H :] = rng.uniform(-0.7, 0.7, params.N_B)
     base = np.array([rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-3, 3)])
     return base, phi, np.asarray(_TIP(jnp.asarray(base), jnp.asarray(phi)))
 
@@ -72,14 +70,17 @@ def test_weighted_pinv_is_the_papers_formula_on_the_compacted_rows(seed):
     _, phi, w = _posture(seed)
     rng = np.random.default_rng(100 + seed)
     # the default W and a random positive diagonal one (W must enter as W^-1 on both sides)
-    for weights in (np.asarray(C.default_weights()), np.asarray(C.default_weights()) * rng.uniform(0.2, 5.0, 19)):
-        for sigma in range(1, P.N_MODES + 1):
+    for weights in (
+        np.asarray(control.default_weights()),
+        np.asarray(control.default_weights()) * rng.uniform(0.2, 5.0, 19),
+    ):
+        for sigma in range(1, params.N_MODES + 1):
             g = MODES[sigma - 1]
             _, Bt = _AUG(jnp.asarray(w), jnp.asarray(phi), jnp.asarray(g))
-            keep = np.asarray(C.keep_rows(jnp.asarray(g)))
+            keep = np.asarray(control.keep_rows(jnp.asarray(g)))
             assert keep.sum() == 14  # 13 constraint rows + the SCP row (Eq. 10)
             got = np.asarray(_PINV(Bt, jnp.asarray(weights), jnp.asarray(keep)))
-            Bc = K.compact_rows(np.asarray(Bt), g, extra=1)  # (14, 19), the paper's shape
+            Bc = kinematics.compact_rows(np.asarray(Bt), g, extra=1)  # (14, 19), the paper's shape
             expected = _paper_pinv(Bc, weights)
             assert got.shape == (19, 18)
             scale = np.abs(expected).max()
@@ -95,11 +96,11 @@ def _case(seed: int, sigma: int):
     _, phi, w = _posture(seed)
     rng = np.random.default_rng(200 + 10 * seed + sigma)
     g = MODES[sigma - 1]
-    wt = np.concatenate([w, phi[P.SCP_INDEX : P.SCP_INDEX + 1]])
+    wt = np.concatenate([w, phi[params.SCP_INDEX : params.SCP_INDEX + 1]])
     wt_d = wt + np.concatenate([rng.uniform(-0.05, 0.05, 3), rng.uniform(-0.1, 0.1, 4)])
     wt_d[5] += 2 * math.pi * rng.choice([-1, 1])  # the yaw target one turn away
     wt_d_dot = rng.uniform(-0.1, 0.1, 7)
-    cp = C.ControlParams(gain=jnp.asarray(rng.uniform(0.5, 3.0, 7)), k_eta=jnp.asarray(rng.uniform(0.1, 2.0)),
+    cp = control.ControlParams(gain=jnp.asarray(rng.uniform(0.5, 3.0, 7)), k_eta=jnp.asarray(rng.uniform(0.1, 2.0)),
                          kv=jnp.asarray(rng.uniform(0.1, 10.0, 12)))
     terms = _TERMS(jnp.asarray(w), jnp.asarray(phi), jnp.asarray(wt_d), jnp.asarray(wt_d_dot), jnp.asarray(g), cp)
     At, Bt = (np.asarray(x) for x in _AUG(jnp.asarray(w), jnp.asarray(phi), jnp.asarray(g)))
@@ -107,7 +108,7 @@ def _case(seed: int, sigma: int):
             "Bt": Bt, "terms": jax.tree_util.tree_map(np.asarray, terms)}
 
 
-CASES = [(seed, sigma) for seed in (0, 1) for sigma in range(1, P.N_MODES + 1)]
+CASES = [(seed, sigma) for seed in (0, 1) for sigma in range(1, params.N_MODES + 1)]
 
 
 @pytest.mark.parametrize("seed, sigma", CASES)
@@ -128,13 +129,13 @@ def test_eq13_solves_the_constraints_for_the_closed_loop(seed, sigma):
     np.testing.assert_allclose(t.u, t.u_task + t.u_null, rtol=0, atol=1e-14)
     np.testing.assert_allclose(c["Bt"] @ t.u, rhs, rtol=0, atol=1e-10 * (1 + np.abs(rhs).max()))
     # least W-norm: orthogonal in the W inner product to every null-space direction
-    Bc = K.compact_rows(c["Bt"], c["g"], extra=1)
+    Bc = kinematics.compact_rows(c["Bt"], c["g"], extra=1)
     N = _null_basis(Bc)
     assert N.shape[1] == 19 - 14
     W = np.asarray(cp.weights)
     assert np.abs(N.T @ (W * t.u_task)).max() < 1e-10 * np.abs(W * t.u_task).max()
     # and equal to the paper's formula applied to the compacted matrices
-    Ac = K.compact_rows(c["At"], c["g"], extra=1)
+    Ac = kinematics.compact_rows(c["At"], c["g"], extra=1)
     np.testing.assert_allclose(t.u_task, _paper_pinv(Bc, W) @ (Ac @ v), rtol=0,
                                atol=1e-10 * np.abs(t.u_task).max())
 
@@ -151,7 +152,7 @@ def test_eq14_null_space_term(seed, sigma):
     scale = np.abs(t.u_null).max()
     assert scale > 1e-3  # not trivially zero
     assert np.abs(c["Bt"] @ t.u_null).max() < 1e-10 * np.abs(c["Bt"]).max() * scale
-    Bc = K.compact_rows(c["Bt"], c["g"], extra=1)
+    Bc = kinematics.compact_rows(c["Bt"], c["g"], extra=1)
     Pr = np.eye(19) - _paper_pinv(Bc, W) @ Bc
     np.testing.assert_allclose(Pr @ Pr, Pr, rtol=0, atol=1e-10)
     np.testing.assert_allclose(W[:, None] * Pr, (W[:, None] * Pr).T, rtol=0, atol=1e-10 * W.max())
@@ -170,17 +171,17 @@ def _mujoco_support(model, data, phi, base, grounded):
     """From MuJoCo alone: the subtree COM of the root link and the support polygon of both
     wheels of every grounded base pair (MuJoCo's wheel body centres, r below them along
     the link z)."""
-    qpos, _ = M.pose_qpos_ctrl(model, phi, base)
+    qpos, _ = snake_model.pose_qpos_ctrl(model, phi, base)
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
     mujoco.mj_comPos(model, data)
     com = data.subtree_com[model.body("link1").id].copy()
     pts = []
-    for i, pair in enumerate(P.BASE_PAIRS):
+    for i, pair in enumerate(params.BASE_PAIRS):
         if not grounded[i]:
             continue
-        z = data.xmat[model.body(f"link{P.PAIR_LINKS[pair]}").id].reshape(3, 3)[:, 2]
-        pts += [data.body(f"wheel{pair + 1}_{side}").xpos - P.WHEEL_RADIUS * z for side in ("active", "passive")]
+        z = data.xmat[model.body(f"link{params.PAIR_LINKS[pair]}").id].reshape(3, 3)[:, 2]
+        pts += [data.body(f"wheel{pair + 1}_{side}").xpos - params.WHEEL_RADIUS * z for side in ("active", "passive")]
     return com, np.array(pts)
 
 
@@ -198,7 +199,7 @@ def _hull_line_distances(q: np.ndarray, pts2: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def mj():
-    model = M.load_model()
+    model = snake_model.load_model()
     return model, mujoco.MjData(model)
 
 
@@ -209,15 +210,15 @@ POSTURES = {"bent": 3, "straight": None}
 def test_center_of_mass_matches_mujoco(posture, mj):
     model, data = mj
     if POSTURES[posture] is None:
-        base, phi = np.array([0.3, -0.2, 0.7]), P.INITIAL_PHI.copy()
+        base, phi = np.array([0.3, -0.2, 0.7]), params.INITIAL_PHI.copy()
     else:
         base, phi, _ = _posture(POSTURES[posture])
     com_mj, _ = _mujoco_support(model, data, phi, base, np.ones(7, bool))
-    w_h = K.base_frame_pose(jnp.asarray(base), jnp.asarray(phi))
-    com = np.asarray(_COM(w_h, K.full_joint_angles(jnp.asarray(phi))))
+    w_h = kinematics.base_frame_pose(jnp.asarray(base), jnp.asarray(phi))
+    com = np.asarray(_COM(w_h, kinematics.full_joint_angles(jnp.asarray(phi))))
     np.testing.assert_allclose(com, com_mj, rtol=0, atol=1e-9)
     total = sum(model.body_mass[1:])
-    assert total == pytest.approx(P.MASS, rel=1e-9)
+    assert total == pytest.approx(params.MASS, rel=1e-9)
 
 
 @pytest.mark.parametrize("posture", list(POSTURES))
@@ -228,17 +229,17 @@ def test_cost_eq19_and_eq20_against_mujoco_and_scipy(posture, mj):
     collinear wheels along its sides: one side each, not one per wheel gap."""
     model, data = mj
     if POSTURES[posture] is None:
-        base, phi = np.array([0.3, -0.2, 0.7]), P.INITIAL_PHI.copy()
+        base, phi = np.array([0.3, -0.2, 0.7]), params.INITIAL_PHI.copy()
         w = np.asarray(_TIP(jnp.asarray(base), jnp.asarray(phi)))
     else:
         base, phi, w = _posture(POSTURES[posture])
     kv = np.random.default_rng(7).uniform(0.1, 10.0, 12)
     a1, a2 = 0.7, 0.05
     joint = phi @ (kv * phi)
-    for sigma in range(1, P.N_MODES + 1):
+    for sigma in range(1, params.N_MODES + 1):
         g = MODES[sigma - 1]
         args = (jnp.asarray(w), jnp.asarray(phi), jnp.asarray(g))
-        v19 = float(_COST(*args, C.ControlParams(kv=jnp.asarray(kv))))
+        v19 = float(_COST(*args, control.ControlParams(kv=jnp.asarray(kv))))
         assert v19 == pytest.approx(joint, rel=1e-12)
         com, pts = _mujoco_support(model, data, phi, base, g)
         assert np.abs(pts[:, 2]).max() < 1e-9  # the wheels touch the ground
@@ -246,11 +247,11 @@ def test_cost_eq19_and_eq20_against_mujoco_and_scipy(posture, mj):
         if posture == "straight":  # collinear wheels (same track width) make one side, not one per gap
             normals = np.round(ConvexHull(pts[:, :2]).equations[:, :2], 9)
             assert len(d) == len(np.unique(normals, axis=0)) <= 6
-        v20 = float(_COST(*args, C.ControlParams(kv=jnp.asarray(kv), a1=a1, a2=a2)))
+        v20 = float(_COST(*args, control.ControlParams(kv=jnp.asarray(kv), a1=a1, a2=a2)))
         assert v20 == pytest.approx(a1 * joint + a2 / np.linalg.norm(d), rel=1e-9)
         # support_distances: the static margin is the distance to the nearest side when
         # P_G is inside the polygon (the signed distance otherwise)
-        dd, E, margin = C.support_distances(K.point_to_head(args[0], "tip"), args[1], args[2])
+        dd, E, margin = control.support_distances(kinematics.point_to_head(args[0], "tip"), args[1], args[2])
         inside = ConvexHull(pts[:, :2]).equations
         signed = -np.max(inside[:, :2] @ com[:2] + inside[:, 2])
         assert signed > 0  # P_G inside the polygon in these postures
@@ -265,7 +266,7 @@ def test_eta_is_the_gradient_of_the_cost(a2):
     _, phi, w = _posture(4)
     g = jnp.asarray(MODES[2])
     kv = np.random.default_rng(8).uniform(0.1, 10.0, 12)
-    cp = C.ControlParams(kv=jnp.asarray(kv), a1=0.7, a2=a2)
+    cp = control.ControlParams(kv=jnp.asarray(kv), a1=0.7, a2=a2)
     eta = np.asarray(_ETA(jnp.asarray(w), jnp.asarray(phi), g, cp))
     assert eta.shape == (19,) and np.all(eta[12:] == 0.0)
     h = 1e-6
@@ -284,7 +285,7 @@ def test_eta_is_the_gradient_of_the_cost(a2):
 
 def _v_of_a2(a2):
     _, phi, w = _posture(4)
-    return _COST(jnp.asarray(w), jnp.asarray(phi), jnp.asarray(MODES[0]), C.ControlParams(a2=a2))
+    return _COST(jnp.asarray(w), jnp.asarray(phi), jnp.asarray(MODES[0]), control.ControlParams(a2=a2))
 
 
 def test_cost_derivative_in_a2():
@@ -300,7 +301,7 @@ def test_cost_derivative_in_a2_at_zero():
     assert float(jax.grad(_v_of_a2)(0.0)) == pytest.approx(slope, rel=1e-8)
 
 
-_CONTROL = jax.jit(C.control_input)
+_CONTROL = jax.jit(control.control_input)
 
 
 @pytest.mark.parametrize("a2", [0.0, 0.05])
@@ -312,7 +313,7 @@ def test_control_input_derivatives(a2):
     g = jnp.asarray(MODES[4])
     wt_d = jnp.asarray(np.concatenate([w, phi[5:6]]) + rng.uniform(-0.05, 0.05, 7))
     wt_d_dot = jnp.asarray(rng.uniform(-0.1, 0.1, 7))
-    cp = C.ControlParams(k_eta=0.5, a2=a2)
+    cp = control.ControlParams(k_eta=0.5, a2=a2)
 
     def f(w_, phi_):
         return _CONTROL(w_, phi_, wt_d, wt_d_dot, g, cp)
@@ -321,12 +322,12 @@ def test_control_input_derivatives(a2):
 
 
 # ----------------------------------------------------------------------- mode schedule
-def _schedule(cp: C.ControlParams, ts: jax.Array, phis: jax.Array) -> tuple[jax.Array, jax.Array]:
+def _schedule(cp: control.ControlParams, ts: jax.Array, phis: jax.Array) -> tuple[jax.Array, jax.Array]:
     def step(state, x):
-        state, sigma = C.update_mode(x[0], x[1], state, cp)
+        state, sigma = control.update_mode(x[0], x[1], state, cp)
         return state, (sigma, state.switching)
 
-    _, (sigma, switching) = jax.lax.scan(step, C.initial_mode_state(ts.dtype), (ts, phis))
+    _, (sigma, switching) = jax.lax.scan(step, control.initial_mode_state(ts.dtype), (ts, phis))
     return sigma, switching
 
 
@@ -338,8 +339,8 @@ TS = jnp.arange(120) * 0.1  # [s]
 def test_commanded_switching_cycles_the_modes_every_delta_t():
     """switch_at = 2, Delta T = 1, automatic switching off (enter_ratio > 1): sigma = 1 for
     t < 2, then 2, 3, 4, 5, 6, 2, 3, ... on [2, 3), [3, 4), ... (Sec. V-B)."""
-    cp = C.ControlParams(switch_at=2.0, delta_t=1.0, enter_ratio=2.0)
-    phis = jnp.zeros((TS.shape[0], 12)).at[:, 7].set(C.PHI_LIMITS[7])  # at a limit: no effect
+    cp = control.ControlParams(switch_at=2.0, delta_t=1.0, enter_ratio=2.0)
+    phis = jnp.zeros((TS.shape[0], 12)).at[:, 7].set(control.PHI_LIMITS[7])  # at a limit: no effect
     sigma, switching = (np.asarray(x) for x in _SCHEDULE(cp, TS, phis))
     tenth = np.arange(120)
     expected = np.where(tenth < 20, 1, np.array([2, 3, 4, 5, 6])[np.maximum(tenth - 20, 0) // 10 % 5])
@@ -356,8 +357,8 @@ def _ramp_phis() -> np.ndarray:
     t = np.arange(120) * 0.1
     r = np.interp(t, [0.0, 2.5, 4.0, 6.5, 7.0, 8.0, 12.0], [0.5, 1.0, 1.0, 0.5, 0.5, 1.0, 1.0])
     phis = np.zeros((120, 12))
-    phis[:, 7] = -r * P.YAW_LIMIT
-    phis[:, P.SCP_INDEX] = 0.999 * P.PITCH_LIMIT
+    phis[:, 7] = -r * params.YAW_LIMIT
+    phis[:, params.SCP_INDEX] = 0.999 * params.PITCH_LIMIT
     phis[:, 1] = 1.5
     return phis
 
@@ -374,7 +375,7 @@ def _expected_auto(order: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def test_automatic_switching_with_hysteresis():
     order = np.array([6, 5, 4, 3, 2])
-    cp = C.ControlParams(delta_t=0.5, enter_ratio=0.99, exit_ratio=0.85, mode_order=jnp.asarray(order))
+    cp = control.ControlParams(delta_t=0.5, enter_ratio=0.99, exit_ratio=0.85, mode_order=jnp.asarray(order))
     sigma, switching = (np.asarray(x) for x in _SCHEDULE(cp, TS, jnp.asarray(_ramp_phis())))
     expected_sigma, expected_sw = _expected_auto(order)
     assert switching.tolist() == expected_sw.tolist()
@@ -385,7 +386,7 @@ def test_automatic_switching_with_hysteresis():
     quiet[:, 7] = 0.0
     sigma_q, sw_q = (np.asarray(x) for x in _SCHEDULE(cp, TS, jnp.asarray(quiet)))
     assert not sw_q.any() and set(sigma_q.tolist()) == {1}
-    quiet[60:, 1] = -0.995 * P.PITCH_LIMIT
+    quiet[60:, 1] = -0.995 * params.PITCH_LIMIT
     _, sw_p = (np.asarray(x) for x in _SCHEDULE(cp, TS, jnp.asarray(quiet)))
     assert sw_p.tolist() == (np.arange(120) >= 60).tolist()
     # the fixing state's mode is data too
@@ -395,11 +396,11 @@ def test_automatic_switching_with_hysteresis():
 
 def test_schedule_vmapped_over_control_params_equals_a_loop():
     cps = [
-        C.ControlParams(switch_at=2.0, delta_t=1.0, enter_ratio=2.0),
-        C.ControlParams(delta_t=0.5, enter_ratio=0.99, exit_ratio=0.85, mode_order=jnp.array([6, 5, 4, 3, 2])),
-        C.ControlParams(switch_at=5.0, delta_t=0.3, enter_ratio=0.9, exit_ratio=0.8,
+        control.ControlParams(switch_at=2.0, delta_t=1.0, enter_ratio=2.0),
+        control.ControlParams(delta_t=0.5, enter_ratio=0.99, exit_ratio=0.85, mode_order=jnp.array([6, 5, 4, 3, 2])),
+        control.ControlParams(switch_at=5.0, delta_t=0.3, enter_ratio=0.9, exit_ratio=0.8,
                         mode_order=jnp.array([2, 4, 6, 3, 5]), fixed_mode=2),
-        C.ControlParams(switch_at=1.0, delta_t=2.0, enter_ratio=0.95, exit_ratio=0.5),
+        control.ControlParams(switch_at=1.0, delta_t=2.0, enter_ratio=0.95, exit_ratio=0.5),
     ]
     cps = [jax.tree_util.tree_map(lambda x: jnp.asarray(x, jnp.result_type(x)), cp) for cp in cps]
     batch = jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *cps)
@@ -418,10 +419,10 @@ def test_schedule_vmapped_over_control_params_equals_a_loop():
 # ------------------------------------------------------------------------------- K_V
 def test_kv_diagonal_is_the_papers():
     paper = [15, 0.015, 15, 0.015, 15, 0.015, 9.6, 4.8, 2.4, 1.2, 0.6, 0.3]  # Sec. V-B
-    np.testing.assert_allclose(np.asarray(C.kv_diagonal()), paper, rtol=1e-12)
-    np.testing.assert_allclose(np.asarray(C.ControlParams().kv), paper, rtol=1e-12)
-    np.testing.assert_allclose(np.asarray(C.kv_diagonal(1.0, 2.0, 8.0, 2.0)),
+    np.testing.assert_allclose(np.asarray(control.kv_diagonal()), paper, rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(control.ControlParams().kv), paper, rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(control.kv_diagonal(1.0, 2.0, 8.0, 2.0)),
                                [1, 2, 1, 2, 1, 2, 8, 16, 32, 64, 128, 256], rtol=1e-12)
     # traceable: a gradient through the four numbers
-    g = jax.grad(lambda b: jnp.sum(C.kv_diagonal(15.0, 0.015, b, 0.5)))(9.6)
+    g = jax.grad(lambda b: jnp.sum(control.kv_diagonal(15.0, 0.015, b, 0.5)))(9.6)
     assert float(g) == pytest.approx(sum(0.5**k for k in range(6)))

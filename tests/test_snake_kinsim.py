@@ -23,18 +23,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxloco.robots.snake import control as C
-from jaxloco.robots.snake import experiments as E
-from jaxloco.robots.snake import kinematics as K
-from jaxloco.robots.snake import kinsim as S
-from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import control, experiments, kinematics, kinsim, params
 
 DT, STEPS = 0.05, 121  # 6 s
-CFG_FB = S.RolloutConfig(steps=STEPS, dt=DT, feedback=True)
-CFG_FF = S.RolloutConfig(steps=STEPS, dt=DT, feedback=False)
-_FB = jax.jit(lambda x0, tg, cp, plant: S.rollout(x0, tg, cp, CFG_FB, plant))
-_FF = jax.jit(lambda x0, tg, cp, plant: S.rollout(x0, tg, cp, CFG_FF, plant))
-_FB_BATCH = jax.jit(jax.vmap(lambda x0, tg, cp, plant: S.rollout(x0, tg, cp, CFG_FB, plant), (None, 0, 0, None)))
+CFG_FB = kinsim.RolloutConfig(steps=STEPS, dt=DT, feedback=True)
+CFG_FF = kinsim.RolloutConfig(steps=STEPS, dt=DT, feedback=False)
+_FB = jax.jit(lambda x0, tg, cp, plant: kinsim.rollout(x0, tg, cp, CFG_FB, plant))
+_FF = jax.jit(lambda x0, tg, cp, plant: kinsim.rollout(x0, tg, cp, CFG_FF, plant))
+_FB_BATCH = jax.jit(jax.vmap(lambda x0, tg, cp, plant: kinsim.rollout(x0, tg, cp, CFG_FB, plant), (None, 0, 0, None)))
 TIMES = np.arange(STEPS) * DT
 
 
@@ -49,21 +45,21 @@ def _np(recs):
 
 
 def _run(fn, x0, target, cp, plant=None):
-    return _np(fn(_strong(x0), _strong(target), _strong(cp), _strong(plant or S.PlantParams())))
+    return _np(fn(_strong(x0), _strong(target), _strong(cp), _strong(plant or kinsim.PlantParams())))
 
 
 # a bent base (+-0.4 rad, 35 % of the yaw limit), head raised (Sec. V-A posture)
-_PHI = P.INITIAL_PHI.copy()
-_PHI[P.N_H :] = 0.4 * (-1.0) ** np.arange(P.N_B)
-X0 = S.initial_state(jnp.asarray(_PHI), jnp.array([0.1, -0.2, 0.3]))
-W0 = np.asarray(S.hold_target(X0).w0)  # w~ of X0: [gripper-tip pose, psi_3]
+_PHI = params.INITIAL_PHI.copy()
+_PHI[params.N_H :] = 0.4 * (-1.0) ** np.arange(params.N_B)
+X0 = kinsim.initial_state(jnp.asarray(_PHI), jnp.array([0.1, -0.2, 0.3]))
+W0 = np.asarray(kinsim.hold_target(X0).w0)  # w~ of X0: [gripper-tip pose, psi_3]
 GAIN = np.array([1.0, 2.0, 1.5, 1.0, 2.5, 0.5, 1.2])  # K per controlled variable [1/s]
 OFFSET = np.array([0.03, -0.02, 0.02, 0.05, -0.05, 0.05, 0.03])  # w~_d - w~(0) [m, rad]
-NO_LIMITS = S.PlantParams(joint_speed_max=100.0, wheel_speed_max=100.0)
+NO_LIMITS = kinsim.PlantParams(joint_speed_max=100.0, wheel_speed_max=100.0)
 
 
-def _offset_target() -> S.Target:
-    return S.Target(jnp.asarray(W0 + OFFSET), jnp.zeros(7), 0.0, 1.0)
+def _offset_target() -> kinsim.Target:
+    return kinsim.Target(jnp.asarray(W0 + OFFSET), jnp.zeros(7), 0.0, 1.0)
 
 
 # ------------------------------------------------------------------ Eq. 15, null space
@@ -76,7 +72,7 @@ def test_task_error_decays_as_explicit_euler_of_eq15(feedback):
     measured 7e-3 |e_0| (3e-3 at dt = 0.02, 1.4e-3 at 0.01: O(dt) accumulated), bound
     0.2 dt max|e_0|. Feedforward: its estimate ("ctrl_error") follows the same law and
     equals the plant while nothing saturates."""
-    cp = C.ControlParams(gain=jnp.asarray(GAIN), k_eta=0.0, enter_ratio=2.0)
+    cp = control.ControlParams(gain=jnp.asarray(GAIN), k_eta=0.0, enter_ratio=2.0)
     recs = _run(_FB if feedback else _FF, X0, _offset_target(), cp)
     seen = recs["error"] if feedback else recs["ctrl_error"]
     e0 = seen[0]
@@ -98,7 +94,7 @@ def test_null_space_term_does_not_disturb_the_task():
     integration error (measured 5.2e-4 m / rad at dt = 0.05, 1.6e-4 at 0.02, 7e-5 at
     0.01: O(dt); bound 1e-3, 2 % of the 0.05 initial error) while phi
     differs by tenths of a radian and V falls further with the null-space term."""
-    cp = C.ControlParams(gain=jnp.asarray(GAIN), k_eta=0.0, enter_ratio=2.0)
+    cp = control.ControlParams(gain=jnp.asarray(GAIN), k_eta=0.0, enter_ratio=2.0)
     a = _run(_FB, X0, _offset_target(), cp, NO_LIMITS)
     b = _run(_FB, X0, _offset_target(), cp.with_(k_eta=0.5), NO_LIMITS)
     assert np.abs(a["error"] - b["error"]).max() < 1e-3
@@ -115,8 +111,8 @@ T0, RAMP = 0.5, 3.0
 
 @pytest.fixture(scope="module")
 def tracking():
-    cp = C.ControlParams(enter_ratio=2.0)  # K = 1, k_eta = 0.1, sigma = 1
-    return _run(_FB, X0, S.Target(jnp.asarray(W0), jnp.asarray(DELTA), T0, RAMP), cp)
+    cp = control.ControlParams(enter_ratio=2.0)  # K = 1, k_eta = 0.1, sigma = 1
+    return _run(_FB, X0, kinsim.Target(jnp.asarray(W0), jnp.asarray(DELTA), T0, RAMP), cp)
 
 
 def test_tracking_a_moving_target(tracking):
@@ -143,8 +139,8 @@ def _grounded_contacts(recs):
     recorded gripper-tip poses and joints."""
 
     def one(w, phi):
-        _, contact, R = K.wheel_pairs(K.head_from_tip(w), K.full_joint_angles(phi))
-        return contact[P.BASE_PAIRS], R[P.BASE_PAIRS][:, :, 1]
+        _, contact, R = kinematics.wheel_pairs(kinematics.head_from_tip(w), kinematics.full_joint_angles(phi))
+        return contact[params.BASE_PAIRS], R[params.BASE_PAIRS][:, :, 1]
 
     c, y = jax.jit(jax.vmap(one))(jnp.asarray(recs["w"]), jnp.asarray(recs["phi"]))
     return np.asarray(c), np.asarray(y)
@@ -159,10 +155,10 @@ def test_base_stays_on_the_plane_and_grounded_wheels_do_not_slip(tracking):
     1 slide sideways (20 % and 53 % of their travel, whatever dt)."""
     c, y = _grounded_contacts(tracking)
     assert np.abs(c[:, :, 2]).max() < 1e-12
-    base = np.asarray(jax.vmap(lambda w, phi: K.base_of(K.head_from_tip(w), phi))(
+    base = np.asarray(jax.vmap(lambda w, phi: kinematics.base_of(kinematics.head_from_tip(w), phi))(
         jnp.asarray(tracking["w"]), jnp.asarray(tracking["phi"])))
     np.testing.assert_allclose(base, tracking["base"], rtol=0, atol=1e-12)
-    g = P.MODES[0]
+    g = params.MODES[0]
     step = c[1:] - c[:-1]
     lateral = np.abs(np.einsum("nik,nik->ni", step, 0.5 * (y[1:] + y[:-1]))).sum(axis=0)
     travel = np.linalg.norm(step, axis=-1).sum(axis=0)
@@ -174,8 +170,8 @@ def test_base_stays_on_the_plane_and_grounded_wheels_do_not_slip(tracking):
 # ---------------------------------------------------------------- joint-limit experiment
 @pytest.fixture(scope="module")
 def limit_run():
-    x0, target = E.limit_setup()
-    return _run(_FF, x0, target, E.limit_params())
+    x0, target = experiments.limit_setup()
+    return _run(_FF, x0, target, experiments.limit_params())
 
 
 def test_joint_limit_experiment_switches_modes_and_lowers_v(limit_run):
@@ -193,14 +189,16 @@ def test_joint_limit_experiment_switches_modes_and_lowers_v(limit_run):
     assert r["sigma"][[39, 40, 60, 80, 100, 120]].tolist() == [1, 2, 3, 4, 5, 6]
     assert r["switching"].tolist() == (TIMES >= 2.0 - 1e-9).tolist()
     V = r["V"]
-    assert V[0] == pytest.approx(float(C.cost_joint(jnp.asarray(E.zigzag_phi()), C.kv_diagonal())), rel=1e-12)
+    assert V[0] == pytest.approx(
+        float(control.cost_joint(jnp.asarray(experiments.zigzag_phi()), control.kv_diagonal())), rel=1e-12
+    )
     assert V[-1] < 0.8 * V[0]
-    at_stop = np.any(np.abs(r["phi"]) >= C.PHI_LIMITS - 1e-12, axis=1)
+    at_stop = np.any(np.abs(r["phi"]) >= control.PHI_LIMITS - 1e-12, axis=1)
     assert at_stop.any()  # the exception is not hypothetical: theta_7, theta_8 reach their stops
     rise = np.diff(V)
     free = ~(at_stop[:-1] | at_stop[1:])
     assert rise[free].max() < 1e-3, rise[free].max()
-    assert np.abs(r["u"][:, :12]).max() < S.JOINT_SPEED_MAX  # no servo clipping
+    assert np.abs(r["u"][:, :12]).max() < kinsim.JOINT_SPEED_MAX  # no servo clipping
     # where a joint sits at its stop the plant cannot follow the command without the
     # wheels skidding: the tip moves (measured 7 mm); elsewhere it stays put
     assert np.abs(r["error"][:, :3]).max() < 0.02  # [m]
@@ -208,7 +206,7 @@ def test_joint_limit_experiment_switches_modes_and_lowers_v(limit_run):
     # psi_3 converges to its SCP target 110 deg at K = 1
     assert abs(r["error"][-1, 6]) < 1.1 * np.exp(-TIMES[-1]) * abs(r["error"][0, 6])
     # the base joints come down from the limits (0.97 -> 0.92 of the limit in 6 s)
-    assert E.base_limit_ratio(r["phi"][-1]) < 0.95 < E.base_limit_ratio(r["phi"][0])
+    assert experiments.base_limit_ratio(r["phi"][-1]) < 0.95 < experiments.base_limit_ratio(r["phi"][0])
 
 
 def test_base_stays_on_the_plane_in_the_joint_limit_experiment(limit_run):
@@ -220,24 +218,24 @@ def test_base_stays_on_the_plane_in_the_joint_limit_experiment(limit_run):
 
 # ------------------------------------------------------------------------ vmap == loop
 def test_rollout_vmapped_over_control_params_and_targets_equals_a_loop():
-    x0, hold = E.limit_setup()
+    x0, hold = experiments.limit_setup()
     cps = [
-        E.limit_params(),
-        E.limit_params(k_eta=0.5, switch_at=1.0, delta_t=0.5, mode_order=jnp.array([6, 5, 4, 3, 2])),
-        E.limit_params(gain=jnp.full(7, 2.0), kv=C.kv_diagonal(1.0, 0.1, 20.0, 1.0), switch_at=jnp.inf,
+        experiments.limit_params(),
+        experiments.limit_params(k_eta=0.5, switch_at=1.0, delta_t=0.5, mode_order=jnp.array([6, 5, 4, 3, 2])),
+        experiments.limit_params(gain=jnp.full(7, 2.0), kv=control.kv_diagonal(1.0, 0.1, 20.0, 1.0), switch_at=jnp.inf,
                        enter_ratio=0.99, exit_ratio=0.9),
     ]
     targets = [
         hold,
-        S.Target(hold.w0, jnp.array([0.05, 0.0, 0.0, 0.0, 0.0, 0.2, 0.0]), 0.5, 2.0),
-        S.Target(hold.w0, jnp.array([0.0, 0.03, -0.02, 0.1, 0.0, 0.0, 0.0]), 1.0, 3.0),
+        kinsim.Target(hold.w0, jnp.array([0.05, 0.0, 0.0, 0.0, 0.0, 0.2, 0.0]), 0.5, 2.0),
+        kinsim.Target(hold.w0, jnp.array([0.0, 0.03, -0.02, 0.1, 0.0, 0.0, 0.0]), 1.0, 3.0),
     ]
     cps, targets = _strong(cps), _strong(targets)
 
     def stack(xs):
         return jax.tree_util.tree_map(lambda *a: jnp.stack(a), *xs)
 
-    plant = _strong(S.PlantParams())
+    plant = _strong(kinsim.PlantParams())
     batch = _np(_FB_BATCH(_strong(x0), stack(targets), stack(cps), plant))
     sigmas = set()
     for i in range(3):
@@ -249,13 +247,13 @@ def test_rollout_vmapped_over_control_params_and_targets_equals_a_loop():
 
 
 # ------------------------------------------------------ feedforward vs feedback (IV-C2)
-BETA_TARGET = S.Target(jnp.asarray(W0), jnp.array([0.0, 0.0, 0.0, 0.0, -0.3, 0.0, 0.0]), 0.5, 1.0)
+BETA_TARGET = kinsim.Target(jnp.asarray(W0), jnp.array([0.0, 0.0, 0.0, 0.0, -0.3, 0.0, 0.0]), 0.5, 1.0)
 
 
 def test_feedforward_equals_feedback_while_nothing_saturates():
-    cp = C.ControlParams(enter_ratio=2.0)
+    cp = control.ControlParams(enter_ratio=2.0)
     ff, fb = _run(_FF, X0, BETA_TARGET, cp), _run(_FB, X0, BETA_TARGET, cp)
-    assert np.abs(fb["u"][:, :12]).max() < S.JOINT_SPEED_MAX  # unclipped
+    assert np.abs(fb["u"][:, :12]).max() < kinsim.JOINT_SPEED_MAX  # unclipped
     for key in ("w", "phi", "base", "error", "u", "V"):
         np.testing.assert_allclose(ff[key], fb[key], rtol=0, atol=1e-12, err_msg=key)
     np.testing.assert_allclose(ff["ctrl_error"], ff["error"], rtol=0, atol=1e-12)
@@ -270,8 +268,8 @@ def test_servo_limit_feedforward_lags_then_catches_up_feedback_winds_up():
     Feedback reads the lagging plant and keeps integrating joint targets: they wind up
     and the tip overshoots after the change (> 0.1 rad off 1.5 s after it), converging
     much later: one reason to run the robot feedforward (Sec. IV-C2)."""
-    cp = C.ControlParams(enter_ratio=2.0)
-    slow = S.PlantParams(joint_speed_max=0.5)
+    cp = control.ControlParams(enter_ratio=2.0)
+    slow = kinsim.PlantParams(joint_speed_max=0.5)
     ff, fb = _run(_FF, X0, BETA_TARGET, cp, slow), _run(_FB, X0, BETA_TARGET, cp, slow)
     assert np.abs(fb["u"][:, :12]).max() == pytest.approx(0.5)  # it did clip
     assert np.abs(ff["u"][:, :12]).max() == pytest.approx(0.5)
@@ -291,12 +289,12 @@ def test_table3_relative_accuracy_in_the_kinematic_model():
     without wheel slip the error of the changed component is the Euler integration
     error only (measured <= 0.0025 %; the paper's robot: up to 34 % from slip), every
     other component stays within 0.03 mm / mrad, the fixing state sigma = 1 throughout."""
-    out = E.run_accuracy_kinematic()
+    out = experiments.run_accuracy_kinematic()
     err, disp = out["error"], out["displacement"]
     assert err.shape == (6,) and np.all(err < 0.1), err
     off = disp - np.diag(np.diagonal(disp))
     assert np.abs(off).max() < 1e-4, off
-    np.testing.assert_allclose(np.diagonal(disp), E.ACCURACY_DELTAS, rtol=1e-3)
+    np.testing.assert_allclose(np.diagonal(disp), experiments.ACCURACY_DELTAS, rtol=1e-3)
     recs = out["records"]
     assert np.all(np.asarray(recs["sigma"]) == 1)
     assert np.asarray(recs["t"]).shape == (6, 501)

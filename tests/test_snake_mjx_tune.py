@@ -19,8 +19,7 @@ import pytest
 
 from jaxloco import analysis
 from jaxloco.analysis import Param
-from jaxloco.robots.snake import mjx_tuning as MT
-from jaxloco.robots.snake import sim_analysis as A
+from jaxloco.robots.snake import mjx_tuning, sim_analysis
 from jaxloco.sim.rollout import rollout
 from jaxloco.tune import objective as registry
 from jaxloco.tune import runner
@@ -28,7 +27,7 @@ from jaxloco.tune.objective import Objective, Tunable
 from jaxloco.tune.spec import spec_from_dict
 
 HORIZON = 1.0  # [s] of the test rollouts (settings otherwise the objective's defaults)
-SETTINGS = {p.name: p.default for p in MT.SETTINGS} | {"horizon": HORIZON}
+SETTINGS = {p.name: p.default for p in mjx_tuning.SETTINGS} | {"horizon": HORIZON}
 
 
 # ------------------------------------------------------------------ grad_mode (toy)
@@ -101,7 +100,7 @@ def test_reach_metrics_closed_form():
     tip[:, :3] = p0 + np.outer(s * dz + e, [0.0, 0.0, 1.0])
     rng = np.random.default_rng(0)
     cmd = np.cumsum(rng.normal(0.0, 0.01, (n, 12)), 0)
-    m = {k: float(v) for k, v in jax.jit(A.reach_metrics)(jnp.asarray(tip), jnp.asarray(cmd),
+    m = {k: float(v) for k, v in jax.jit(sim_analysis.reach_metrics)(jnp.asarray(tip), jnp.asarray(cmd),
                                                            jnp.array([0.0, 0.0, dz]), t0, ramp, tol, 0.5).items()}
     effort = np.mean(np.sum((np.diff(cmd, axis=0) / dt) ** 2, -1))
     assert m["final_error"] == pytest.approx(e[-1], rel=1e-9)
@@ -115,9 +114,11 @@ def test_reach_metrics_closed_form():
     assert m["overshoot"] == pytest.approx(max(np.max(s * dz + e) - dz, 0.0) / dz, rel=1e-9)
     assert m["overshoot"] > 0.0
     # never inside the band: nan; no target displacement: no overshoot
-    never = A.reach_metrics(jnp.asarray(tip), jnp.asarray(cmd), jnp.array([0.0, 0.0, dz]), t0, ramp, 1e-9, 0.0)
+    never = sim_analysis.reach_metrics(
+        jnp.asarray(tip), jnp.asarray(cmd), jnp.array([0.0, 0.0, dz]), t0, ramp, 1e-9, 0.0
+    )
     assert math.isnan(float(never["settle_time"]))
-    still = A.reach_metrics(jnp.asarray(tip), jnp.asarray(cmd), jnp.zeros(3), t0, ramp, tol, 0.0)
+    still = sim_analysis.reach_metrics(jnp.asarray(tip), jnp.asarray(cmd), jnp.zeros(3), t0, ramp, tol, 0.0)
     assert float(still["overshoot"]) == 0.0
 
 
@@ -125,7 +126,7 @@ def test_reach_metrics_closed_form():
 @pytest.fixture(scope="module")
 def mjx_loss():
     """K -> ((loss, aux), dloss/dK) of the objective (forward mode, as the runner uses it)."""
-    f = jax.jit(runner.value_and_grad(MT.make_loss(SETTINGS), "forward", ["gain_k"]))
+    f = jax.jit(runner.value_and_grad(mjx_tuning.make_loss(SETTINGS), "forward", ["gain_k"]))
 
     def evaluate(k: float):
         (loss, aux), g = f({"gain_k": jnp.float64(k), "k_eta": jnp.float64(0.1)})
@@ -151,11 +152,11 @@ def test_forward_gradient_matches_central_differences(mjx_loss):
 def test_mjx_loss_agrees_with_native_mujoco(mjx_loss):
     """The same scenario (plane ground, settled state, controller) on MuJoCo's C code."""
     gains = (1.0, 2.5)
-    sc = A.reach_scenario(MT.GROUND, HORIZON, SETTINGS["settle"])
-    res = rollout(sc, A.reach_params(len(gains), gain_k=np.array(gains), d_z=SETTINGS["d_z"],
+    sc = sim_analysis.reach_scenario(mjx_tuning.GROUND, HORIZON, SETTINGS["settle"])
+    res = rollout(sc, sim_analysis.reach_params(len(gains), gain_k=np.array(gains), d_z=SETTINGS["d_z"],
                                      t_start=SETTINGS["t_start"], ramp=SETTINGS["ramp"]), backend="native")
     assert list(res.status) == ["ok", "ok"]
-    native = jax.vmap(lambda tip, cmd: A.reach_metrics(tip, cmd, jnp.array([0.0, 0.0, SETTINGS["d_z"]]),
+    native = jax.vmap(lambda tip, cmd: sim_analysis.reach_metrics(tip, cmd, jnp.array([0.0, 0.0, SETTINGS["d_z"]]),
                                                        SETTINGS["t_start"], SETTINGS["ramp"], 1.0,
                                                        SETTINGS["w_effort"]))(
         jnp.asarray(res.records["tip"]), jnp.asarray(res.records["phi_cmd"]))
@@ -185,13 +186,17 @@ def test_a_short_tune_lowers_the_loss(tmp_path, mjx_loss):
 
 # ------------------------------------------------------------------- the analysis
 def test_reach_analysis_batch_equals_single_rows():
-    assert analysis.get("snake.reach") is A.REACH
-    fixed = {p.name: p.default for p in A.PARAMS} | {"ground": MT.GROUND, "horizon": HORIZON, "nthread": 2}
-    fn = A.make_batch_fn(fixed)
+    assert analysis.get("snake.reach") is sim_analysis.REACH
+    fixed = {p.name: p.default for p in sim_analysis.PARAMS} | {
+        "ground": mjx_tuning.GROUND,
+        "horizon": HORIZON,
+        "nthread": 2,
+    }
+    fn = sim_analysis.make_batch_fn(fixed)
     swept = {"gain_k": np.array([0.5, 1.0, 3.0]), "d_z": np.array([0.03, -0.02, 0.03])}
     keys = np.zeros((3, 2), np.uint32)
     batch = fn(swept, keys)
-    assert set(batch) == {m.name for m in A.METRICS} | {"status"}
+    assert set(batch) == {m.name for m in sim_analysis.METRICS} | {"status"}
     for i in range(3):
         row = fn({k: v[i:i + 1] for k, v in swept.items()}, keys[i:i + 1])
         for name, value in row.items():  # the physics is bit-identical; XLA's reductions may round differently
@@ -202,4 +207,4 @@ def test_reach_analysis_batch_equals_single_rows():
 
 def test_reach_analysis_rejects_a_bad_ground():
     with pytest.raises(analysis.SpecError, match="ground"):
-        A.build_model("sand")
+        sim_analysis.build_model("sand")

@@ -6,24 +6,23 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxloco.robots.snake import kinsim as S
-from jaxloco.robots.snake import operations as O
+from jaxloco.robots.snake import kinsim, operations
 
 
 def test_a_script_is_the_sum_of_its_smooth_steps():
     w0 = jnp.arange(7.0)
     delta = jnp.array([[0, 0, -0.2, 0, 0, 0, -1.0], [0, 0, 0.1, 0, 0, 0, 0]], float)
-    script = S.Target(w0, delta, jnp.array([1.0, 6.0]), jnp.array([4.0, 2.0]))
+    script = kinsim.Target(w0, delta, jnp.array([1.0, 6.0]), jnp.array([4.0, 2.0]))
     for t in (0.0, 2.5, 5.5, 7.0, 9.0):
         w, w_dot = script.at(jnp.asarray(t))
-        one = [S.Target(w0 * 0, delta[k], jnp.array([1.0, 6.0])[k], jnp.array([4.0, 2.0])[k]).at(jnp.asarray(t))
+        one = [kinsim.Target(w0 * 0, delta[k], jnp.array([1.0, 6.0])[k], jnp.array([4.0, 2.0])[k]).at(jnp.asarray(t))
                for k in range(2)]
         np.testing.assert_allclose(w, w0 + one[0][0] + one[1][0], atol=1e-12)
         np.testing.assert_allclose(w_dot, one[0][1] + one[1][1], atol=1e-12)
     np.testing.assert_allclose(script.at(jnp.asarray(9.0))[0], w0 + delta.sum(0), atol=1e-12)
     # the host copy of the tip's part
     np.testing.assert_allclose(
-        O.script_target(np.array([9.0]), np.zeros(6), [(1.0, 4.0, delta[0]), (6.0, 2.0, delta[1])])[0],
+        operations.script_target(np.array([9.0]), np.zeros(6), [(1.0, 4.0, delta[0]), (6.0, 2.0, delta[1])])[0],
         np.asarray(delta.sum(0))[:6],
         atol=1e-12,
     )
@@ -32,7 +31,7 @@ def test_a_script_is_the_sum_of_its_smooth_steps():
 @pytest.fixture(scope="module")
 def pick():
     """The pick-up without and with the operator's correction (gain 0 and 1 /s)."""
-    return O.run_pick(2, operator_gain=np.array([0.0, 1.0]))
+    return operations.run_pick(2, operator_gain=np.array([0.0, 1.0]))
 
 
 def test_the_gripper_picks_the_pipe_up(pick):
@@ -48,7 +47,7 @@ def test_the_gripper_picks_the_pipe_up(pick):
     assert 0.03 < m["max_tip_error"][0] < 0.05
     assert m["max_tip_error"][1] < 0.03 and m["final_tip_error"][1] < 0.01
     pipe = np.asarray(res.records["fixture"])[0]
-    before = res.times < O.PICK_GRIP_AT
+    before = res.times < operations.PICK_GRIP_AT
     assert np.abs(pipe[before, 2] - pipe[0, 2]).max() < 0.005  # soft: the pipe stays down until the grip
 
 
@@ -57,13 +56,13 @@ def test_the_recorded_intent_is_the_script_from_the_seen_start(pick):
     (`script_target`) from the tip seen at t = 0."""
     res, _ = pick
     intent = np.asarray(res.records["intent"])[0]
-    t = res.times - O.CONTROL_DT  # each record is taken after the control period its command was made for
-    seen0 = intent[0] - O.script_target(t[:1], np.zeros(6), O.PICK_SCRIPT)[0]
-    np.testing.assert_allclose(intent, O.script_target(t, seen0, O.PICK_SCRIPT), atol=1e-9)
+    t = res.times - operations.CONTROL_DT  # each record is taken after the control period its command was made for
+    seen0 = intent[0] - operations.script_target(t[:1], np.zeros(6), operations.PICK_SCRIPT)[0]
+    np.testing.assert_allclose(intent, operations.script_target(t, seen0, operations.PICK_SCRIPT), atol=1e-9)
 
 
 def test_without_the_grip_the_pipe_stays_on_the_ground():
-    res, m = O.run_pick(1, grip_at=1e3)
+    res, m = operations.run_pick(1, grip_at=1e3)
     assert res.status[0] == "ok" and abs(m["pipe_lift"][0]) < 0.005
 
 
@@ -73,7 +72,7 @@ def test_the_hardened_gripper_turns_the_valve():
     little), the tip held within 30 mm (measured 21 mm). Without the grip the gripper,
     pressed 1 cm into the handwheel by its stiff servos, still turns it 0.97 rad: in this
     model the press does most of the work."""
-    res, m = O.run_valve(2, grip_at=np.array([O.VALVE_GRIP_AT, 1e3]))
+    res, m = operations.run_valve(2, grip_at=np.array([operations.VALVE_GRIP_AT, 1e3]))
     assert list(res.status) == ["ok", "ok"]
     assert m["roll"][0] == pytest.approx(np.pi / 2, abs=0.05)
     assert 0.6 * np.pi / 2 < m["valve_turn"][0] <= m["roll"][0] + 0.01
@@ -85,7 +84,7 @@ def test_the_hardened_gripper_turns_the_valve():
 def door():
     """20 s of the door, the operator's script without and with the operator's switching
     at a base joint's limit (enter 0.97, exit 0.8, at least 5 s; no correction)."""
-    return O.run_door(2, horizon=20.0, operator_enter=np.array([2.0, 0.97]))
+    return operations.run_door(2, horizon=20.0, operator_enter=np.array([2.0, 0.97]))
 
 
 def _ratio(phi: np.ndarray) -> np.ndarray:
@@ -101,7 +100,7 @@ def test_the_door_stalls_at_a_base_joint_limit_without_mode_switching(door):
     assert res.status[0] != "diverged"
     ratio, t = _ratio(np.asarray(res.records["phi"])[0]), res.times
     assert 3.0 < t[np.argmax(ratio >= 0.97)] < 5.0 and np.all(ratio[(t > 5.0) & (t < 12.0)] > 0.95)
-    assert not O.switching_record(res)[0].any() and m["max_tip_error"][0] > 0.2
+    assert not operations.switching_record(res)[0].any() and m["max_tip_error"][0] > 0.2
 
 
 def test_the_operator_switches_modes_at_the_stall_and_the_pull_resumes(door):
@@ -114,9 +113,9 @@ def test_the_operator_switches_modes_at_the_stall_and_the_pull_resumes(door):
     assert res.status[1] == "ok"
     t = res.times
     ratio = _ratio(np.asarray(res.records["phi"])[1])
-    switching = O.switching_record(res)[1]
+    switching = operations.switching_record(res)[1]
     start = np.argmax(switching)
-    assert abs(t[start] - t[np.argmax(ratio >= 0.97)]) <= 2 * O.CONTROL_DT + 1e-9
+    assert abs(t[start] - t[np.argmax(ratio >= 0.97)]) <= 2 * operations.CONTROL_DT + 1e-9
     end = start + np.argmax(~switching[start:])
     assert 4.9 < t[end] - t[start] < 8.0 and ratio[end] < 0.8
     intent = np.asarray(res.records["intent"])[1]
@@ -135,18 +134,18 @@ def test_the_operations_analysis_rows_and_summary():
     import pyarrow as pa
 
     from jaxloco import analysis
-    from jaxloco.robots.snake import operations_analysis as OA
+    from jaxloco.robots.snake import operations_analysis
 
-    assert analysis.get("snake.operations") is OA.OPERATIONS
-    fixed = {p.name: p.default for p in OA.PARAMS} | {"nthread": 2}
+    assert analysis.get("snake.operations") is operations_analysis.OPERATIONS
+    fixed = {p.name: p.default for p in operations_analysis.PARAMS} | {"nthread": 2}
     swept = {"operation": np.array(["pick", "valve"]), "operator_gain": np.array([1.0, 0.0])}
-    out = OA.make_batch_fn(fixed)(swept, np.array([[0, 0], [0, 1]], np.uint32))
-    assert set(out) == {m.name for m in OA.METRICS} | {"status"}
+    out = operations_analysis.make_batch_fn(fixed)(swept, np.array([[0, 0], [0, 1]], np.uint32))
+    assert set(out) == {m.name for m in operations_analysis.METRICS} | {"status"}
     assert list(out["status"]) == [0, 0] and list(out["success"]) == [True, True]
     assert out["pipe_lift"][0] > 0.08 and np.isnan(out["pipe_lift"][1])
-    assert out["valve_turn"][1] > OA.VALVE_TURN_MIN and np.isnan(out["valve_turn"][0])
+    assert out["valve_turn"][1] > operations_analysis.VALVE_TURN_MIN and np.isnan(out["valve_turn"][0])
     assert np.isnan(out["door_max"]).all() and list(out["stalls"]) == [0, 0]
     assert out["tip_ok"][0] and out["max_tip_error"][0] < 0.03
     table = pa.table({**swept, **{k: out[k] for k in out if k != "status"}})
-    summary = OA.summarize(table)
+    summary = operations_analysis.summarize(table)
     assert [r[:3] for r in summary.rows] == [("pick", "1", "1/1"), ("valve", "0", "1/1")]

@@ -8,12 +8,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxloco.robots.snake import control as C
-from jaxloco.robots.snake import kinsim as S
-from jaxloco.robots.snake import operator as OP
+from jaxloco.robots.snake import control, kinsim, operator
 
 DT = 0.02
-SCRIPT = S.Target(jnp.array([0.3, 0.0, 0.4, 0.0, 0.0, 0.0, 1.9]),
+SCRIPT = kinsim.Target(jnp.array([0.3, 0.0, 0.4, 0.0, 0.0, 0.0, 1.9]),
                   jnp.array([[0.0, 0.0, -0.2, 0.0, 0.0, 0.0, 0.0], [-0.1, 0.05, 0.0, 0.0, 0.0, 0.3, 0.0]]),
                   jnp.array([1.0, 4.0]), jnp.array([2.0, 3.0]))
 SEEN0 = jnp.array([0.31, 0.0, 0.38, 0.0, 0.05, 0.0])  # the robot sags: seen != the controller's w0
@@ -22,11 +20,11 @@ SEEN0 = jnp.array([0.31, 0.0, 0.38, 0.0, 0.05, 0.0])  # the robot sags: seen != 
 def run(seen_of, ratios, gain=0.0, limit=0.1, enter=2.0, exit_=0.8, min_switch=1.0):
     """Drive the operator for len(ratios) periods; seen_of(command) -> the seen pose of
     the next period (a toy plant). Returns the commands, stacked."""
-    state = OP.initial_state(SEEN0)
+    state = operator.initial_state(SEEN0)
     seen = SEEN0
     out = []
     for k, ratio in enumerate(ratios):
-        state, cmd = OP.step(state, SCRIPT, jnp.asarray(k * DT), seen, jnp.asarray(ratio), DT, gain, limit, enter,
+        state, cmd = operator.step(state, SCRIPT, jnp.asarray(k * DT), seen, jnp.asarray(ratio), DT, gain, limit, enter,
                              exit_, min_switch)
         out.append(cmd)
         seen = seen_of(cmd)
@@ -86,7 +84,7 @@ def test_a_joint_at_its_limit_pauses_the_script_and_commands_switching_until_it_
 
 
 def test_the_operator_watches_the_base_yaw_joints_only():
-    phi = jnp.zeros(12).at[1].set(C.PHI_LIMITS[1])  # psi_1 of the head part at its limit
-    assert float(OP.base_limit_ratio(phi)) == 0.0
-    phi = phi.at[7].set(-0.9 * C.PHI_LIMITS[7])  # theta_5
-    assert float(OP.base_limit_ratio(phi)) == pytest.approx(0.9)
+    phi = jnp.zeros(12).at[1].set(control.PHI_LIMITS[1])  # psi_1 of the head part at its limit
+    assert float(operator.base_limit_ratio(phi)) == 0.0
+    phi = phi.at[7].set(-0.9 * control.PHI_LIMITS[7])  # theta_5
+    assert float(operator.base_limit_ratio(phi)) == pytest.approx(0.9)

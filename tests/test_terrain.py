@@ -15,20 +15,20 @@ import pytest
 from jax.test_util import check_grads
 
 from jaxloco.errors import SpecError
-from jaxloco.sim import terrain as T
+from jaxloco.sim import terrain as sim_terrain
 
 DOWN = np.array([0.0, 0.0, -1.0])
 TOP = 20.0  # ray origins' height [m]
 
 
-def build(terrain: T.Terrain, values=None, key=None, prefix: str = "terrain"):
+def build(terrain: sim_terrain.Terrain, values=None, key=None, prefix: str = "terrain"):
     """Compile the terrain alone, write the placement of `values` to the mocap state, mj_forward."""
     spec = mujoco.MjSpec()
     terrain.add_to(spec, prefix=prefix)
     model = spec.compile()
     data = mujoco.MjData(model)
     pos, quat = terrain.place(values, key)
-    ids = T.mocap_ids(model, terrain, prefix)
+    ids = sim_terrain.mocap_ids(model, terrain, prefix)
     data.mocap_pos[ids] = np.asarray(pos)
     data.mocap_quat[ids] = np.asarray(quat)
     mujoco.mj_forward(model, data)
@@ -63,19 +63,19 @@ def slope_point(theta, direction, u, v):
 
 # ----------------------------------------------------------------------------- geometry
 def test_flat_top_face_at_height():
-    model, data = build(T.flat(), {"height": 0.3})
+    model, data = build(sim_terrain.flat(), {"height": 0.3})
     for x, y in [(0.0, 0.0), (4.0, -7.0), (-9.5, 9.5)]:
         assert hit_z(model, data, x, y) == pytest.approx(0.3, abs=1e-12)
 
 
 @pytest.mark.parametrize("theta,direction", [(0.3, 0.7), (-0.5, 2.5), (1.2, -1.0)])
 def test_slope_is_the_plane(theta, direction):
-    terrain = T.slope()
+    terrain = sim_terrain.slope()
     model, data = build(terrain, {"theta": theta, "direction": direction})
     for x, y in [(0.0, 0.0), (1.0, 0.5), (-1.3, 1.1), (0.8, -1.5)]:
         assert hit_z(model, data, x, y) == pytest.approx(plane_z(theta, direction, x, y), abs=1e-9)
     _, _, normal = ray(model, data, [0.2, 0.1, TOP])
-    expected = np.asarray(T.slope_normal(theta, direction))
+    expected = np.asarray(sim_terrain.slope_normal(theta, direction))
     np.testing.assert_allclose(normal, expected, atol=1e-12)
     # the box's x axis points uphill (half_length is along the gradient)
     xaxis = data.geom_xmat[model.geom("terrain/ground").id].reshape(3, 3)[:, 0]
@@ -85,7 +85,7 @@ def test_slope_is_the_plane(theta, direction):
 def test_irregular_slope_tiles():
     theta, direction, spread = 0.35, 0.6, 0.9
     rows, cols, tile = 3, 4, 0.3
-    terrain = T.irregular_slope(rows, cols, tile)
+    terrain = sim_terrain.irregular_slope(rows, cols, tile)
     model, data = build(terrain, {"theta": theta, "direction": direction, "spread": spread}, jax.random.PRNGKey(3))
     azimuths = []
     for r in range(rows):
@@ -105,7 +105,7 @@ def test_irregular_slope_tiles():
 
 def test_irregular_slope_without_spread_is_the_slope():
     theta, direction = 0.25, -0.4
-    model, data = build(T.irregular_slope(2, 2, 0.5), {"theta": theta, "direction": direction})
+    model, data = build(sim_terrain.irregular_slope(2, 2, 0.5), {"theta": theta, "direction": direction})
     for u, v in [(0.1, 0.2), (-0.3, 0.35), (0.4, -0.4)]:  # anywhere on the 1 m x 1 m grid, edges included
         x, y, z = slope_point(theta, direction, u, v)
         assert hit_z(model, data, x, y) == pytest.approx(z, abs=1e-9)
@@ -113,7 +113,7 @@ def test_irregular_slope_without_spread_is_the_slope():
 
 def test_steps_left_and_right():
     n, depth, start, h_left, h_right = 3, 0.4, 0.7, 0.45, 0.15
-    terrain = T.steps(n_terraces=n, depth=depth, half_width=1.0)
+    terrain = sim_terrain.steps(n_terraces=n, depth=depth, half_width=1.0)
     model, data = build(terrain, {"height_left": h_left, "height_right": h_right, "start": start})
     for y, h in [(0.5, h_left), (-0.5, h_right)]:
         assert hit_z(model, data, start - 1.0, y) == pytest.approx(0.0, abs=1e-12)  # floor in front
@@ -124,7 +124,7 @@ def test_steps_left_and_right():
 
 
 def test_blocks_tops_and_yaw():
-    terrain = T.blocks(2)
+    terrain = sim_terrain.blocks(2)
     values = {"block0_x": 1.0, "block0_y": 0.5, "block0_height": 0.3, "block0_yaw": 0.0,
               "block1_x": -1.0, "block1_y": -1.0, "block1_height": 0.8, "block1_yaw": math.pi / 4}
     model, data = build(terrain, values)
@@ -139,7 +139,7 @@ def test_blocks_tops_and_yaw():
 def test_frames_on_slope_beams_and_plane():
     theta, direction, spacing, h = 0.3, 0.5, 1.2, 0.2
     nx, ny = 3, 4
-    terrain = T.frames_on_slope(nx, ny, beam_width=0.2)
+    terrain = sim_terrain.frames_on_slope(nx, ny, beam_width=0.2)
     model, data = build(terrain, {"theta": theta, "direction": direction, "spacing": spacing, "beam_height": h})
     us = (np.arange(ny) - (ny - 1) / 2) * spacing  # across beams sit at these uphill coordinates
     vs = (np.arange(nx) - (nx - 1) / 2) * spacing  # along beams at these across coordinates
@@ -159,7 +159,7 @@ def test_frames_on_slope_beams_and_plane():
 def test_footholds_follow_centres_and_normals():
     centres = np.array([[0.0, 0.0, 0.1], [0.5, 0.2, 0.3], [-0.4, 0.3, 0.0]])
     normals = np.array([[0.0, 0.0, 2.0], [0.3, -0.2, 1.0], [-0.6, 0.0, 0.8]])
-    terrain = T.footholds(3)
+    terrain = sim_terrain.footholds(3)
     model, data = build(terrain, {"centres": centres, "normals": normals})
     for i in range(3):
         n = normals[i] / np.linalg.norm(normals[i])
@@ -174,36 +174,43 @@ def test_footholds_follow_centres_and_normals():
 
 
 def test_add_to_uses_defaults_and_filters_collisions():
-    terrain = T.steps()
+    terrain = sim_terrain.steps()
     spec = mujoco.MjSpec()
     terrain.add_to(spec, prefix="ground", friction=(0.7, 0.01, 0.001))
     model = spec.compile()
     pos, quat = terrain.place()
-    ids = T.mocap_ids(model, terrain, "ground")
+    ids = sim_terrain.mocap_ids(model, terrain, "ground")
     np.testing.assert_array_equal(ids, np.arange(len(terrain.pieces)))
     for i, name in enumerate(terrain.body_names("ground")):
         body, geom = model.body(name), model.geom(name)
         np.testing.assert_allclose(body.pos, pos[i], atol=1e-12)
         np.testing.assert_allclose(body.quat, quat[i], atol=1e-12)
-        assert (geom.contype[0], geom.conaffinity[0], geom.condim[0]) == (T.TERRAIN_CONTYPE, T.TERRAIN_CONAFFINITY, 3)
+        assert (geom.contype[0], geom.conaffinity[0], geom.condim[0]) == (
+            sim_terrain.TERRAIN_CONTYPE,
+            sim_terrain.TERRAIN_CONAFFINITY,
+            3,
+        )
         np.testing.assert_allclose(geom.friction, [0.7, 0.01, 0.001])
         np.testing.assert_allclose(geom.size, terrain.pieces[i].half_size)
-    assert T.TERRAIN_CONTYPE & T.TERRAIN_CONAFFINITY == 0  # pieces never collide with each other
-    assert T.ROBOT_CONTYPE & T.TERRAIN_CONAFFINITY and T.TERRAIN_CONTYPE & T.ROBOT_CONAFFINITY
-    assert not terrain.fragile_mask.any() and T.footholds(2).fragile_mask.all()
+    assert sim_terrain.TERRAIN_CONTYPE & sim_terrain.TERRAIN_CONAFFINITY == 0  # pieces never collide with each other
+    assert (
+        sim_terrain.ROBOT_CONTYPE & sim_terrain.TERRAIN_CONAFFINITY
+        and sim_terrain.TERRAIN_CONTYPE & sim_terrain.ROBOT_CONAFFINITY
+    )
+    assert not terrain.fragile_mask.any() and sim_terrain.footholds(2).fragile_mask.all()
     assert terrain.touch_sensor_names() == ()
 
 
 # ----------------------------------------------------------------------- per simulation
 def test_batch_simulations_get_their_own_slope():
-    terrain = T.slope()
+    terrain = sim_terrain.slope()
     spec = mujoco.MjSpec()
     terrain.add_to(spec)
     model = spec.compile()
     thetas = np.array([-0.2, 0.1, 0.4])
     direction = 0.3
     pos, quat = jax.vmap(lambda th: terrain.place({"theta": th, "direction": direction}))(jnp.asarray(thetas))
-    ids = T.mocap_ids(model, terrain)
+    ids = sim_terrain.mocap_ids(model, terrain)
     batch = mujoco.batch.Batch(model, nsim=3, nthread=1)
     mocap_pos, mocap_quat = batch.bind("mocap_pos"), batch.bind("mocap_quat")
     mocap_pos[:, ids] = np.asarray(pos)
@@ -218,7 +225,7 @@ def test_batch_simulations_get_their_own_slope():
 
 # ----------------------------------------------------------------------------- purity
 def test_place_vmap_equals_loop():
-    terrain = T.irregular_slope(2, 3, 0.3)
+    terrain = sim_terrain.irregular_slope(2, 3, 0.3)
     thetas = jnp.array([0.0, 0.2, -0.4, 0.7])
     keys = jax.random.split(jax.random.PRNGKey(0), 4)
     place = jax.jit(jax.vmap(lambda th, k: terrain.place({"theta": th, "spread": 0.5}, k)))
@@ -233,9 +240,9 @@ def test_place_vmap_equals_loop():
 
 def _slope_height(theta, x=0.8, y=-0.4, direction=0.3):
     """Height of the placed slope box's top face above (x, y), from the box pose."""
-    terrain = T.slope()
+    terrain = sim_terrain.slope()
     pos, quat = terrain.place({"theta": theta, "direction": direction})
-    n = T.quat_z_axis(quat[0])
+    n = sim_terrain.quat_z_axis(quat[0])
     top = pos[0] + terrain.pieces[0].half_size[2] * n
     return top[2] - (n[0] * (x - top[0]) + n[1] * (y - top[1])) / n[2]
 
@@ -247,7 +254,7 @@ def test_gradients_of_heights():
     expected = (0.8 * math.cos(0.3) - 0.4 * math.sin(0.3)) / math.cos(0.3) ** 2
     assert float(jax.grad(_slope_height)(theta)) == pytest.approx(expected, rel=1e-9)
 
-    terrain = T.steps(n_terraces=4)
+    terrain = sim_terrain.steps(n_terraces=4)
     hz = terrain.pieces[1].half_size[2]
 
     def third_left_terrace_top(h):
@@ -260,7 +267,7 @@ def test_gradients_of_heights():
 
 # ------------------------------------------------------------------------------ input
 def test_bad_inputs_raise_spec_error():
-    terrain = T.slope()
+    terrain = sim_terrain.slope()
     with pytest.raises(SpecError, match="thetta"):
         terrain.check({"thetta": 0.1})
     with pytest.raises(SpecError, match="thetta"):
@@ -268,33 +275,33 @@ def test_bad_inputs_raise_spec_error():
     with pytest.raises(SpecError, match=r"theta: 2 rad is outside \(-1.5708, 1.5708\)"):
         terrain.check({"theta": 2.0})
     with pytest.raises(SpecError, match="block0_height"):
-        T.blocks(1).check({"block0_height": -0.1})
+        sim_terrain.blocks(1).check({"block0_height": -0.1})
     with pytest.raises(SpecError, match="centres"):
-        T.footholds(2).check({"centres": np.zeros((3, 3))})
+        sim_terrain.footholds(2).check({"centres": np.zeros((3, 3))})
     assert terrain.check({"theta": np.float64(0.2)}) == {"theta": 0.2, "direction": 0.0}
-    checked = T.footholds(2).check({})
+    checked = sim_terrain.footholds(2).check({})
     np.testing.assert_allclose(checked["normals"], [[0, 0, 1], [0, 0, 1]])
 
 
 # ------------------------------------------------------------------------------ fragility
 def test_collapse_is_latched_and_drop_follows_normal():
     collapsed = jnp.array([False, True, False])
-    out = T.collapse_update(collapsed, jnp.array([5.0, 0.0, 1.0]), jnp.array([4.0, 4.0, 4.0]))
+    out = sim_terrain.collapse_update(collapsed, jnp.array([5.0, 0.0, 1.0]), jnp.array([4.0, 4.0, 4.0]))
     np.testing.assert_array_equal(out, [True, True, False])
     normals = jnp.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [0.0, 0.0, 1.0]])
-    pos, quat = T.pad_poses(jnp.zeros((3, 3)), normals, 0.02)
-    dropped = T.drop_away(pos, quat, out, drop=0.3)
+    pos, quat = sim_terrain.pad_poses(jnp.zeros((3, 3)), normals, 0.02)
+    dropped = sim_terrain.drop_away(pos, quat, out, drop=0.3)
     np.testing.assert_allclose(dropped, pos - 0.3 * normals * np.array([1.0, 1.0, 0.0])[:, None], atol=1e-12)
 
 
 def _pad_and_ball(mass=0.5, radius=0.02):
-    terrain = T.footholds(1)
+    terrain = sim_terrain.footholds(1)
     spec = mujoco.MjSpec()
     terrain.add_to(spec)
     ball = spec.worldbody.add_body(name="ball", pos=[0.0, 0.0, radius])
     ball.add_freejoint()
-    ball.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[radius, 0, 0], mass=mass, contype=T.ROBOT_CONTYPE,
-                  conaffinity=T.ROBOT_CONAFFINITY)
+    ball.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[radius, 0, 0], mass=mass, contype=sim_terrain.ROBOT_CONTYPE,
+                  conaffinity=sim_terrain.ROBOT_CONAFFINITY)
     return terrain, spec.compile()
 
 
@@ -304,15 +311,15 @@ def test_fragile_pad_collapses_under_load(factor):
     terrain, model = _pad_and_ball(mass)
     data = mujoco.MjData(model)
     mg = mass * -model.opt.gravity[2]
-    ids = T.mocap_ids(model, terrain)
+    ids = sim_terrain.mocap_ids(model, terrain)
     pos0, quat0 = terrain.place()
     r_break = jnp.full((1,), factor * mg)
     sensor = model.sensor(terrain.touch_sensor_names()[0]).adr[0]
 
     @jax.jit
     def step(collapsed, touch):
-        collapsed = T.collapse_update(collapsed, touch, r_break)
-        return collapsed, T.drop_away(pos0, quat0, collapsed)
+        collapsed = sim_terrain.collapse_update(collapsed, touch, r_break)
+        return collapsed, sim_terrain.drop_away(pos0, quat0, collapsed)
 
     collapsed = jnp.zeros((1,), bool)
     touches = []
@@ -334,8 +341,8 @@ def test_fragile_pad_collapses_under_load(factor):
 
 # ------------------------------------------------------------------------------ combine
 def test_combine_concatenates_and_shares_params():
-    parts = (T.slope(), T.irregular_slope(2, 2), T.footholds(2), T.steps())
-    terrain = T.combine(*parts)
+    parts = (sim_terrain.slope(), sim_terrain.irregular_slope(2, 2), sim_terrain.footholds(2), sim_terrain.steps())
+    terrain = sim_terrain.combine(*parts)
     assert len(terrain.pieces) == sum(len(p.pieces) for p in parts)
     assert terrain.body_names()[0] == "terrain/slope0/ground"
     assert terrain.touch_sensor_names() == ("terrain/footholds2/pad0/touch", "terrain/footholds2/pad1/touch")
@@ -356,7 +363,7 @@ def test_combine_concatenates_and_shares_params():
 
 def test_combine_name_clash_raises():
     with pytest.raises(ValueError, match="block0_height"):
-        T.combine(T.blocks(1), T.blocks(1, half_size=(0.2, 0.2, 0.02)))
+        sim_terrain.combine(sim_terrain.blocks(1), sim_terrain.blocks(1, half_size=(0.2, 0.2, 0.02)))
     with pytest.raises(ValueError, match="centres"):
-        T.combine(T.footholds(1), T.footholds(2))
-    T.combine(T.flat(), T.flat())  # identical params are shared
+        sim_terrain.combine(sim_terrain.footholds(1), sim_terrain.footholds(2))
+    sim_terrain.combine(sim_terrain.flat(), sim_terrain.flat())  # identical params are shared

@@ -13,8 +13,7 @@ import pytest
 
 from jaxloco import analysis
 from jaxloco.robots.titan import analysis as ta
-from jaxloco.robots.titan import gait as G
-from jaxloco.robots.titan import params as P
+from jaxloco.robots.titan import gait, params
 from jaxloco.sweep import SpecError, spec_from_dict
 
 # small maps and two cycles keep the compilations short
@@ -33,8 +32,8 @@ ROWS = [
     {"frame_size": 0.0},  # flat, default stride
     {"frame_size": 0.0, "l_std": 0.35},
     {"frame_size": 0.0, "s_ne_c": 0.3},  # impossible margin
-    {"frame_size": 0.0, "s_ne_c": S_TIGHT, "l_std": P.L_STD + H},
-    {"frame_size": 0.0, "s_ne_c": S_TIGHT, "l_std": P.L_STD - H},
+    {"frame_size": 0.0, "s_ne_c": S_TIGHT, "l_std": params.L_STD + H},
+    {"frame_size": 0.0, "s_ne_c": S_TIGHT, "l_std": params.L_STD - H},
     # a mixed field (4 m blocks of 0.2 m / 2 m and 0.3 m / 3 m frames), off a body axis
     {"frame_size": 0.2, "frame_interval": 2.0, "mix_block": 4.0, "frame_size_b": 0.3, "frame_interval_b": 3.0,
      "direction": 2.4, "start_x": 5.5},
@@ -75,10 +74,10 @@ def test_registered_and_params_validate():
 
 
 def test_batch_equals_sweep_metrics_one_at_a_time(rows):
-    one = jax.jit(G.sweep_metrics, static_argnums=(5, 6, 7))
+    one = jax.jit(gait.sweep_metrics, static_argnums=(5, 6, 7))
     for i, r in enumerate(ROWS):
         v = {**FIXED, **r}
-        par = P.default_params().astype(jnp.float64).with_(
+        par = params.default_params().astype(jnp.float64).with_(
             **{n: jnp.asarray(v[n], jnp.float64) for n in ta.TITAN_PARAMS}
         )
         field = ta.field_values({n: jnp.float64(v[n]) for n in SWEEPABLE})
@@ -92,12 +91,12 @@ def test_frame_rows_walk(rows):
     for i in (0, 1, 2, 8):  # the Sec. 7 and 8.4 cases with the default margin: walking, safely
         assert rows["n_failures"][i] == 0 and rows["nesm_ok"][i] and rows["status"][i] == 0
         assert rows["distance_per_cycle"][i] > 0.3
-        assert rows["min_nesm"][i] >= P.S_NE_C
+        assert rows["min_nesm"][i] >= params.S_NE_C
         assert rows["softmin_nesm"][i] <= rows["min_nesm"][i] + 1e-12
 
 
 def test_flat_ground_standard_gait_closed_form(rows):
-    for i, l_std in ((3, P.L_STD), (4, 0.35)):
+    for i, l_std in ((3, params.L_STD), (4, 0.35)):
         assert rows["distance_per_cycle"][i] == pytest.approx(2.0 * l_std, abs=1e-9)
         assert rows["n_failures"][i] == 0 and rows["n_modifications"][i] == 0
         assert rows["path_deviation"][i] == pytest.approx(0.0, abs=1e-9)
@@ -118,7 +117,7 @@ def test_impossible_margin_fails(rows):
 
 def test_objective_forward_derivative_matches_central_difference(rows):
     f = ta.objective_fn({**FIXED, "frame_size": 0.0, "s_ne_c": S_TIGHT})
-    value, slope = jax.jit(lambda l_std: jax.jvp(lambda x: f(x, P.W_STD), (l_std,), (1.0,)))(P.L_STD)
+    value, slope = jax.jit(lambda l_std: jax.jvp(lambda x: f(x, params.W_STD), (l_std,), (1.0,)))(params.L_STD)
     assert np.isfinite(float(value)) and np.isfinite(float(slope))
     fd = (rows["objective"][6] - rows["objective"][7]) / (2.0 * H)
     assert float(slope) == pytest.approx(fd, rel=1e-4, abs=1e-6)

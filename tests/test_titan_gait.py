@@ -11,20 +11,18 @@ import numpy as np
 import pytest
 
 from jaxloco import stability as stab
-from jaxloco.robots.titan import gait as G
-from jaxloco.robots.titan import kinematics as K
-from jaxloco.robots.titan import maps as M
-from jaxloco.robots.titan import params as P
+from jaxloco.robots.titan import gait, kinematics, params
+from jaxloco.robots.titan import maps as titan_maps
 
-PAR = P.default_params()
+PAR = params.default_params()
 SHAPE = (130, 130)  # 13 m x 13 m, 0.1 m cells
 ORIGIN = jnp.zeros(2)
 N_CYC = 3
-CELL = jnp.asarray(P.CELL)
+CELL = jnp.asarray(params.CELL)
 
 
 def _plan(gmap, start, dirs):
-    return G.plan_cycles(PAR, gmap, start, N_CYC, dirs)
+    return gait.plan_cycles(PAR, gmap, start, N_CYC, dirs)
 
 
 plan_one = jax.jit(_plan)
@@ -33,31 +31,31 @@ plan_many = jax.jit(jax.vmap(_plan))
 # (name, map kind, frame size, interval, frame offset, start xy, directions [deg])
 SCEN = [
     ("flat", 0.0, 2.0, 1.0, (4.0, 6.5), (0, 0, 0)),
-    ("frames 0.2 m / 2.0 m", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (3.0, 6.0), (0, 0, 0)),
-    ("frames 0.3 m / 3.0 m", P.FRAME_LARGE, P.GRID_LARGE, 1.5, (5.3, 5.5), (0, 0, 0)),
+    ("frames 0.2 m / 2.0 m", params.FRAME_SMALL, params.GRID_SMALL, 1.0, (3.0, 6.0), (0, 0, 0)),
+    ("frames 0.3 m / 3.0 m", params.FRAME_LARGE, params.GRID_LARGE, 1.5, (5.3, 5.5), (0, 0, 0)),
     (
         "slope 30 deg, 0.2 m / 1.5 m",
-        P.SLOPE_FRAME,
-        P.SLOPE_GRID,
+        params.SLOPE_FRAME,
+        params.SLOPE_GRID,
         0.75,
         (3.0, 6.0),
         (0, 0, 0),
     ),
-    ("left", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (6.5, 3.0), (90, 90, 90)),
-    ("backwards", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (10.0, 6.5), (180, 180, 180)),
-    ("right", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (6.5, 10.0), (270, 270, 270)),
-    ("turning", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (3.0, 6.0), (0, 15, 0)),
+    ("left", params.FRAME_SMALL, params.GRID_SMALL, 1.0, (6.5, 3.0), (90, 90, 90)),
+    ("backwards", params.FRAME_SMALL, params.GRID_SMALL, 1.0, (10.0, 6.5), (180, 180, 180)),
+    ("right", params.FRAME_SMALL, params.GRID_SMALL, 1.0, (6.5, 10.0), (270, 270, 270)),
+    ("turning", params.FRAME_SMALL, params.GRID_SMALL, 1.0, (3.0, 6.0), (0, 15, 0)),
     # off the body axes (gait.directional_stride): the diagonals, where the square stance
     # gets least from the lateral shift
     ("diagonal, flat", 0.0, 2.0, 1.0, (3.5, 3.5), (45, 45, 45)),
-    ("diagonal, 0.2 m / 2.0 m", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (3.5, 3.5), (45, 45, 45)),
-    ("135 deg, 0.3 m / 3.0 m", P.FRAME_LARGE, P.GRID_LARGE, 1.5, (9.5, 3.5), (135, 135, 135)),
-    ("255 deg, 0.2 m / 2.0 m", P.FRAME_SMALL, P.GRID_SMALL, 1.0, (8.0, 9.5), (255, 255, 255)),
+    ("diagonal, 0.2 m / 2.0 m", params.FRAME_SMALL, params.GRID_SMALL, 1.0, (3.5, 3.5), (45, 45, 45)),
+    ("135 deg, 0.3 m / 3.0 m", params.FRAME_LARGE, params.GRID_LARGE, 1.5, (9.5, 3.5), (135, 135, 135)),
+    ("255 deg, 0.2 m / 2.0 m", params.FRAME_SMALL, params.GRID_SMALL, 1.0, (8.0, 9.5), (255, 255, 255)),
 ]
 
 
 def _map(size, interval, off, slope=0.0):
-    return M.frame_grid_map(
+    return titan_maps.frame_grid_map(
         SHAPE, ORIGIN, CELL, size, interval, jnp.array([off, off]), slope
     )
 
@@ -67,11 +65,11 @@ def scenarios():
     maps, starts, dirs = [], [], []
     for name, size, interval, off, xy, deg in SCEN:
         g = _map(
-            size, interval, off, P.SLOPE_ANGLE if name.startswith("slope") else 0.0
+            size, interval, off, params.SLOPE_ANGLE if name.startswith("slope") else 0.0
         )
         d = jnp.radians(jnp.array(deg, float))
         maps.append(g)
-        starts.append(G.standard_start(PAR, g, jnp.array(xy), d[0]))
+        starts.append(gait.standard_start(PAR, g, jnp.array(xy), d[0]))
         dirs.append(d)
     stack = lambda xs: jax.tree_util.tree_map(lambda *a: jnp.stack(a), *xs)
     gm, st, dr = stack(maps), stack(starts), jnp.stack(dirs)
@@ -86,12 +84,12 @@ def _take(tree, k):
 def test_virtual_plane_matches_numpy_lstsq():
     rng = np.random.default_rng(1)
     feet = rng.normal(size=(4, 3)) * np.array([2.0, 2.0, 0.2])
-    n, off = G.virtual_plane(jnp.asarray(feet))
+    n, off = gait.virtual_plane(jnp.asarray(feet))
     A = np.c_[np.ones(4), feet[:, :2]]
     c, *_ = np.linalg.lstsq(A, feet[:, 2], rcond=None)
     xy = rng.normal(size=(5, 2))
     np.testing.assert_allclose(
-        G.plane_height(n, off, jnp.asarray(xy)), c[0] + xy @ c[1:], atol=1e-12
+        gait.plane_height(n, off, jnp.asarray(xy)), c[0] + xy @ c[1:], atol=1e-12
     )
     assert float(n[2]) > 0
 
@@ -101,14 +99,14 @@ def test_fan_exit_distance_matches_ray_marching():
     checked = 0
     for _ in range(40):
         leg = int(rng.integers(4))
-        q0 = np.asarray(P.NEUTRAL_FEET[leg, :2] - P.PIVOTS[leg, :2]) + rng.uniform(
+        q0 = np.asarray(params.NEUTRAL_FEET[leg, :2] - params.PIVOTS[leg, :2]) + rng.uniform(
             -0.8, 0.8, 2
         )
         u = rng.normal(size=2)
         u /= np.linalg.norm(u)
-        t = float(G.fan_exit_distance(jnp.asarray(q0), jnp.asarray(u), leg, PAR))
+        t = float(gait.fan_exit_distance(jnp.asarray(q0), jnp.asarray(u), leg, PAR))
         ts = np.linspace(0.0, 5.0, 50001)
-        inside = np.asarray(G.in_fan(jnp.asarray(q0[None] + ts[:, None] * u), leg, PAR))
+        inside = np.asarray(gait.in_fan(jnp.asarray(q0[None] + ts[:, None] * u), leg, PAR))
         if not inside[0]:
             assert t == 0.0
             continue
@@ -119,7 +117,7 @@ def test_fan_exit_distance_matches_ray_marching():
 
 
 def test_search_order_of_section_5_3():
-    offs = G.search_offsets(2, 2)
+    offs = gait.search_offsets(2, 2)
     assert offs.shape == (25, 2)
     # I_u first, then +y / -y equidistantly along the row, then rows in -x, then +x
     np.testing.assert_array_equal(
@@ -130,16 +128,16 @@ def test_search_order_of_section_5_3():
 
 
 def test_leg_roles_follow_section_5_1():
-    feet_b = jnp.asarray(P.NEUTRAL_FEET[:, :2]).at[3, 0].add(-0.3)  # RR farthest back
-    roles, n_r = G.leg_roles(feet_b, jnp.array([1.0, 0.0]))
+    feet_b = jnp.asarray(params.NEUTRAL_FEET[:, :2]).at[3, 0].add(-0.3)  # RR farthest back
+    roles, n_r = gait.leg_roles(feet_b, jnp.array([1.0, 0.0]))
     np.testing.assert_array_equal(
         roles, [3, 1, 2, 0]
     )  # r = RR, f = RF, r-bar = LR, f-bar = LF
     np.testing.assert_allclose(n_r, [0.0, -1.0])  # W towards the side of r
-    roles, _ = G.leg_roles(feet_b, jnp.array([1.0, 0.0]), prev=2)  # later cycles keep r
+    roles, _ = gait.leg_roles(feet_b, jnp.array([1.0, 0.0]), prev=2)  # later cycles keep r
     np.testing.assert_array_equal(roles, [2, 0, 3, 1])
-    roles, n_r = G.leg_roles(
-        jnp.asarray(P.NEUTRAL_FEET[:, :2]), jnp.array([0.0, 1.0])
+    roles, n_r = gait.leg_roles(
+        jnp.asarray(params.NEUTRAL_FEET[:, :2]), jnp.array([0.0, 1.0])
     )  # walking left
     assert set(np.asarray(roles)[[0, 2]].tolist()) == {
         1,
@@ -182,7 +180,7 @@ def _closed_form_shift_margins(L, w, h):
 def test_flat_ground_gives_the_standard_intermittent_crawl_gait(scenarios):
     _, st, _, plans = scenarios
     plan, start = _take(plans, 0), _take(st, 0)
-    L, W = P.L_STD, P.W_STD
+    L, W = params.L_STD, params.W_STD
     assert int(plan.n_failures) == 0 and int(plan.n_modifications) == 0
     np.testing.assert_allclose(plan.cycle_w, W)
     np.testing.assert_allclose(plan.cycle_l, L)
@@ -212,16 +210,16 @@ def test_flat_ground_gives_the_standard_intermittent_crawl_gait(scenarios):
 
 def test_standard_gait_margins_match_closed_form(scenarios):
     plan = _take(scenarios[3], 0)
-    L, w, h = P.L_STD, P.W_STD / 2, P.H_G
+    L, w, h = params.L_STD, params.W_STD / 2, params.H_G
     # a swing's margin takes the whole-robot COM with the leg raised (gait.swing_cog)
-    nesm, lon = _closed_form_swing_margins(L, w, h + K.swing_com_height())
+    nesm, lon = _closed_form_swing_margins(L, w, h + kinematics.swing_com_height())
     swing = np.asarray(plan.swing_leg) >= 0
     np.testing.assert_allclose(plan.nesm[swing], nesm, rtol=1e-9)
     np.testing.assert_allclose(plan.long_margin[swing], lon, rtol=1e-9)
     np.testing.assert_allclose(
         plan.nesm[~swing], _closed_form_shift_margins(L, w, h), rtol=1e-9
     )
-    assert nesm > P.S_NE_C  # the chosen W_std keeps the standard gait above S_NE^c
+    assert nesm > params.S_NE_C  # the chosen W_std keeps the standard gait above S_NE^c
     # and the core kernels agree with the hand formulas on the same support
     feet = jnp.array(
         [
@@ -232,7 +230,7 @@ def test_standard_gait_margins_match_closed_form(scenarios):
         ]
     )
     mask = jnp.array([True, True, False, True])
-    cog = jnp.array([0.0, 0.0, h + K.swing_com_height()])
+    cog = jnp.array([0.0, 0.0, h + kinematics.swing_com_height()])
     assert float(stab.ne_stability_margin(cog, feet, mask)) == pytest.approx(
         nesm, rel=1e-12
     )
@@ -255,11 +253,11 @@ def test_frame_scenarios_are_safe(scenarios):
         ok = legs >= 0
         landed = np.asarray(plan.feet)[ok, legs[ok]]
         # S_NE^c along the whole plan (held steps stand on four legs)
-        assert float(plan.min_nesm) >= P.S_NE_C - 1e-9, name
+        assert float(plan.min_nesm) >= params.S_NE_C - 1e-9, name
         if size > 0:
             # frames never under a foot pad
             assert (
-                _clearance(landed[:, :2], size, interval, off).min() > P.FOOT_RADIUS
+                _clearance(landed[:, :2], size, interval, off).min() > params.FOOT_RADIUS
             ), name
             # rectangular swings: vertical up, horizontal return clearing every frame the
             # pad passes over by the swing clearance, vertical down (Sec. 6.4.1)
@@ -271,11 +269,11 @@ def test_frame_scenarios_are_safe(scenarios):
             for w in path:
                 line = w[1, None, :2] + s[:, None] * (w[2, :2] - w[1, :2])[None]
                 if _clearance(line, size, interval, off).min() < 0:  # crosses a frame
-                    assert w[1, 2] >= size + P.SWING_CLEARANCE - 1e-9, name
+                    assert w[1, 2] >= size + params.SWING_CLEARANCE - 1e-9, name
         # landed heights come from the unevenness map (Sec. 6.2)
         g = _take(gm, k)
         np.testing.assert_allclose(
-            landed[:, 2], M.sample_height(g, jnp.asarray(landed[:, :2]))
+            landed[:, 2], titan_maps.sample_height(g, jnp.asarray(landed[:, :2]))
         )
 
 
@@ -300,7 +298,7 @@ def test_slope_map_frame_and_world_output(scenarios):
     _gm, _, _, plans = scenarios
     k = [s[0] for s in SCEN].index("slope 30 deg, 0.2 m / 1.5 m")
     plan = _take(plans, k)
-    a = P.SLOPE_ANGLE
+    a = params.SLOPE_ANGLE
     R = np.array([[np.cos(a), 0, -np.sin(a)], [0, 1, 0], [np.sin(a), 0, np.cos(a)]])
     np.testing.assert_allclose(plan.cog_world, np.asarray(plan.cog) @ R.T, atol=1e-12)
     # climbing: the world height of the COG grows with the distance walked up the slope
@@ -310,16 +308,16 @@ def test_slope_map_frame_and_world_output(scenarios):
 
 
 # --------------------------------------------------- foothold search on hand-built maps
-half_jit = jax.jit(G.half_cycle)
+half_jit = jax.jit(gait.half_cycle)
 
 
 def _flat_half(forbidden=None):
-    g = M.flat_map(SHAPE, ORIGIN)
+    g = titan_maps.flat_map(SHAPE, ORIGIN)
     if forbidden is not None:
-        g = M.GridMap(g.height, forbidden, g.origin, g.cell, g.slope)
-    s = G.standard_start(PAR, g, jnp.array([5.0, 6.5]))
+        g = titan_maps.GridMap(g.height, forbidden, g.origin, g.cell, g.slope)
+    s = gait.standard_start(PAR, g, jnp.array([5.0, 6.5]))
     d_b = jnp.array([1.0, 0.0])
-    roles, n_r = G.leg_roles((s.feet[:, :2] - s.cog[:2]), d_b, s.rear)
+    roles, n_r = gait.leg_roles((s.feet[:, :2] - s.cog[:2]), d_b, s.rear)
     up = jnp.array([0.0, 0.0, 1.0])
     h = half_jit(
         PAR,
@@ -345,11 +343,11 @@ def test_foothold_search_avoids_forbidden_cell_at_initial_position():
         h.j_r[:2], h.i_r, atol=1e-12
     )  # free map: J_u = I_u (step 1)
     # forbid the cells around I_r (the foot pad would touch them)
-    c = M.cell_centres(SHAPE, ORIGIN, CELL)
+    c = titan_maps.cell_centres(SHAPE, ORIGIN, CELL)
     forb = jnp.linalg.norm(c - h.i_r, axis=-1) < 0.16
     g2, h2 = _flat_half(forb)
     assert bool(h2.found_r)
-    assert not bool(M.sample_forbidden(g2, h2.j_r[:2]))
+    assert not bool(titan_maps.sample_forbidden(g2, h2.j_r[:2]))
     delta = np.asarray(h2.j_r[:2] - h.i_r)
     # same row (step 2), nearest lateral point in the +y/-y order
     assert abs(delta[0]) < 1e-9
@@ -358,20 +356,20 @@ def test_foothold_search_avoids_forbidden_cell_at_initial_position():
 
 def test_foothold_search_moves_rows_backwards_first():
     _g, h = _flat_half()
-    c = M.cell_centres(SHAPE, ORIGIN, CELL)
+    c = titan_maps.cell_centres(SHAPE, ORIGIN, CELL)
     # forbid the whole row of I_r inside the reachable area: the search goes to row -1
     forb = jnp.abs(c[..., 0] - h.i_r[0]) < 0.06
     g2, h2 = _flat_half(forb)
     assert bool(h2.found_r)
     delta = np.asarray(h2.j_r[:2] - h.i_r)
     assert delta[0] < -0.05  # behind I_u (towards -x)
-    assert not bool(M.sample_forbidden(g2, h2.j_r[:2]))
+    assert not bool(titan_maps.sample_forbidden(g2, h2.j_r[:2]))
 
 
 def test_impossible_map_reports_failure_and_stops():
-    g = M.flat_map(SHAPE, ORIGIN)
-    start = G.standard_start(PAR, g, jnp.array([5.0, 6.5]))
-    blocked = M.GridMap(g.height, jnp.ones(SHAPE, bool), g.origin, g.cell, g.slope)
+    g = titan_maps.flat_map(SHAPE, ORIGIN)
+    start = gait.standard_start(PAR, g, jnp.array([5.0, 6.5]))
+    blocked = titan_maps.GridMap(g.height, jnp.ones(SHAPE, bool), g.origin, g.cell, g.slope)
     plan = plan_one(blocked, start, jnp.zeros(N_CYC))
     assert int(plan.n_failures) == N_CYC
     assert bool(jnp.all(plan.failed)) and bool(jnp.all(plan.swing_leg == -1))
@@ -398,7 +396,7 @@ def test_sweep_point_vmaps_over_parameters_and_maps():
 
     def run(l_std, w_std, size):
         par = PAR.with_(l_std=l_std, w_std=w_std)
-        return G.sweep_metrics(par, size, 2.0, 0.0, 0.0, 1, shape=(90, 70))
+        return gait.sweep_metrics(par, size, 2.0, 0.0, 0.0, 1, shape=(90, 70))
 
     ls, ws = jnp.array([0.4, 0.5, 0.6]), jnp.array([1.0, 1.1, 1.2])
     sizes = jnp.array([0.0, 0.0, 0.2])
@@ -413,15 +411,15 @@ def test_sweep_point_vmaps_over_parameters_and_maps():
         batched["distance_per_cycle"][:2], 2 * ls[:2], atol=1e-12
     )
     np.testing.assert_allclose(batched["n_failures"], 0)
-    assert float(jnp.min(batched["min_nesm"])) >= P.S_NE_C
+    assert float(jnp.min(batched["min_nesm"])) >= params.S_NE_C
 
 
 def test_grad_of_standard_stance_margin_wrt_lateral_shift():
-    g = M.flat_map((90, 70), ORIGIN)
+    g = titan_maps.flat_map((90, 70), ORIGIN)
 
     def margin(w_std):
         par = PAR.with_(w_std=w_std)
-        s = G.standard_start(par, g, jnp.array([3.0, 3.5]))
+        s = gait.standard_start(par, g, jnp.array([3.0, 3.5]))
         mask = jnp.array([True, True, False, True])  # LR about to swing
         return stab.ne_stability_margin(s.cog, s.feet, mask)
 
@@ -435,12 +433,12 @@ def test_direction_changes_across_rear_pairs_use_a_transition_shift():
     """Reversing or turning by 90 deg changes the rear pair: neither new rear leg can lift
     at the old cycle-start pose, so the planner makes one transition COG shift (no swing)
     and then walks the new direction; never a step below S_NE^c."""
-    g = M.flat_map(SHAPE, ORIGIN)
-    start = G.standard_start(PAR, g, jnp.array([6.5, 6.5]))
+    g = titan_maps.flat_map(SHAPE, ORIGIN)
+    start = gait.standard_start(PAR, g, jnp.array([6.5, 6.5]))
     for new, axis, sign in ((180.0, 0, -1.0), (90.0, 1, 1.0)):
         plan = plan_one(g, start, jnp.radians(jnp.array([0.0, new, new])))
         assert int(plan.n_failures) == 0
-        assert float(plan.min_nesm) >= P.S_NE_C
+        assert float(plan.min_nesm) >= params.S_NE_C
         np.testing.assert_array_equal(plan.swing_leg[6:12], -1)  # the transition cycle
         np.testing.assert_allclose(plan.feet[11], plan.feet[5])
         assert bool(plan.modified[6]) and not bool(plan.modified[12])
@@ -449,7 +447,7 @@ def test_direction_changes_across_rear_pairs_use_a_transition_shift():
         )
         moved = float(plan.cog[-1, axis] - plan.cog[11, axis]) * sign
         assert (
-            moved > 0.5 * 2 * P.L_STD
+            moved > 0.5 * 2 * params.L_STD
         )  # then walking (feet not yet in the standard stance)
 
 
@@ -461,31 +459,31 @@ def test_gait_converges_back_to_the_standard_gait_after_the_frames():
     # shift along the strokes (phase-reserved positioning keeps the legs' relative
     # phases, not where on its stroke each foot is: 4.4 cm here in float64, 0 in float32)
     shape = (200, 100)
-    frames = M.frame_grid_map(
-        shape, ORIGIN, CELL, P.FRAME_SMALL, P.GRID_SMALL, jnp.array([1.0, 1.0])
+    frames = titan_maps.frame_grid_map(
+        shape, ORIGIN, CELL, params.FRAME_SMALL, params.GRID_SMALL, jnp.array([1.0, 1.0])
     )
-    flat = M.flat_map(shape, ORIGIN)
-    band = M.cell_centres(shape, ORIGIN, CELL)[..., 0] < 8.0
-    gmap = M.GridMap(
+    flat = titan_maps.flat_map(shape, ORIGIN)
+    band = titan_maps.cell_centres(shape, ORIGIN, CELL)[..., 0] < 8.0
+    gmap = titan_maps.GridMap(
         jnp.where(band, frames.height, flat.height),
         jnp.where(band, frames.forbidden, flat.forbidden),
         ORIGIN,
         CELL,
         frames.slope,
     )
-    start = G.standard_start(PAR, gmap, jnp.array([3.0, 5.0]), 0.0)
+    start = gait.standard_start(PAR, gmap, jnp.array([3.0, 5.0]), 0.0)
     n = 11
-    plan = jax.jit(G.plan_cycles, static_argnames="n_cycles")(
+    plan = jax.jit(gait.plan_cycles, static_argnames="n_cycles")(
         PAR, gmap, start, n_cycles=n, direction=0.0
     )
     assert int(plan.n_failures) == 0
     cog, feet = np.asarray(plan.cog), np.asarray(plan.feet)
     ends = 6 * np.arange(n) + 5
-    off_frames = feet[ends, :, 0].min(axis=1) > 8.0 + P.FOOT_RADIUS
+    off_frames = feet[ends, :, 0].min(axis=1) > 8.0 + params.FOOT_RADIUS
     assert off_frames[-3:].all()
     deviation = []
     for k in ends:
-        std = np.asarray(G.standard_start(PAR, flat, jnp.asarray(cog[k, :2]), 0.0).feet)
+        std = np.asarray(gait.standard_start(PAR, flat, jnp.asarray(cog[k, :2]), 0.0).feet)
         deviation.append(np.abs(feet[k, :, :2] - std[:, :2]).max())
     deviation = np.asarray(deviation)
     assert deviation[1:-3].max() > 0.1  # the frames pushed it off the standard gait
@@ -493,25 +491,27 @@ def test_gait_converges_back_to_the_standard_gait_after_the_frames():
     rel = feet[ends][off_frames] - cog[ends][off_frames][:, None]
     np.testing.assert_allclose(rel, rel[0][None].repeat(len(rel), 0), atol=1e-6)
     last = off_frames.nonzero()[0]
-    np.testing.assert_allclose(np.asarray(plan.cycle_w)[last], P.W_STD, atol=1e-9)
-    np.testing.assert_allclose(np.asarray(plan.cycle_l)[last], P.L_STD, atol=1e-9)
+    np.testing.assert_allclose(np.asarray(plan.cycle_w)[last], params.W_STD, atol=1e-9)
+    np.testing.assert_allclose(np.asarray(plan.cycle_l)[last], params.L_STD, atol=1e-9)
     assert (np.asarray(plan.cycle_trials)[last] == 0).all()
 
 
 # ------------------------------------------------------------------- every direction
 def test_directional_stride_lengthens_the_stride_off_the_body_axes():
     for deg, m in ((0.0, 1.0), (90.0, 1.0), (180.0, 1.0), (45.0, math.sqrt(0.5)), (120.0, math.cos(math.radians(30)))):
-        d = G._unit(jnp.radians(deg))
-        assert float(G.directional_stride(PAR, d)) == pytest.approx(P.L_STD / m**P.STRIDE_EXPONENT, rel=1e-12)
-        assert float(G.directional_stride(PAR.with_(stride_exponent=0.0), d)) == pytest.approx(P.L_STD)
+        d = gait._unit(jnp.radians(deg))
+        assert float(gait.directional_stride(PAR, d)) == pytest.approx(
+            params.L_STD / m**params.STRIDE_EXPONENT, rel=1e-12
+        )
+        assert float(gait.directional_stride(PAR.with_(stride_exponent=0.0), d)) == pytest.approx(params.L_STD)
 
 
 def _start_lift_margin(exponent, deg):
     """NESM of the first swing (leg r lifted) at the standard start for the heading."""
     par = PAR.with_(stride_exponent=exponent)
-    g = M.flat_map((90, 90), ORIGIN)
+    g = titan_maps.flat_map((90, 90), ORIGIN)
     d = jnp.radians(deg)
-    st = G.standard_start(par, g, jnp.array([4.5, 4.5]), d)
+    st = gait.standard_start(par, g, jnp.array([4.5, 4.5]), d)
     return float(stab.ne_stability_margin(st.cog, st.feet, jnp.arange(4) != st.rear))
 
 
@@ -521,9 +521,9 @@ def test_the_diagonal_needs_the_longer_stride():
     stride as along an axis (k = 0) or the same body-axis component (k = 1) the first
     swing of the standard gait is below S_NE^c; with k = 1.5 it is above, and along an
     axis nothing changes (the W_std zigzag carries the margin there)."""
-    assert _start_lift_margin(0.0, 45.0) < _start_lift_margin(1.0, 45.0) < P.S_NE_C
-    assert _start_lift_margin(P.STRIDE_EXPONENT, 45.0) >= P.S_NE_C
-    assert _start_lift_margin(0.0, 0.0) == pytest.approx(_start_lift_margin(P.STRIDE_EXPONENT, 0.0), rel=1e-12)
+    assert _start_lift_margin(0.0, 45.0) < _start_lift_margin(1.0, 45.0) < params.S_NE_C
+    assert _start_lift_margin(params.STRIDE_EXPONENT, 45.0) >= params.S_NE_C
+    assert _start_lift_margin(0.0, 0.0) == pytest.approx(_start_lift_margin(params.STRIDE_EXPONENT, 0.0), rel=1e-12)
 
 
 def test_diagonal_walks_plan_every_cycle(scenarios):
@@ -534,22 +534,22 @@ def test_diagonal_walks_plan_every_cycle(scenarios):
     names = [s[0] for s in SCEN]
     flat = _take(plans, names.index("diagonal, flat"))
     assert int(flat.n_failures) == 0 and int(flat.n_modifications) == 0
-    l45 = P.L_STD / math.sqrt(0.5) ** P.STRIDE_EXPONENT
+    l45 = params.L_STD / math.sqrt(0.5) ** params.STRIDE_EXPONENT
     # |L| = min(L_std(45 deg), the reach limit of Sec. 5.2.3): |L-bar| is 1.2 % shorter here
     steps = np.asarray(flat.cycle_l)
     assert (steps <= l45 + 1e-12).all() and steps.min() > 0.98 * l45
     assert float(flat.distance_per_cycle) == pytest.approx(steps.sum(axis=1).mean(), rel=1e-9)
     assert float(flat.path_deviation) == pytest.approx(0.0, abs=1e-9)
-    assert float(flat.min_nesm) >= P.S_NE_C
+    assert float(flat.min_nesm) >= params.S_NE_C
     for name in ("diagonal, 0.2 m / 2.0 m", "135 deg, 0.3 m / 3.0 m", "255 deg, 0.2 m / 2.0 m"):
         plan = _take(plans, names.index(name))
         assert int(plan.n_failures) == 0, name
-        assert float(plan.min_nesm) >= P.S_NE_C - 1e-9, name
+        assert float(plan.min_nesm) >= params.S_NE_C - 1e-9, name
         assert float(plan.distance_per_cycle) > 0.5, name
 
 
 def test_lateral_trials_widen_first_then_narrow():
-    w = [float(G.trial_lateral(PAR, i)) for i in range(P.N_W + P.N_W_DOWN)]
-    up = [P.W_STD + i * P.DW for i in range(P.N_W)]
-    down = [P.W_STD - k * P.DW for k in range(1, P.N_W_DOWN + 1)]
+    w = [float(gait.trial_lateral(PAR, i)) for i in range(params.N_W + params.N_W_DOWN)]
+    up = [params.W_STD + i * params.DW for i in range(params.N_W)]
+    down = [params.W_STD - k * params.DW for k in range(1, params.N_W_DOWN + 1)]
     np.testing.assert_allclose(w, up + down, rtol=1e-12)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from jaxloco import geometry as geo
-from jaxloco.robots.titan import localization as L
+from jaxloco.robots.titan import localization
 
 CENTRE_B = jnp.array([-1.0, 0.4, 1.6])  # [m] the mechanism on the trunk's top, ours
 RADIUS = 0.5  # [m]
@@ -25,7 +25,7 @@ def _poses(n, seed=0):
 
 def _measure(pos, euler, mount, noise=0.0, key=None):
     R = geo.rpy_to_matrix(euler[2], euler[1], euler[0])
-    pts = L.cube_points(pos, R, CENTRE_B, RADIUS, PHASES, mount)
+    pts = localization.cube_points(pos, R, CENTRE_B, RADIUS, PHASES, mount)
     if noise:
         pts = pts + noise * jax.random.normal(key, pts.shape)
     angle = euler[2] if mount == "x" else euler[0]  # the single-axis sensor: roll or heading
@@ -43,16 +43,16 @@ def test_circle_through_three_points_is_exact():
         e2 = np.cross(u, e1)
         ph = np.sort(rng.uniform(0.0, 2 * np.pi, 3))
         pts = c + r * (np.cos(ph)[:, None] * e1 + np.sin(ph)[:, None] * e2)
-        circ = L.circle_through(*jnp.asarray(pts))
+        circ = localization.circle_through(*jnp.asarray(pts))
         np.testing.assert_allclose(circ.centre, c, atol=1e-9)
         np.testing.assert_allclose(circ.axis, u, atol=1e-9)  # the sign from the turning sense
         assert float(circ.radius) == pytest.approx(r, rel=1e-9)
 
 
-@pytest.mark.parametrize("mount", L.MOUNTS)
+@pytest.mark.parametrize("mount", localization.MOUNTS)
 def test_pose_is_recovered_exactly_without_noise(mount):
     pos, euler = _poses(50)
-    run = jax.jit(jax.vmap(lambda p, e: L.localize(*_measure(p, e, mount), CENTRE_B, mount)))
+    run = jax.jit(jax.vmap(lambda p, e: localization.localize(*_measure(p, e, mount), CENTRE_B, mount)))
     pose = run(pos, euler)
     np.testing.assert_allclose(pose.position, pos, atol=1e-8)
     np.testing.assert_allclose(pose.euler, euler, atol=1e-9)
@@ -63,10 +63,10 @@ def test_pose_is_recovered_exactly_without_noise(mount):
 def test_the_two_mount_readings_differ():
     pos, euler = _poses(1, seed=5)
     pts, _ = _measure(pos[0], euler[0], "x")
-    wrong = L.localize(pts, euler[0, 0], CENTRE_B, "z")  # x-mounted data read as z-mounted
+    wrong = localization.localize(pts, euler[0, 0], CENTRE_B, "z")  # x-mounted data read as z-mounted
     assert float(jnp.abs(wrong.position - pos[0]).max()) > 0.1
     with pytest.raises(ValueError, match="mount"):
-        L.localize(pts, 0.0, CENTRE_B, "y")
+        localization.localize(pts, 0.0, CENTRE_B, "y")
 
 
 def test_survey_noise_gives_proportional_pose_errors():
@@ -79,7 +79,7 @@ def test_survey_noise_gives_proportional_pose_errors():
 
     def errors(sigma):
         def one(p, e, k):
-            pose = L.localize(*_measure(p, e, "x", sigma, k), CENTRE_B, "x")
+            pose = localization.localize(*_measure(p, e, "x", sigma, k), CENTRE_B, "x")
             d = pose.euler - e
             d = jnp.arctan2(jnp.sin(d), jnp.cos(d))
             return jnp.linalg.norm(pose.position - p), jnp.abs(d[:2]).max()
@@ -97,10 +97,10 @@ def test_survey_noise_gives_proportional_pose_errors():
 def test_pose_is_differentiable_in_the_measurements():
     pos, euler = _poses(1, seed=2)
     pts, angle = _measure(pos[0], euler[0], "x")
-    jac = jax.jacfwd(lambda q: L.localize(q, angle, CENTRE_B).position)(pts)
+    jac = jax.jacfwd(lambda q: localization.localize(q, angle, CENTRE_B).position)(pts)
     assert jac.shape == (3, 3, 3) and bool(jnp.all(jnp.isfinite(jac)))
-    g = jax.grad(lambda q: L.localize(q, angle, CENTRE_B).euler[0])(pts)
+    g = jax.grad(lambda q: localization.localize(q, angle, CENTRE_B).euler[0])(pts)
     h = 1e-6
-    fd = (L.localize(pts.at[1, 0].add(h), angle, CENTRE_B).euler[0]
-          - L.localize(pts.at[1, 0].add(-h), angle, CENTRE_B).euler[0]) / (2 * h)
+    fd = (localization.localize(pts.at[1, 0].add(h), angle, CENTRE_B).euler[0]
+          - localization.localize(pts.at[1, 0].add(-h), angle, CENTRE_B).euler[0]) / (2 * h)
     assert float(g[1, 0]) == pytest.approx(float(fd), rel=1e-5)

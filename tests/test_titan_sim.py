@@ -10,22 +10,20 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxloco.robots.titan import control
-from jaxloco.robots.titan import params as P
-from jaxloco.robots.titan import scenarios as S
+from jaxloco.robots.titan import control, params, scenarios
 from jaxloco.sim.rollout import rollout
 
-THETA = float(P.SLOPE_ANGLE)
+THETA = float(params.SLOPE_ANGLE)
 WALK, HOLD, TETHER, NO_TETHER, NO_ANCHOR, NO_LOAD_FF = range(6)
 
 
 @pytest.fixture(scope="module")
 def runs():
-    walk = S.demo_crawl_plan(1)
-    hold = S.hold_plan(walk.n_steps)
+    walk = scenarios.demo_crawl_plan(1)
+    hold = scenarios.hold_plan(walk.n_steps)
     slope = hold.to_world(THETA)
-    sc = S.make_scenario(walk.n_steps)
-    p = S.params_batch(
+    sc = scenarios.make_scenario(walk.n_steps)
+    p = scenarios.params_batch(
         [walk, hold, slope, slope, walk, walk],
         theta=np.array([0.0, 0.0, THETA, THETA, 0.0, 0.0]),
         tether=np.array([1.0, 1.0, 1.0, 0.0, 1.0, 1.0]),
@@ -38,7 +36,7 @@ def runs():
 
 
 def test_plan_format(runs):
-    plan = S.demo_crawl_plan(2)
+    plan = scenarios.demo_crawl_plan(2)
     assert (
         plan.feet.shape == (12, 4, 3)
         and plan.body.shape == (12, 3)
@@ -48,7 +46,7 @@ def test_plan_format(runs):
     assert plan.cycle_end.sum() == 2
     # every cycle moves the COG by the stroke 2 L_std and back onto the path (y = -W/2)
     ends = plan.body[plan.cycle_end]
-    assert np.allclose(np.diff(np.r_[plan.body0[0], ends[:, 0]]), 2 * P.L_STD)
+    assert np.allclose(np.diff(np.r_[plan.body0[0], ends[:, 0]]), 2 * params.L_STD)
     assert np.allclose(ends[:, 1], plan.path_origin[1])
 
 
@@ -59,7 +57,7 @@ def test_robot_stands_still_on_flat_ground(runs):
     assert z[0] - z.min() < 0.03  # [m] sinks less than 3 cm over 20 s
     assert r.metrics["foot_slip"][HOLD] < 0.01
     touch = r.records["touch"][HOLD, -1]
-    assert abs(touch.sum() / (7000 * P.G) - 1.0) < 0.02  # the feet carry the weight
+    assert abs(touch.sum() / (7000 * params.G) - 1.0) < 0.02  # the feet carry the weight
 
 
 def test_one_gait_cycle_on_flat_ground(runs):
@@ -88,7 +86,7 @@ def test_tethers_hold_the_robot_on_the_30_degree_slope(runs):
     # and the tethers take the slope-parallel load off the feet: normal loads sum to
     # M g cos(theta)
     touch = r.records["touch"][TETHER, -1]
-    assert abs(touch.sum() / (7000 * P.G * np.cos(THETA)) - 1.0) < 0.03
+    assert abs(touch.sum() / (7000 * params.G * np.cos(THETA)) - 1.0) < 0.03
 
 
 def test_foot_targets_stay_on_the_feet(runs):
@@ -99,7 +97,7 @@ def test_foot_targets_stay_on_the_feet(runs):
     _, r = runs
     off = np.linalg.norm(r.records["feet_target"][:, -1] - r.records["feet"][:, -1], axis=-1)
     assert off[WALK].max() < 0.005 and off[NO_ANCHOR].min() > 0.01
-    load = r.records["touch"][WALK, -1] / (7000 * P.G)
+    load = r.records["touch"][WALK, -1] / (7000 * params.G)
     assert load.min() > 0.10 and abs(load.sum() - 1.0) < 0.02
 
 
@@ -131,8 +129,8 @@ def test_load_shares_are_the_statics_of_the_support():
 
 
 def test_support_shift_follows_the_feet_slip_in_the_plane():
-    walk = S.demo_crawl_plan(1)
-    p = {k: jnp.asarray(v[0]) for k, v in S.params_batch([walk]).items()}
+    walk = scenarios.demo_crawl_plan(1)
+    p = {k: jnp.asarray(v[0]) for k, v in scenarios.params_batch([walk]).items()}
     n_steps = walk.n_steps
     slip = jnp.array([0.02, -0.01, 0.0])
     planned = p["plan_feet"][3] + control.K.FOOT_RADIUS * jnp.array([0.0, 0.0, 1.0])

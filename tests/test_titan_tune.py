@@ -21,11 +21,11 @@ import jaxloco.tune
 from jaxloco import specs
 from jaxloco.errors import SpecError
 from jaxloco.robots.titan import analysis as ta
-from jaxloco.robots.titan import params as P
-from jaxloco.robots.titan import tuning as TT
+from jaxloco.robots.titan import params as titan_params
+from jaxloco.robots.titan import tuning
 
 SWEEPS = specs.DIRECTORY  # the bundled specs
-SETTINGS = {p.name: p.default for p in TT.SETTINGS} | {"n_cycles": 2, "map_nx": 110}
+SETTINGS = {p.name: p.default for p in tuning.SETTINGS} | {"n_cycles": 2, "map_nx": 110}
 # generic strides (no foothold exactly on a cell boundary) in the smooth part of the
 # default case: no held cycle, no modification, the margin term active
 POINTS = [(0.6137, 1.1421), (0.7423, 0.9611)]
@@ -35,7 +35,7 @@ H = 1e-6  # [m] central-difference step (inside one piece of the plan)
 
 @cache
 def _evaluate():
-    return jax.jit(jax.value_and_grad(TT.STRIDE_TUNE.make_loss(SETTINGS), has_aux=True))
+    return jax.jit(jax.value_and_grad(tuning.STRIDE_TUNE.make_loss(SETTINGS), has_aux=True))
 
 
 def _values(l_std, w_std):
@@ -50,7 +50,7 @@ def _loss(l_std, w_std) -> float:
 def analysis_rows() -> dict[str, np.ndarray]:
     """The titan.stride batch function (the sweep's path) at POINTS, HELD and the paper stride."""
     fixed = {p.name: SETTINGS[p.name] for p in ta.PARAMS if p.name not in ("l_std", "w_std")}
-    pts = [*POINTS, HELD, (P.L_STD, P.W_STD)]
+    pts = [*POINTS, HELD, (titan_params.L_STD, titan_params.W_STD)]
     swept = {"l_std": jnp.asarray([p[0] for p in pts]), "w_std": jnp.asarray([p[1] for p in pts])}
     keys = jax.vmap(jax.random.PRNGKey)(jnp.arange(len(pts)))
     out = jax.jit(ta.make_batch_fn(fixed))(swept, keys)
@@ -60,14 +60,16 @@ def analysis_rows() -> dict[str, np.ndarray]:
 # ------------------------------------------------------------------------ registry, specs
 def test_registry_names_bounds_and_settings():
     obj = jaxloco.tune.get("titan.stride")
-    assert obj is TT.STRIDE_TUNE and obj.x64
+    assert obj is tuning.STRIDE_TUNE and obj.x64
     params = {p.name: p for p in ta.PARAMS}
     for t in obj.tunables:  # the sweep's names and ranges: tuned values go back into a sweep
         p = params[t.name]
         assert p.check(t.lo) == t.lo and p.check(t.hi) == t.hi and t.lo < t.default < t.hi
-    assert obj.references["default (ours)"] == {"l_std": P.L_STD, "w_std": P.W_STD}
+    assert obj.references["default (ours)"] == {"l_std": titan_params.L_STD, "w_std": titan_params.W_STD}
     assert {p.name for p in obj.settings} == (set(params) - {"l_std", "w_std"}) | {"w_margin", "n_offsets"}
-    np.testing.assert_allclose(TT.offsets(3), [(0.0, 0.0), (1 / 3, TT.PHI), (2 / 3, 2 * TT.PHI - 1)], rtol=1e-15)
+    np.testing.assert_allclose(
+        tuning.offsets(3), [(0.0, 0.0), (1 / 3, tuning.PHI), (2 / 3, 2 * tuning.PHI - 1)], rtol=1e-15
+    )
 
 
 @pytest.mark.parametrize(
@@ -93,11 +95,11 @@ def test_bad_settings_are_one_line_spec_errors(settings, init, match, tmp_path):
 
 def test_committed_spec_loads():
     spec = jaxloco.tune.load_spec(SWEEPS / "titan_stride_tune.toml")
-    assert spec.objective is TT.STRIDE_TUNE and spec.name == "titan_stride_tune"
-    assert set(spec.params) == {"l_std", "w_std"} and dict(spec.init) == pytest.approx(TT.DEFAULT_STRIDE)
+    assert spec.objective is tuning.STRIDE_TUNE and spec.name == "titan_stride_tune"
+    assert set(spec.params) == {"l_std", "w_std"} and dict(spec.init) == pytest.approx(tuning.DEFAULT_STRIDE)
     assert spec.settings["slope"] == pytest.approx(math.radians(30.0))  # Sec. 8.4
     assert spec.settings["tether"] == 0.75 and spec.settings["frame_size"] == 0.0
-    TT.check_settings(spec.settings)
+    tuning.check_settings(spec.settings)
 
 
 # ----------------------------------------------------------------------------- gradient
@@ -121,7 +123,7 @@ def test_reverse_gradient_matches_central_differences(point):
 def test_loss_and_aux_equal_the_analysis_metrics(analysis_rows):
     r = analysis_rows
     tau, s_c, w = SETTINGS["softmin_tau"], SETTINGS["s_ne_c"], SETTINGS["w_margin"]
-    for i, point in enumerate([*POINTS, (P.L_STD, P.W_STD)]):
+    for i, point in enumerate([*POINTS, (titan_params.L_STD, titan_params.W_STD)]):
         j = i if i < len(POINTS) else len(POINTS) + 1
         (loss, aux), _ = _evaluate()(_values(*point))
         for k in ("distance_per_cycle", "min_nesm", "softmin_nesm", "objective", "path_deviation"):
@@ -129,7 +131,7 @@ def test_loss_and_aux_equal_the_analysis_metrics(analysis_rows):
         for k in ("n_failures", "n_modifications"):
             assert float(aux[k]) == int(r[k][j]), (point, k)
         assert r["n_failures"][j] == 0  # no held step: the loss's soft-min is the analysis'
-        expected = -r["distance_per_cycle"][j] / (2 * P.L_STD) + w * np.logaddexp(
+        expected = -r["distance_per_cycle"][j] / (2 * titan_params.L_STD) + w * np.logaddexp(
             0.0, (s_c - r["softmin_nesm"][j]) / tau
         )
         assert float(loss) == pytest.approx(expected, rel=1e-12)
@@ -160,10 +162,12 @@ def test_three_adam_steps_lower_the_loss(tmp_path, analysis_rows):
     curve = res.curve.to_pydict()
     assert curve["step"] == [0, 1, 2, 3]
     initial, best, paper = res.row("initial"), res.row("tuned"), res.row("default (ours)")
-    assert res.values("initial") == pytest.approx(TT.DEFAULT_STRIDE) and paper["loss"] == pytest.approx(initial["loss"])
-    assert initial["loss"] == pytest.approx(_loss(P.L_STD, P.W_STD), rel=1e-12)
+    assert res.values("initial") == pytest.approx(tuning.DEFAULT_STRIDE) and paper["loss"] == pytest.approx(
+        initial["loss"]
+    )
+    assert initial["loss"] == pytest.approx(_loss(titan_params.L_STD, titan_params.W_STD), rel=1e-12)
     assert initial["min_nesm"] == pytest.approx(float(analysis_rows["min_nesm"][-1]), rel=1e-12)
     assert best["loss"] == min(curve["loss"]) < initial["loss"] - 0.1
     tuned = res.values("tuned")
-    assert all(t.lo < tuned[t.name] < t.hi for t in TT.TUNABLES) and tuned != res.values("initial")
+    assert all(t.lo < tuned[t.name] < t.hi for t in tuning.TUNABLES) and tuned != res.values("initial")
     assert (res.path / "loss_curve.parquet").exists()

@@ -10,14 +10,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxloco.robots.titan import gait as G
-from jaxloco.robots.titan import maps as M
-from jaxloco.robots.titan import params as P
-from jaxloco.robots.titan import scenarios as S
-from jaxloco.robots.titan import walk as W
+from jaxloco.robots.titan import gait as titan_gait
+from jaxloco.robots.titan import maps, scenarios, walk
+from jaxloco.robots.titan import params as titan_params
 from jaxloco.sim.rollout import rollout
 
-THETA = float(P.SLOPE_ANGLE)
+THETA = float(titan_params.SLOPE_ANGLE)
 N_CYCLES = 2
 
 
@@ -29,16 +27,16 @@ def _line_distance(x, spacing):
 
 @pytest.fixture(scope="module")
 def walks():
-    flat = W.plan_walk((-3.0, 0.3), N_CYCLES, 0.0, P.FRAME_SMALL, P.GRID_SMALL)
-    slope = W.plan_walk((-2.5, 0.0), N_CYCLES, 0.0, P.SLOPE_FRAME, P.SLOPE_GRID, THETA)
+    flat = walk.plan_walk((-3.0, 0.3), N_CYCLES, 0.0, titan_params.FRAME_SMALL, titan_params.GRID_SMALL)
+    slope = walk.plan_walk((-2.5, 0.0), N_CYCLES, 0.0, titan_params.SLOPE_FRAME, titan_params.SLOPE_GRID, THETA)
     return flat, slope
 
 
 @pytest.fixture(scope="module")
 def runs(walks):
     (flat, _, sc_flat), (slope, _, sc_slope) = walks
-    sc = S.make_scenario(flat.n_steps, beam_width=P.FRAME_SMALL)
-    p = S.params_batch(
+    sc = scenarios.make_scenario(flat.n_steps, beam_width=titan_params.FRAME_SMALL)
+    p = scenarios.params_batch(
         [flat, slope],
         **{k: np.array([sc_flat[k], sc_slope[k]]) for k in sc_flat},
     )
@@ -48,16 +46,16 @@ def runs(walks):
 def test_planned_footholds_avoid_the_simulated_frames(walks):
     # the grid maps of walk.sim_map line up with the simulated beams: every planned
     # foothold keeps its pad (P.FOOT_RADIUS) off the beams (half width 0.1 m)
-    for (plan, _, sc), spacing in zip(walks, (P.GRID_SMALL, P.SLOPE_GRID), strict=True):
-        gmap = W.sim_map(sc["beam_height"], spacing, sc["theta"])
-        inv = np.linalg.inv(np.asarray(M.map_to_world(gmap, jnp.eye(3))))
+    for (plan, _, sc), spacing in zip(walks, (titan_params.GRID_SMALL, titan_params.SLOPE_GRID), strict=True):
+        gmap = walk.sim_map(sc["beam_height"], spacing, sc["theta"])
+        inv = np.linalg.inv(np.asarray(maps.map_to_world(gmap, jnp.eye(3))))
         for feet in (plan.feet0[None], plan.feet):
             local = feet @ inv  # back to the map (slope) frame
             d = np.minimum(
                 _line_distance(local[..., 0], spacing),
                 _line_distance(local[..., 1], spacing),
             )
-            assert d.min() > 0.5 * P.FRAME_SMALL + P.FOOT_RADIUS
+            assert d.min() > 0.5 * titan_params.FRAME_SMALL + titan_params.FOOT_RADIUS
 
 
 def test_executor_plan_follows_the_planner(walks):
@@ -71,23 +69,23 @@ def test_executor_plan_follows_the_planner(walks):
     assert np.allclose(plan.path_dir, [1.0, 0.0, 0.0], atol=1e-6)
     # the swing tops clear the 0.2 m frames by the planner's clearance
     tops = plan.swing_top[plan.swing >= 0]
-    assert np.all(tops >= P.FRAME_SMALL) and np.all(
+    assert np.all(tops >= titan_params.FRAME_SMALL) and np.all(
         np.isinf(plan.swing_top[plan.swing < 0])
     )
 
 
 def test_clear_start_moves_feet_off_the_frames():
-    params = P.default_params()
-    dense = W.sim_map(P.SLOPE_FRAME, P.SLOPE_GRID)
-    start = W.clear_start(params, dense, (0.0, 0.0))
-    assert not np.asarray(M.sample_forbidden(dense, start.feet[:, :2])).any()
+    params = titan_params.default_params()
+    dense = walk.sim_map(titan_params.SLOPE_FRAME, titan_params.SLOPE_GRID)
+    start = walk.clear_start(params, dense, (0.0, 0.0))
+    assert not np.asarray(maps.sample_forbidden(dense, start.feet[:, :2])).any()
     # the COG stays H_g above the feet's virtual plane
-    nrm, off = G.virtual_plane(start.feet)
+    nrm, off = titan_gait.virtual_plane(start.feet)
     assert float(
-        start.cog[2] - G.plane_height(nrm, off, start.cog[:2])
-    ) == pytest.approx(float(P.H_G), abs=1e-5)
+        start.cog[2] - titan_gait.plane_height(nrm, off, start.cog[:2])
+    ) == pytest.approx(float(titan_params.H_G), abs=1e-5)
     # a map that is all frame: a clear one-line error, not a loop
-    blocked = M.GridMap(
+    blocked = maps.GridMap(
         dense.height,
         jnp.ones_like(dense.forbidden),
         dense.origin,
@@ -95,7 +93,7 @@ def test_clear_start_moves_feet_off_the_frames():
         dense.slope,
     )
     with pytest.raises(ValueError, match="no free cell"):
-        W.clear_start(params, blocked, (0.0, 0.0))
+        walk.clear_start(params, blocked, (0.0, 0.0))
 
 
 @pytest.mark.parametrize("row", [0, 1], ids=["section7_frames", "slope_30deg"])
@@ -104,7 +102,7 @@ def test_planned_walk_runs_in_mujoco(runs, row):
     assert runs.status[row] == "ok", m
     assert m["completed"] and not m["fell"]
     # the NE margin stays at S_NE^c in simulation (whole-robot COG, measured feet)
-    assert m["min_nesm"] >= P.S_NE_C
+    assert m["min_nesm"] >= titan_params.S_NE_C
     # no leg touches a frame while swinging, no foot lands on one
     assert not m["swing_collision"] and m["min_swing_clearance"] > 0.0
     assert not m["forbidden_landing"]
@@ -133,15 +131,15 @@ def test_a_surveyed_map_with_noise_plans_off_the_true_frames():
     noise, the maps made from it, a plan on them. Every cell the true frames forbid is
     forbidden on the surveyed map too (its 5 cm placement margin covers the noise), and
     every planned foothold keeps its pad off the true beams."""
-    field = S.FrameField(n_along=5, n_across=5, max_spacing=1.5, half_length=12.0, half_width=12.0)
-    noisy = W.surveyed_map(field, 1.5, P.FRAME_SMALL, 0.005, jax.random.PRNGKey(3), shape=W.SIM_SHAPE)
-    exact = W.surveyed_map(field, 1.5, P.FRAME_SMALL, shape=W.SIM_SHAPE, margin=0.0)
+    field = scenarios.FrameField(n_along=5, n_across=5, max_spacing=1.5, half_length=12.0, half_width=12.0)
+    noisy = walk.surveyed_map(field, 1.5, titan_params.FRAME_SMALL, 0.005, jax.random.PRNGKey(3), shape=walk.SIM_SHAPE)
+    exact = walk.surveyed_map(field, 1.5, titan_params.FRAME_SMALL, shape=walk.SIM_SHAPE, margin=0.0)
     assert bool(jnp.all(noisy.forbidden | ~exact.forbidden))
     assert int(exact.forbidden.sum()) > 1000
-    par = P.default_params()
-    start = W.clear_start(par, noisy, (-3.0, 0.4), 0.0)
-    gait = W._plan_cycles(par, noisy, start, n_cycles=N_CYCLES, direction=jnp.zeros(N_CYCLES))
-    assert int(gait.n_failures) == 0 and float(gait.min_nesm) >= P.S_NE_C - 1e-9
+    par = titan_params.default_params()
+    start = walk.clear_start(par, noisy, (-3.0, 0.4), 0.0)
+    gait = walk._plan_cycles(par, noisy, start, n_cycles=N_CYCLES, direction=jnp.zeros(N_CYCLES))
+    assert int(gait.n_failures) == 0 and float(gait.min_nesm) >= titan_params.S_NE_C - 1e-9
     feet = np.concatenate([np.asarray(start.feet)[None], np.asarray(gait.feet)])[..., :2]
-    assert _beam_distance(feet, 5, 1.5).min() > 0.5 * P.FRAME_SMALL + P.FOOT_RADIUS
+    assert _beam_distance(feet, 5, 1.5).min() > 0.5 * titan_params.FRAME_SMALL + titan_params.FOOT_RADIUS
     assert float(gait.cog[-1, 0] - start.cog[0]) > 0.5 * N_CYCLES

@@ -9,9 +9,7 @@ import pytest
 
 from jaxloco.analysis import get
 from jaxloco.errors import SpecError
-from jaxloco.robots.titan import params as P
-from jaxloco.robots.titan import sim_analysis as SA
-from jaxloco.robots.titan import walk as W
+from jaxloco.robots.titan import params, sim_analysis, walk
 
 N_CYCLES = 2
 
@@ -30,11 +28,11 @@ def test_grid_field_beams_match_the_planning_map():
     # an even count of beams each way centred on the origin: centre lines at
     # +-spacing/2, +-3 spacing/2, ... as walk.sim_map's, covering the walk's map
     for spacing in (1.5, 2.0, 3.0):
-        field = SA.grid_field(spacing)
+        field = sim_analysis.grid_field(spacing)
         assert field.n_along % 2 == 0 and field.n_along == field.n_across
-        assert 0.5 * (field.n_along - 1) * spacing >= SA.GRID_HALF
-    assert SA.grid_shape(N_CYCLES) == W.SIM_SHAPE
-    assert SA.grid_shape(12)[0] * float(P.CELL) > 12 + 2 * SA.ROBOT_REACH
+        assert 0.5 * (field.n_along - 1) * spacing >= sim_analysis.GRID_HALF
+    assert sim_analysis.grid_shape(N_CYCLES) == walk.SIM_SHAPE
+    assert sim_analysis.grid_shape(12)[0] * float(params.CELL) > 12 + 2 * sim_analysis.ROBOT_REACH
 
 
 def test_planned_walks_hold_up_in_mujoco(rows):
@@ -44,8 +42,8 @@ def test_planned_walks_hold_up_in_mujoco(rows):
     assert list(rows["status"]) == [0, 0], rows
     assert rows["success"].all() and rows["planned"].all()
     assert not rows["feet_on_frames"].any() and not rows["swing_collision"].any()
-    assert (rows["sim_min_nesm"] >= P.S_NE_C).all()
-    assert (rows["plan_min_nesm"] >= P.S_NE_C - 1e-9).all()
+    assert (rows["sim_min_nesm"] >= params.S_NE_C).all()
+    assert (rows["plan_min_nesm"] >= params.S_NE_C - 1e-9).all()
     assert (np.abs(rows["sim_min_nesm"] - rows["plan_min_nesm"]) < 0.002).all()
     assert (rows["max_touchdown_error"] < 0.05).all()
     assert (rows["distance"] > 0.7 * N_CYCLES).all()

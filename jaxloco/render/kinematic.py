@@ -89,30 +89,37 @@ def _titan_model(frame_size: float, interval: float):
 def titan_plan(values: Mapping[str, Any]):
     """(params, start, plan, gmap) of a `titan.stride` row: `gait.sweep_plan`'s map, start
     and plan for the row's parameter values."""
-    from jaxloco.robots.titan import analysis as A
-    from jaxloco.robots.titan import gait as G
+    from jaxloco.robots.titan import analysis
+    from jaxloco.robots.titan import gait as titan_gait
 
-    sweepable = [p.name for p in A.PARAMS if p.sweepable]
+    sweepable = [p.name for p in analysis.PARAMS if p.sweepable]
     v = {name: jnp.asarray(values[name], F64) for name in sweepable}
     n_cycles = int(values["n_cycles"])
     shape = (int(values["map_nx"]), int(values["map_ny"]))
     cell = float(values["cell"])
-    params = A.row_params(v, F64)
-    gmap, start = G.sweep_setup(params, v["frame_size"], v["frame_interval"], v["slope"], v["direction"], shape,
-                                cell, **A.field_values(v))
-    plan = jax.jit(G.plan_cycles, static_argnames="n_cycles")(params, gmap, start, n_cycles=n_cycles,
+    params = analysis.row_params(v, F64)
+    gmap, start = titan_gait.sweep_setup(
+        params,
+        v["frame_size"],
+        v["frame_interval"],
+        v["slope"],
+        v["direction"],
+        shape,
+        cell,
+        **analysis.field_values(v),
+    )
+    plan = jax.jit(titan_gait.plan_cycles, static_argnames="n_cycles")(params, gmap, start, n_cycles=n_cycles,
                                                                direction=v["direction"])
-    metrics = A.plan_metrics(plan, params.s_ne_c, v["softmin_tau"])
+    metrics = analysis.plan_metrics(plan, params.s_ne_c, v["softmin_tau"])
     return start, plan, gmap, metrics
 
 
 def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
     """`titan.stride` (module docstring)."""
-    from jaxloco.robots.titan import analysis as A
-    from jaxloco.robots.titan import control as TC
-    from jaxloco.robots.titan import kinematics as K
+    from jaxloco.robots.titan import analysis, kinematics
+    from jaxloco.robots.titan import control as titan_control
     from jaxloco.robots.titan import model as titan_model
-    from jaxloco.robots.titan import params as P
+    from jaxloco.robots.titan import params as snake_params
     from jaxloco.sim import terrain as tr
 
     values = row.values
@@ -120,7 +127,7 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
         raise SpecError("titan.stride: rendering a mixed field (mix_block > 0) is not supported; "
                         "plot the plan with jaxloco.robots.titan.plots instead")
     start, plan, _, metrics = titan_plan(values)
-    status = A.STATUSES[int(metrics.pop("status"))]
+    status = analysis.STATUSES[int(metrics.pop("status"))]
     metrics = plain_data(metrics)
     feet = np.concatenate([np.asarray(start.feet)[None], np.asarray(plan.feet)])  # (S+1, 4, 3) map frame
     cog = np.concatenate([np.asarray(start.cog)[None], np.asarray(plan.cog)])  # (S+1, 3)
@@ -137,7 +144,7 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
     c, s = math.cos(slope), math.sin(slope)
     rot = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])  # maps.map_to_world: rot_y(-slope)
     normal = rot[:, 2]
-    body_quat = np.asarray(TC.body_quat(slope, 0.0, 0.0), float)
+    body_quat = np.asarray(titan_control.body_quat(slope, 0.0, 0.0), float)
 
     model, terrain = _titan_model(frame_size, interval)
     model = model_copy(model)
@@ -151,7 +158,7 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
     mocap_pos[rows], mocap_quat[rows] = pos, quat
 
     bodies, feet_t, captions, times = [], [], [], []
-    names = P.LEG_NAMES
+    names = snake_params.LEG_NAMES
     for k in range(-1, n_steps):
         subs = [1.0] if k < 0 else [(j + 1) / per for j in range(per)]
         for u in subs:
@@ -173,10 +180,10 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
             captions.append(text)
             times.append((k + u) * TITAN_STEP_TIME if k >= 0 else 0.0)
     bodies = (np.asarray(bodies) - shift) @ rot.T
-    feet_w = (np.asarray(feet_t) - shift) @ rot.T + K.FOOT_RADIUS * normal
+    feet_w = (np.asarray(feet_t) - shift) @ rot.T + kinematics.FOOT_RADIUS * normal
     R = tr.quat_to_matrix(jnp.asarray(body_quat))
     local = np.einsum("ji,tlj->tli", np.asarray(R), feet_w - bodies[:, None, :])
-    q, _ = jax.vmap(K.legs_inverse_kinematics)(jnp.asarray(local))
+    q, _ = jax.vmap(kinematics.legs_inverse_kinematics)(jnp.asarray(local))
     q = np.asarray(q)
     qpos = np.stack([titan_model.pose_qpos_ctrl(model, q[t], bodies[t], body_quat)[0] for t in range(len(bodies))])
     n = qpos.shape[0]
@@ -192,51 +199,50 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
 # ------------------------------------------------------------------------------ snake
 @functools.lru_cache(maxsize=1)
 def _snake_model():
-    from jaxloco.robots.snake import scenarios as SS
+    from jaxloco.robots.snake import scenarios
 
-    return SS.build_model()
+    return scenarios.build_model()
 
 
 def snake_rollout(values: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """(metrics with status code, records) of a `snake.kv` row (`analysis.run_one`)."""
-    from jaxloco.robots.snake import analysis as A
+    from jaxloco.robots.snake import analysis
 
-    config = A.rollout_config(values["horizon"], values["dt"], values["feedback"])
+    config = analysis.rollout_config(values["horizon"], values["dt"], values["feedback"])
     v = {p.name: jnp.asarray(values[p.name], jnp.int32 if p.name == "mode_order" else F64)
-         for p in A.PARAMS if p.sweepable}
-    metrics, recs = jax.jit(lambda x: A.run_one(x, config))(v)
+         for p in analysis.PARAMS if p.sweepable}
+    metrics, recs = jax.jit(lambda x: analysis.run_one(x, config))(v)
     return metrics, {k: np.asarray(r) for k, r in recs.items()}
 
 
 def snake_qpos(model: Any, base: np.ndarray, phi: np.ndarray) -> np.ndarray:
     """qpos (T, nq) of postures phi (T, 12) with the base flat on the ground at base
     (T, 3) = [x, y, heading] of link 7 (`model.pose_qpos_ctrl`, vectorised)."""
-    from jaxloco.robots.snake import kinematics as K
+    from jaxloco.robots.snake import kinematics
     from jaxloco.robots.snake import model as snake_model
-    from jaxloco.robots.snake import params as P
+    from jaxloco.robots.snake import params as snake_params
 
-    w_h = np.asarray(jax.vmap(K.base_frame_pose)(jnp.asarray(base, F64), jnp.asarray(phi, F64)))
-    joints = np.asarray(jax.vmap(K.full_joint_angles)(jnp.asarray(phi, F64)))
+    w_h = np.asarray(jax.vmap(kinematics.base_frame_pose)(jnp.asarray(base, F64), jnp.asarray(phi, F64)))
+    joints = np.asarray(jax.vmap(kinematics.full_joint_angles)(jnp.asarray(phi, F64)))
     qpos = np.tile(model.qpos0, (base.shape[0], 1))
     qpos[:, :3] = w_h[:, :3]
     qpos[:, 3:7] = snake_model.rpy_to_quat(w_h[:, 3:].T).T
-    adr = [model.joint(name).qposadr[0] for name in P.JOINT_NAMES]
+    adr = [model.joint(name).qposadr[0] for name in snake_params.JOINT_NAMES]
     qpos[:, adr] = joints
     return qpos
 
 
 def snake_kv(row: Row) -> Replay:
     """`snake.kv` (module docstring)."""
-    from jaxloco.robots.snake import analysis as A
-    from jaxloco.robots.snake import experiments as E
+    from jaxloco.robots.snake import analysis, experiments
 
     values = row.values
     metrics, recs = snake_rollout(values)
-    status = A.STATUSES[int(metrics.pop("status"))]
+    status = analysis.STATUSES[int(metrics.pop("status"))]
     model, _ = _snake_model()
     model = model_copy(model)
     qpos = snake_qpos(model, recs["base"], recs["phi"])
-    _, target = E.limit_setup(values["amplitude"], F64)
+    _, target = experiments.limit_setup(values["amplitude"], F64)
     tip_target = np.asarray(target.w0[:3], float)
     err = np.linalg.norm(recs["error"][:, :3], axis=1)
     captions = [f"mode {int(sg)}  max |phi|/limit {lr:.2f}  tip error {1e3 * e:.1f} mm"
@@ -266,16 +272,15 @@ def _leggrope_model():
 def leggrope_cycle(values: Mapping[str, Any], key: np.ndarray):
     """(plan, body (N, 3), toes (N, 4, 3), info) of a `leggrope.slope_cycle` row: the
     plan of `forces.simulate_cycle` and the pose at the end of each of its QP steps."""
-    from jaxloco.robots.leggrope import analysis as A
-    from jaxloco.robots.leggrope import gait
+    from jaxloco.robots.leggrope import analysis, gait
     from jaxloco.robots.leggrope.params import default_params
 
-    config, _ = A.walk_config(values)
+    config, _ = analysis.walk_config(values)
     dt = float(values["dt"])
-    v = {p.name: jnp.asarray(values[p.name], F64) for p in A.PARAMS if p.sweepable}
+    v = {p.name: jnp.asarray(values[p.name], F64) for p in analysis.PARAMS if p.sweepable}
     params = default_params().with_(mu=v["mu"], r_ref_factor=v["r_ref_factor"], a_max=v["a_max"],
                                     v_max=v["v_max"], h_s=v["h_s"], h_tau=v["h_tau"], h_c=v["h_c"], dt=dt)
-    walk = A.cycle_design(values).walk(stride=v["stride"], swing_height=v["swing_height"])
+    walk = analysis.cycle_design(values).walk(stride=v["stride"], swing_height=v["swing_height"])
 
     @jax.jit
     def run(key):

@@ -47,7 +47,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.robots.octopus import params as P
+from jaxloco.robots.octopus import params
 from jaxloco.sim.scenario import Controller
 
 APPROACH, LOWER, PUSH, LEVEL, RAISE = 0, 1, 2, 3, 4
@@ -64,7 +64,7 @@ ARMS_STOWED = np.array([
 ])
 
 PARAM_DEFAULTS: dict[str, float] = {
-    "speed": P.CRAWLER_MAX_SPEED,  # [m/s] commanded track speed
+    "speed": params.CRAWLER_MAX_SPEED,  # [m/s] commanded track speed
     "front_up": 1.2,  # [rad] front flipper angle while approaching
     "front_down": 0.0,  # [rad] front flipper target once on the edge
     "rear_push": -0.6,  # [rad] rear flipper target while pushing
@@ -125,7 +125,7 @@ def make_controller(control_dt: float = CONTROL_DT) -> Controller:
         nxt = jnp.where((phase == RAISE) & (pitch > p["pitch_hook"]), LOWER, nxt)
         # flipper targets per phase (front l, front r, rear l, rear r)
         front = jnp.where(phase == APPROACH, p["front_up"], jnp.where(phase == LEVEL, 0.0, p["front_down"]))
-        front = jnp.where(phase == RAISE, P.FLIPPER_LIMIT, front)
+        front = jnp.where(phase == RAISE, params.FLIPPER_LIMIT, front)
         rear = jnp.where((phase == PUSH) | ((phase == LEVEL) & (t - s["t_phase"] < 2.0)), p["rear_push"], 0.0)
         target = jnp.stack([front, front, rear, rear])
         flip = _approach(s["flip"], target, p["lower_rate"], control_dt)

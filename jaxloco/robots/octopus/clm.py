@@ -152,7 +152,7 @@ import numpy as np
 from jaxloco.robots.octopus import clm_rules as cr
 from jaxloco.robots.octopus import kinematics as kin
 from jaxloco.robots.octopus import model as octo_model
-from jaxloco.robots.octopus import params as P
+from jaxloco.robots.octopus import params
 from jaxloco.sim.scenario import Controller
 
 Array = jax.Array
@@ -168,9 +168,11 @@ CONTROL_DT = 0.02  # [s] 50 Hz
 FRONT = np.array([True, True, False, False])  # arms 1..4 (LF, RF, LR, RR)
 LEFT = np.array([True, False, True, False])
 FRONT4 = np.array([True, True, False, False])  # flippers fl, fr, rl, rr
-TABLE2_Z = float(P.TABLE2_TARGET[0, 2])
+TABLE2_Z = float(params.TABLE2_TARGET[0, 2])
 # the front main crawler axles in {R} [m]
-FRONT_AXLES = np.array([[P.MAIN_AXLE_X, s * P.CRAWLER_Y, P.MAIN_WHEEL_RADIUS - P.BASE_HEIGHT] for s in (1.0, -1.0)])
+FRONT_AXLES = np.array(
+    [[params.MAIN_AXLE_X, s * params.CRAWLER_Y, params.MAIN_WHEEL_RADIUS - params.BASE_HEIGHT] for s in (1.0, -1.0)]
+)
 CRAWL_ORDER = np.array(cr.CRAWL_ORDER)
 N_PREPARE = 2
 PREPARE_ORDER = np.array([3, 2])  # PREPARE transfers the rear arms only (RR, then LR)
@@ -260,11 +262,11 @@ PARAM_DEFAULTS: dict[str, float] = {
     "approach_touch_s": 0.1,  # [s] ... this long = that crawler is at the riser
 }
 
-_KP = P.default_params()
+_KP = params.default_params()
 BOOM_MAX = octo_model.ARM_RANGE[1][1]
 ARM_LO = np.array([r[0] for r in octo_model.ARM_RANGE])
 ARM_HI = np.array([r[1] for r in octo_model.ARM_RANGE])
-FLIPPER_MAX = P.FLIPPER_LIMIT
+FLIPPER_MAX = params.FLIPPER_LIMIT
 HOME_BOOM = octo_model.home_arm_angles()[:, 1]  # boom angles of the start pose (the authors' zero)
 
 
@@ -666,8 +668,8 @@ def transfer_targets(p, prepare: Array, h_est: Array, dt, backoff: Array) -> tup
     stops: the servo then lags, contact) and clearance_front / clearance_rear above them.
     `backoff` (4,) [m] moves the targets toward the body along x (after deep pits)."""
     front = jnp.asarray(FRONT)
-    tgt = jnp.where((prepare & ~front & (p["prepare_rear_init"] > 0))[:, None], jnp.asarray(P.TABLE2_INIT, dt),
-                    jnp.asarray(P.TABLE2_TARGET).astype(dt))
+    tgt = jnp.where((prepare & ~front & (p["prepare_rear_init"] > 0))[:, None], jnp.asarray(params.TABLE2_INIT, dt),
+                    jnp.asarray(params.TABLE2_TARGET).astype(dt))
     tgt = tgt.at[:, 0].add(-jnp.where(front, 1.0, -1.0) * backoff)
     tgt = tgt.at[:, 2].add(jnp.where(prepare & front, h_est, 0.0))
     clear = jnp.where(front, p["clearance_front"], p["clearance_rear"])
@@ -891,7 +893,7 @@ def climb_step(p, s: ClmState, sense: Sensed, h: Array, travel: Array) -> Climb:
     # the nose alone rolls the robot backwards over its rear flipper tips.)
     axles_c = kin.to_level_frame(jnp.asarray(FRONT_AXLES, dt), a_p, a_r)
     front_c = kin.to_level_frame(sense.tips[:2], a_p, a_r)
-    clear = jnp.min(axles_c[:, 2] - P.MAIN_WHEEL_RADIUS - (front_c[:, 2] - P.ROLLER_RADIUS))
+    clear = jnp.min(axles_c[:, 2] - params.MAIN_WHEEL_RADIUS - (front_c[:, 2] - params.ROLLER_RADIUS))
     front_low = clear < p["front_clearance"]
     band = p["level_band"]
     push = jnp.where(jnp.asarray(FRONT), (front_low & (a_p < band)) | (a_p < -band),
@@ -901,7 +903,7 @@ def climb_step(p, s: ClmState, sense: Sensed, h: Array, travel: Array) -> Climb:
     # about Delta_E l1; we lower the EPRAs of the pushing arms by Delta_E l1 along the
     # world vertical (inverse kinematics, elbow included), so that the arms lift the
     # body instead of pushing it backwards when it is pitched
-    dz = p["delta_e"] * P.L1
+    dz = p["delta_e"] * params.L1
     q_climb = _tips_moved(q_cmd, push & ~on_top, -dz, a_p, a_r)
     # the front flippers stay raised until the front is above the step top (they
     # would jam against the riser), then turn down onto it (to flip_min); the rear
@@ -928,7 +930,7 @@ def release_step(p, q_cmd: Array, flip: Array, pitch: Array, roll: Array) -> tup
     joint zero); the flippers turn up by delta_f to 0. `climb_paper` = 1:
     `paper_release_step`. Returns arm commands, flipper commands and whether all are
     back (-> DONE)."""
-    dz = p["delta_e"] * P.L1
+    dz = p["delta_e"] * params.L1
     high = kin.arm_tips(_KP, q_cmd)[:, 2] >= TABLE2_Z - 1e-3
     q_release = _tips_moved(q_cmd, ~high, dz, pitch, roll)
     flip_r = jnp.where(flip < 0, jnp.minimum(flip + p["delta_f"], 0.0), flip)
@@ -1053,7 +1055,7 @@ def climb_progress(p, s: ClmState, sense: Sensed, ph: Phases, tr: Transition, fr
     climb, done = ph.climb, ph.done
     front_up = climb & (s.climb.front_up | ~front_low)
     touch_now = climb & ~s.climb.touched & ~front_low & jnp.any(jnp.abs(sense.flip_tau[:2]) > p["T0"])
-    reach0 = P.FLIPPER_LENGTH * jnp.mean(jnp.cos(sense.flip_q[:2]))
+    reach0 = params.FLIPPER_LENGTH * jnp.mean(jnp.cos(sense.flip_q[:2]))
     touched = (s.climb.touched | touch_now) & (tr.phase == CLIMB)
     s_touch = (p["climb_paper"] <= 0) | (p["s_from_touch"] > 0)
     travel = jnp.where(touch_now & s_touch, -reach0,

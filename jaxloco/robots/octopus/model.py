@@ -64,7 +64,7 @@ import math
 import mujoco
 import numpy as np
 
-from jaxloco.robots.octopus import params as P
+from jaxloco.robots.octopus import params
 from jaxloco.sim import mjcf
 
 MODEL_PATH = mjcf.MODELS_DIR / "octopus.xml"
@@ -103,23 +103,25 @@ _LIMITED = mujoco.mjtLimited.mjLIMITED_TRUE
 
 def main_wheel_x() -> np.ndarray:
     """x of the main crawler axles in {R} [m], rear to front."""
-    return np.linspace(-P.MAIN_AXLE_X, P.MAIN_AXLE_X, P.MAIN_WHEELS)
+    return np.linspace(-params.MAIN_AXLE_X, params.MAIN_AXLE_X, params.MAIN_WHEELS)
 
 
 def flipper_wheels() -> tuple[np.ndarray, np.ndarray]:
     """Distances of the flipper wheels from the pivot along the flipper [m] and their
     radii [m] (linear taper from the main wheel to the tip wheel, so all are tangent to
     the flipper's bottom line)."""
-    s = np.linspace(0.0, P.FLIPPER_LENGTH, P.FLIPPER_WHEELS + 1)[1:]
-    radius = P.MAIN_WHEEL_RADIUS + (P.FLIPPER_TIP_RADIUS - P.MAIN_WHEEL_RADIUS) * s / P.FLIPPER_LENGTH
+    s = np.linspace(0.0, params.FLIPPER_LENGTH, params.FLIPPER_WHEELS + 1)[1:]
+    radius = (
+        params.MAIN_WHEEL_RADIUS + (params.FLIPPER_TIP_RADIUS - params.MAIN_WHEEL_RADIUS) * s / params.FLIPPER_LENGTH
+    )
     return s, radius
 
 
 def wheel_names(side: str) -> list[str]:
     """Wheel joint names of one side ("l" or "r"): main wheels rear to front, then the
     front and rear flipper wheels."""
-    main = [f"wheel_{side}{k + 1}" for k in range(P.MAIN_WHEELS)]
-    flips = [f"flipper_{fr}{side}_w{k + 1}" for fr in ("f", "r") for k in range(P.FLIPPER_WHEELS)]
+    main = [f"wheel_{side}{k + 1}" for k in range(params.MAIN_WHEELS)]
+    flips = [f"flipper_{fr}{side}_w{k + 1}" for fr in ("f", "r") for k in range(params.FLIPPER_WHEELS)]
     return main + flips
 
 
@@ -133,21 +135,21 @@ def touch_name(body: str) -> str:
         return body[: -len("_roller")] + "_touch"
     if body.startswith("wheel_"):
         side, k = body[len("wheel_")], int(body[len("wheel_") + 1:])
-        if k in (1, P.MAIN_WHEELS):
+        if k in (1, params.MAIN_WHEELS):
             return f"crawler_{side}_{'rear' if k == 1 else 'front'}_touch"
-    elif body.endswith(f"_w{P.FLIPPER_WHEELS}"):
-        return body[: -len(f"_w{P.FLIPPER_WHEELS}")] + "_touch"
+    elif body.endswith(f"_w{params.FLIPPER_WHEELS}"):
+        return body[: -len(f"_w{params.FLIPPER_WHEELS}")] + "_touch"
     return f"{body}_touch"
 
 
 def touch_names() -> tuple[str, ...]:
     """The touch sensors in sensordata order: those of the contact-point sites
     (crawler_l_front, crawler_l_rear, crawler_r_front, crawler_r_rear, the flipper tips
-    in `P.FLIPPER_NAMES` order, the arm rollers; the order of `scenarios.CONTACT_SITES`),
+    in `params.FLIPPER_NAMES` order, the arm rollers; the order of `scenarios.CONTACT_SITES`),
     then the other wheels (`wheel_names` order, left then right)."""
     ends = [f"crawler_{s}_{e}_touch" for s in "lr" for e in ("front", "rear")]
-    tips = [f"{f}_touch" for f in P.FLIPPER_NAMES]
-    rollers = [f"{a}_touch" for a in P.ARM_NAMES]
+    tips = [f"{f}_touch" for f in params.FLIPPER_NAMES]
+    rollers = [f"{a}_touch" for a in params.ARM_NAMES]
     first = ends + tips + rollers
     others = [touch_name(w) for side in "lr" for w in wheel_names(side)]
     return tuple(first + [n for n in others if n not in first])
@@ -158,13 +160,15 @@ def home_arm_angles() -> np.ndarray:
     the same formulas as `kinematics.inverse_kinematics`; tested equal)."""
     out = np.zeros((4, 3))
     for k in range(4):
-        base = np.array([P.ARM_SIGNS[k, 0] * 0.5 * P.ARM_BASE_M, P.ARM_SIGNS[k, 1] * 0.5 * P.ARM_BASE_N, 0.0])
-        x, y, z = P.TABLE2_INIT[k] - base
-        r = math.sqrt(x * x + y * y - P.D3 ** 2)
-        t1 = math.atan2(y, x) + math.atan2(P.D3, r)
+        base = np.array(
+            [params.ARM_SIGNS[k, 0] * 0.5 * params.ARM_BASE_M, params.ARM_SIGNS[k, 1] * 0.5 * params.ARM_BASE_N, 0.0]
+        )
+        x, y, z = params.TABLE2_INIT[k] - base
+        r = math.sqrt(x * x + y * y - params.D3 ** 2)
+        t1 = math.atan2(y, x) + math.atan2(params.D3, r)
         dist2 = r * r + z * z
-        t3 = math.acos((dist2 - P.L1 ** 2 - P.L2 ** 2) / (2 * P.L1 * P.L2))
-        t2 = math.atan2(-z, r) - math.atan2(P.L2 * math.sin(t3), P.L1 + P.L2 * math.cos(t3))
+        t3 = math.acos((dist2 - params.L1 ** 2 - params.L2 ** 2) / (2 * params.L1 * params.L2))
+        t2 = math.atan2(-z, r) - math.atan2(params.L2 * math.sin(t3), params.L1 + params.L2 * math.cos(t3))
         out[k] = [math.atan2(math.sin(t1), math.cos(t1)), t2, t3]
     return np.round(out, 6)
 
@@ -180,67 +184,76 @@ def build_spec() -> mujoco.MjSpec:
     spec.option.iterations = 20
     spec.option.ls_iterations = 10
 
-    chassis = spec.worldbody.add_body(name="chassis", pos=[0, 0, P.BASE_HEIGHT])
+    chassis = spec.worldbody.add_body(name="chassis", pos=[0, 0, params.BASE_HEIGHT])
     chassis.add_freejoint(name="root")
     chassis.add_geom(name="chassis", type=_BOX, size=list(CHASSIS_HALF), pos=[0, 0, CHASSIS_Z],
-                     mass=P.MASS_CHASSIS, rgba=[0.85, 0.65, 0.15, 1], **COLLIDE)
-    chassis.add_geom(name="battery", type=_BOX, size=[0.20, 0.12, 0.05], pos=[0, 0, -0.30], mass=P.MASS_BATTERY,
+                     mass=params.MASS_CHASSIS, rgba=[0.85, 0.65, 0.15, 1], **COLLIDE)
+    chassis.add_geom(name="battery", type=_BOX, size=[0.20, 0.12, 0.05], pos=[0, 0, -0.30], mass=params.MASS_BATTERY,
                      rgba=[0.2, 0.2, 0.2, 1], **VISUAL)
-    chassis.add_geom(name="deck", type=_BOX, size=[0.28, 0.28, 0.025], pos=[0, 0, -0.025], mass=P.MASS_DECK,
+    chassis.add_geom(name="deck", type=_BOX, size=[0.28, 0.28, 0.025], pos=[0, 0, -0.025], mass=params.MASS_DECK,
                      rgba=[0.85, 0.65, 0.15, 1], **VISUAL)
-    axle_z = P.MAIN_WHEEL_RADIUS - P.BASE_HEIGHT
+    axle_z = params.MAIN_WHEEL_RADIUS - params.BASE_HEIGHT
     for side, sy in (("l", 1.0), ("r", -1.0)):
-        chassis.add_geom(name=f"frame_{side}", type=_BOX, size=[P.MAIN_AXLE_X, 0.03, 0.06],
-                         pos=[0, sy * P.CRAWLER_Y, axle_z], mass=P.MASS_SIDE_FRAME, rgba=[0.25, 0.25, 0.25, 1],
-                         **VISUAL)
+        chassis.add_geom(
+            name=f"frame_{side}",
+            type=_BOX,
+            size=[params.MAIN_AXLE_X, 0.03, 0.06],
+            pos=[0, sy * params.CRAWLER_Y, axle_z],
+            mass=params.MASS_SIDE_FRAME,
+            rgba=[0.25, 0.25, 0.25, 1],
+            **VISUAL,
+        )
         for end, sx in (("front", 1.0), ("rear", -1.0)):
-            chassis.add_site(name=f"crawler_{side}_{end}", pos=[sx * P.MAIN_AXLE_X, sy * P.CRAWLER_Y, -P.BASE_HEIGHT],
-                             size=[0.01, 0, 0])
+            chassis.add_site(
+                name=f"crawler_{side}_{end}",
+                pos=[sx * params.MAIN_AXLE_X, sy * params.CRAWLER_Y, -params.BASE_HEIGHT],
+                size=[0.01, 0, 0],
+            )
         for k, x in enumerate(main_wheel_x()):
-            wheel = chassis.add_body(name=f"wheel_{side}{k + 1}", pos=[float(x), sy * P.CRAWLER_Y, axle_z])
+            wheel = chassis.add_body(name=f"wheel_{side}{k + 1}", pos=[float(x), sy * params.CRAWLER_Y, axle_z])
             wheel.add_joint(name=f"wheel_{side}{k + 1}", type=_HINGE, axis=[0, 1, 0], armature=WHEEL_ARMATURE)
-            wheel.add_geom(name=f"wheel_{side}{k + 1}", type=_SPHERE, size=[P.MAIN_WHEEL_RADIUS, 0, 0],
-                           mass=P.MASS_MAIN_WHEEL, rgba=[0.1, 0.1, 0.1, 1], **COLLIDE)
-            _touch_site(wheel, f"wheel_{side}{k + 1}", P.MAIN_WHEEL_RADIUS)
+            wheel.add_geom(name=f"wheel_{side}{k + 1}", type=_SPHERE, size=[params.MAIN_WHEEL_RADIUS, 0, 0],
+                           mass=params.MASS_MAIN_WHEEL, rgba=[0.1, 0.1, 0.1, 1], **COLLIDE)
+            _touch_site(wheel, f"wheel_{side}{k + 1}", params.MAIN_WHEEL_RADIUS)
     chassis.add_site(name="imu", size=[0.01, 0, 0])
 
     dist, radii = flipper_wheels()
-    for name, (sf, sy) in zip(P.FLIPPER_NAMES, P.FLIPPER_SIGNS):
+    for name, (sf, sy) in zip(params.FLIPPER_NAMES, params.FLIPPER_SIGNS):
         side = "l" if sy > 0 else "r"
-        direction = np.array([sf * math.cos(P.FLIPPER_DIP), 0.0, -math.sin(P.FLIPPER_DIP)])
-        flipper = chassis.add_body(name=name, pos=[sf * P.MAIN_AXLE_X, sy * P.CRAWLER_Y, axle_z])
-        flipper.add_joint(name=name, type=_HINGE, axis=[0, -sf, 0], range=[-P.FLIPPER_LIMIT, P.FLIPPER_LIMIT],
+        direction = np.array([sf * math.cos(params.FLIPPER_DIP), 0.0, -math.sin(params.FLIPPER_DIP)])
+        flipper = chassis.add_body(name=name, pos=[sf * params.MAIN_AXLE_X, sy * params.CRAWLER_Y, axle_z])
+        flipper.add_joint(name=name, type=_HINGE, axis=[0, -sf, 0], range=[-params.FLIPPER_LIMIT, params.FLIPPER_LIMIT],
                           limited=_LIMITED, armature=FLIPPER_ARMATURE, damping=1.0)
-        tip = P.FLIPPER_LENGTH * direction
+        tip = params.FLIPPER_LENGTH * direction
         flipper.add_geom(name=f"{name}_frame", type=_CAPSULE, size=[0.02, 0, 0], fromto=[0, 0, 0, *tip.tolist()],
-                         mass=P.MASS_FLIPPER_FRAME, rgba=[0.25, 0.25, 0.25, 1], **VISUAL)
-        flipper.add_site(name=f"{name}_tip", pos=(tip - np.array([0, 0, P.FLIPPER_TIP_RADIUS])).tolist(),
+                         mass=params.MASS_FLIPPER_FRAME, rgba=[0.25, 0.25, 0.25, 1], **VISUAL)
+        flipper.add_site(name=f"{name}_tip", pos=(tip - np.array([0, 0, params.FLIPPER_TIP_RADIUS])).tolist(),
                          size=[0.01, 0, 0])
         for k, (s, rad) in enumerate(zip(dist, radii)):
             wname = f"flipper_{'f' if sf > 0 else 'r'}{side}_w{k + 1}"
             wheel = flipper.add_body(name=wname, pos=(s * direction).tolist())
             wheel.add_joint(name=wname, type=_HINGE, axis=[0, 1, 0], armature=WHEEL_ARMATURE)
-            wheel.add_geom(name=wname, type=_SPHERE, size=[float(rad), 0, 0], mass=P.MASS_FLIPPER_WHEEL,
+            wheel.add_geom(name=wname, type=_SPHERE, size=[float(rad), 0, 0], mass=params.MASS_FLIPPER_WHEEL,
                            rgba=[0.1, 0.1, 0.1, 1], **COLLIDE)
             _touch_site(wheel, wname, float(rad))
 
-    for k, arm in enumerate(P.ARM_NAMES):
-        base = [P.ARM_SIGNS[k, 0] * 0.5 * P.ARM_BASE_M, P.ARM_SIGNS[k, 1] * 0.5 * P.ARM_BASE_N, 0.0]
+    for k, arm in enumerate(params.ARM_NAMES):
+        base = [params.ARM_SIGNS[k, 0] * 0.5 * params.ARM_BASE_M, params.ARM_SIGNS[k, 1] * 0.5 * params.ARM_BASE_N, 0.0]
         swing = chassis.add_body(name=f"{arm}_swing", pos=base)
         _arm_joint(swing, f"{arm}_swing", [0, 0, 1], 0)
-        swing.add_geom(name=f"{arm}_shoulder", type=_SPHERE, size=[0.06, 0, 0], mass=P.MASS_SHOULDER,
+        swing.add_geom(name=f"{arm}_shoulder", type=_SPHERE, size=[0.06, 0, 0], mass=params.MASS_SHOULDER,
                        rgba=[0.3, 0.3, 0.35, 1], **VISUAL)
         boom = swing.add_body(name=f"{arm}_boom")
         _arm_joint(boom, f"{arm}_boom", [0, 1, 0], 1)
-        boom.add_geom(name=f"{arm}_boom", type=_CAPSULE, size=[BOOM_RADIUS, 0, 0], fromto=[0, 0, 0, P.L1, 0, 0],
-                      mass=P.MASS_BOOM, rgba=[0.85, 0.65, 0.15, 1], **COLLIDE)
-        fore = boom.add_body(name=f"{arm}_forearm", pos=[P.L1, -P.D3, 0])
+        boom.add_geom(name=f"{arm}_boom", type=_CAPSULE, size=[BOOM_RADIUS, 0, 0], fromto=[0, 0, 0, params.L1, 0, 0],
+                      mass=params.MASS_BOOM, rgba=[0.85, 0.65, 0.15, 1], **COLLIDE)
+        fore = boom.add_body(name=f"{arm}_forearm", pos=[params.L1, -params.D3, 0])
         _arm_joint(fore, f"{arm}_elbow", [0, 1, 0], 2)
         fore.add_geom(name=f"{arm}_forearm", type=_CAPSULE, size=[FOREARM_RADIUS, 0, 0],
-                      fromto=[0, 0, 0, P.L2 - P.ROLLER_RADIUS, 0, 0], mass=P.MASS_FOREARM,
+                      fromto=[0, 0, 0, params.L2 - params.ROLLER_RADIUS, 0, 0], mass=params.MASS_FOREARM,
                       rgba=[0.85, 0.65, 0.15, 1], **COLLIDE)
-        fore.add_site(name=f"{arm}_tip", pos=[P.L2, 0, 0], size=[0.01, 0, 0])
-        add_roller(fore, arm, [P.L2, 0, 0])
+        fore.add_site(name=f"{arm}_tip", pos=[params.L2, 0, 0], size=[0.01, 0, 0])
+        add_roller(fore, arm, [params.L2, 0, 0])
 
     # Tracks: joint equalities tie every wheel of a side to its first main wheel (equal rim
     # speeds), and a tendon (mean rim travel [m]) carries the side's velocity servo.
@@ -261,21 +274,21 @@ def build_spec() -> mujoco.MjSpec:
     for side in ("l", "r"):
         act = spec.add_actuator(name=f"crawler_{side}", target=f"crawler_{side}", trntype=mujoco.mjtTrn.mjTRN_TENDON)
         act.set_to_velocity(kv=CRAWLER_KV)
-        mjcf.set_actuator_limits(act, (-P.CRAWLER_MAX_SPEED, P.CRAWLER_MAX_SPEED), CRAWLER_FORCE)
-    for name in P.FLIPPER_NAMES:
+        mjcf.set_actuator_limits(act, (-params.CRAWLER_MAX_SPEED, params.CRAWLER_MAX_SPEED), CRAWLER_FORCE)
+    for name in params.FLIPPER_NAMES:
         act = spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         act.set_to_position(kp=FLIPPER_KP, kv=FLIPPER_KV)
-        mjcf.set_actuator_limits(act, (-P.FLIPPER_LIMIT, P.FLIPPER_LIMIT), FLIPPER_TAU)
-    for arm in P.ARM_NAMES:
-        for j, joint in enumerate(P.ARM_JOINTS):
+        mjcf.set_actuator_limits(act, (-params.FLIPPER_LIMIT, params.FLIPPER_LIMIT), FLIPPER_TAU)
+    for arm in params.ARM_NAMES:
+        for j, joint in enumerate(params.ARM_JOINTS):
             act = spec.add_actuator(name=f"{arm}_{joint}", target=f"{arm}_{joint}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
             act.set_to_position(kp=ARM_KP[j], kv=ARM_KV[j])
             mjcf.set_actuator_limits(act, ARM_RANGE[j], ARM_TAU[j])
 
     sens = mujoco.mjtSensor
-    for name in P.FLIPPER_NAMES + tuple(f"{a}_{j}" for a in P.ARM_NAMES for j in P.ARM_JOINTS):
+    for name in params.FLIPPER_NAMES + tuple(f"{a}_{j}" for a in params.ARM_NAMES for j in params.ARM_JOINTS):
         spec.add_sensor(name=f"{name}_pos", type=sens.mjSENS_JOINTPOS, objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=name)
-    for name in P.FLIPPER_NAMES + tuple(f"{a}_{j}" for a in P.ARM_NAMES for j in P.ARM_JOINTS):
+    for name in params.FLIPPER_NAMES + tuple(f"{a}_{j}" for a in params.ARM_NAMES for j in params.ARM_JOINTS):
         spec.add_sensor(name=f"{name}_torque", type=sens.mjSENS_ACTUATORFRC, objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
                         objname=name)
     for side in ("l", "r"):
@@ -291,25 +304,25 @@ def build_spec() -> mujoco.MjSpec:
         spec.add_sensor(name=name, type=sens.mjSENS_TOUCH, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=name)
 
     model = spec.compile()
-    for key, arms in (("home", home_arm_angles()), ("envelope", P.ENVELOPE_POSE)):
+    for key, arms in (("home", home_arm_angles()), ("envelope", params.ENVELOPE_POSE)):
         qpos, ctrl = pose_qpos_ctrl(model, arms)
         spec.add_key(name=key, qpos=qpos.tolist(), ctrl=ctrl.tolist())
     return spec
 
 
 def pose_qpos_ctrl(model: mujoco.MjModel, arms: np.ndarray, flippers: np.ndarray | None = None,
-                   base_height: float = P.BASE_HEIGHT) -> tuple[np.ndarray, np.ndarray]:
+                   base_height: float = params.BASE_HEIGHT) -> tuple[np.ndarray, np.ndarray]:
     """qpos (chassis level at `base_height`, arms (4, 3) and flippers (4,) [rad], wheels
     and rollers 0) and the matching ctrl (crawlers stopped, servos holding the pose)."""
     flippers = np.zeros(4) if flippers is None else np.asarray(flippers, float)
     qpos = model.qpos0.copy()
     qpos[:7] = [0, 0, base_height, 1, 0, 0, 0]
     ctrl = np.zeros(model.nu)
-    for k, name in enumerate(P.FLIPPER_NAMES):
+    for k, name in enumerate(params.FLIPPER_NAMES):
         qpos[model.joint(name).qposadr[0]] = flippers[k]
         ctrl[model.actuator(name).id] = flippers[k]
-    for k, arm in enumerate(P.ARM_NAMES):
-        for j, joint in enumerate(P.ARM_JOINTS):
+    for k, arm in enumerate(params.ARM_NAMES):
+        for j, joint in enumerate(params.ARM_JOINTS):
             qpos[model.joint(f"{arm}_{joint}").qposadr[0]] = arms[k][j]
             ctrl[model.actuator(f"{arm}_{joint}").id] = arms[k][j]
     return qpos, ctrl
@@ -319,10 +332,10 @@ def _wheel_radii() -> dict[str, float]:
     out = {}
     _, radii = flipper_wheels()
     for side in ("l", "r"):
-        for k in range(P.MAIN_WHEELS):
-            out[f"wheel_{side}{k + 1}"] = P.MAIN_WHEEL_RADIUS
+        for k in range(params.MAIN_WHEELS):
+            out[f"wheel_{side}{k + 1}"] = params.MAIN_WHEEL_RADIUS
         for fr in ("f", "r"):
-            for k in range(P.FLIPPER_WHEELS):
+            for k in range(params.FLIPPER_WHEELS):
                 out[f"flipper_{fr}{side}_w{k + 1}"] = float(radii[k])
     return out
 
@@ -342,9 +355,9 @@ def add_roller(parent: mujoco.MjsBody, arm: str, pos: list[float]) -> mujoco.Mjs
     roller = parent.add_body(name=f"{arm}_roller", pos=pos)
     roller.add_joint(name=f"{arm}_roller", type=mujoco.mjtJoint.mjJNT_BALL, damping=ROLLER_DAMPING,
                      armature=ROLLER_ARMATURE)
-    roller.add_geom(name=f"{arm}_roller", type=_SPHERE, size=[P.ROLLER_RADIUS, 0, 0], mass=P.MASS_ROLLER,
+    roller.add_geom(name=f"{arm}_roller", type=_SPHERE, size=[params.ROLLER_RADIUS, 0, 0], mass=params.MASS_ROLLER,
                     rgba=[0.1, 0.1, 0.1, 1], **{**COLLIDE, "condim": 4})
-    _touch_site(roller, f"{arm}_roller", P.ROLLER_RADIUS)
+    _touch_site(roller, f"{arm}_roller", params.ROLLER_RADIUS)
     return roller
 
 

@@ -79,9 +79,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.robots.octopus import ccm, clm, operator
+from jaxloco.robots.octopus import ccm, clm, operator, params
 from jaxloco.robots.octopus import model as octo_model
-from jaxloco.robots.octopus import params as P
 from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.data import SimData, sensor_slice
@@ -95,7 +94,7 @@ PIT_PLATFORM = 5.0  # [m] length of the platform the robot starts on in "pit" (i
 PIT_BOTTOM = -10.0  # [m] the "height" reported beyond the pit's edge (there is no ground there)
 # the block (the paper gives its height only): a 0.5 m concrete cube
 BLOCK_SIZE = 0.5  # [m] length (x) and width (y)
-ROBOT_SIDE = P.CRAWLER_Y + P.MAIN_WHEEL_RADIUS  # [m] |y| of the crawlers' outer side
+ROBOT_SIDE = params.CRAWLER_Y + params.MAIN_WHEEL_RADIUS  # [m] |y| of the crawlers' outer side
 OBSTACLE_MIN = 0.1  # [m] an arm contact this high above the floor is on top of an obstacle
 FLOOR_TOL = 0.02  # [m] an arm contact this low is on the floor
 # Normal force a contact must carry to count as support [N]: 1 % of the weight, default
@@ -103,7 +102,7 @@ FLOOR_TOL = 0.02  # [m] an arm contact this low is on the floor
 # least loaded roller carries 19.7 N (2.0 % of the weight; the four carry 20-34 N), so
 # 2 % would drop it; a hovering roller carries 0. 9.8 N is half that and twice the
 # roller's own weight (4.9 N).
-LOAD_MIN = 0.01 * P.TOTAL_MASS * P.G
+LOAD_MIN = 0.01 * params.TOTAL_MASS * params.G
 # A wheel or roller this close to the terrain counts even when it carries less [m],
 # default (ours): in CCM / CLM runs on flat ground and steps the gaps of unloaded contacts
 # within 20 mm of the terrain cluster below 0.5 mm (touching, the load on neighbouring
@@ -112,8 +111,8 @@ LOAD_MIN = 0.01 * P.TOTAL_MASS * P.G
 SEAT_TOL = 0.001
 CONTACT_SITES = (
     tuple(f"crawler_{s}_{e}" for s in "lr" for e in ("front", "rear"))
-    + tuple(f"{f}_tip" for f in P.FLIPPER_NAMES)
-    + tuple(f"{a}_tip" for a in P.ARM_NAMES)
+    + tuple(f"{f}_tip" for f in params.FLIPPER_NAMES)
+    + tuple(f"{a}_tip" for a in params.ARM_NAMES)
 )
 N_ARM_SITES = 4  # the last CONTACT_SITES are the arm roller centres
 # the touch sensors of the CONTACT_SITES, in that order (`octo_model.touch_names`): main
@@ -124,15 +123,15 @@ CONTACT_TOUCH = tuple(n.removesuffix("_tip") + "_touch" for n in CONTACT_SITES)
 SUPPORT_TOUCH = octo_model.touch_names()
 # the wheel and roller bodies of the SUPPORT_TOUCH sensors, in that order: the support set
 _BODY_OF_TOUCH = {octo_model.touch_name(b): b for b in
-                  [w for s in "lr" for w in octo_model.wheel_names(s)] + [f"{a}_roller" for a in P.ARM_NAMES]}
+                  [w for s in "lr" for w in octo_model.wheel_names(s)] + [f"{a}_roller" for a in params.ARM_NAMES]}
 SUPPORT_BODIES = tuple(_BODY_OF_TOUCH[n] for n in SUPPORT_TOUCH)
 # the wheel bodies of each segment of the bottom line (`track_load`): side (l, r) x (rear
 # flipper, main crawler, front flipper); a flipper segment has the flipper's wheels and
 # the main end wheel it pivots on
 SEGMENT_WHEELS = tuple(
-    (tuple(f"flipper_r{s}_w{k + 1}" for k in range(P.FLIPPER_WHEELS)) + (f"wheel_{s}1",),
-     tuple(f"wheel_{s}{k + 1}" for k in range(P.MAIN_WHEELS)),
-     (f"wheel_{s}{P.MAIN_WHEELS}",) + tuple(f"flipper_f{s}_w{k + 1}" for k in range(P.FLIPPER_WHEELS)))
+    (tuple(f"flipper_r{s}_w{k + 1}" for k in range(params.FLIPPER_WHEELS)) + (f"wheel_{s}1",),
+     tuple(f"wheel_{s}{k + 1}" for k in range(params.MAIN_WHEELS)),
+     (f"wheel_{s}{params.MAIN_WHEELS}",) + tuple(f"flipper_f{s}_w{k + 1}" for k in range(params.FLIPPER_WHEELS)))
     for s in "lr"
 )
 STATUSES = ("ok", "failed")
@@ -280,11 +279,11 @@ def make_scenario(
     terrain_geoms = np.array([m.geom(n).id for n in terrain.body_names()])
     chassis = m.body("chassis").id
     quat_s = sensor_slice(m, "imu_quat")
-    flip_q = [sensor_slice(m, f"{n}_pos") for n in P.FLIPPER_NAMES]
-    flip_tau = [sensor_slice(m, f"{n}_torque") for n in P.FLIPPER_NAMES]
-    arm_q = [sensor_slice(m, f"{a}_{j}_pos") for a in P.ARM_NAMES for j in P.ARM_JOINTS]
-    arm_tau = [sensor_slice(m, f"{a}_{j}_torque") for a in P.ARM_NAMES for j in P.ARM_JOINTS]
-    track_v = [sensor_slice(m, f"{c}_vel") for c in P.CRAWLER_NAMES]
+    flip_q = [sensor_slice(m, f"{n}_pos") for n in params.FLIPPER_NAMES]
+    flip_tau = [sensor_slice(m, f"{n}_torque") for n in params.FLIPPER_NAMES]
+    arm_q = [sensor_slice(m, f"{a}_{j}_pos") for a in params.ARM_NAMES for j in params.ARM_JOINTS]
+    arm_tau = [sensor_slice(m, f"{a}_{j}_torque") for a in params.ARM_NAMES for j in params.ARM_JOINTS]
+    track_v = [sensor_slice(m, f"{c}_vel") for c in params.CRAWLER_NAMES]
     sites = np.array([m.site(n).id for n in CONTACT_SITES])
     touch_adr = np.array([sensor_slice(m, n).start for n in SUPPORT_TOUCH])
     support = np.array([m.body(b).id for b in SUPPORT_BODIES])
@@ -292,8 +291,8 @@ def make_scenario(
     segment_sum = np.array([[[b in seg for b in SUPPORT_BODIES] for seg in side] for side in SEGMENT_WHEELS], float)
     qpos0, ctrl0 = octo_model.pose_qpos_ctrl(m, arms0, [PARAM_DEFAULTS[front_key]] * 2 + [0.0, 0.0])
     qpos0, ctrl0 = jnp.asarray(qpos0), jnp.asarray(ctrl0)
-    flip_adr = np.array([m.joint(n).qposadr[0] for n in P.FLIPPER_NAMES])
-    flip_act = np.array([m.actuator(n).id for n in P.FLIPPER_NAMES])
+    flip_adr = np.array([m.joint(n).qposadr[0] for n in params.FLIPPER_NAMES])
+    flip_act = np.array([m.actuator(n).id for n in params.FLIPPER_NAMES])
 
     def initial_state(p, key):
         pos, quat = terrain.place(terrain_values(kind, p))

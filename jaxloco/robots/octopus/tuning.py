@@ -53,12 +53,12 @@ import numpy as np
 
 from jaxloco.analysis import Param
 from jaxloco.errors import SpecError
-from jaxloco.robots.octopus import analysis as A
+from jaxloco.robots.octopus import analysis
 from jaxloco.robots.octopus import kinematics as kin
 from jaxloco.robots.octopus.params import SIGMA
 from jaxloco.tune.objective import Objective, Tunable
 
-CLASSES = A.CLASSES  # 0 undetectable, 1 flat, 2 up, 3 down (kinematics.CASE_* order)
+CLASSES = analysis.CLASSES  # 0 undetectable, 1 flat, 2 up, 3 down (kinematics.CASE_* order)
 DEFAULT_SIGMA = {"sigma1": float(SIGMA[0]), "sigma2": float(SIGMA[1]), "sigma3": float(SIGMA[2])}
 
 TUNABLES = (
@@ -70,7 +70,7 @@ TUNABLES = (
 
 # settings shared with the analysis (same names, defaults and ranges)
 _SHARED = ("edge", "noise", "imu_noise", "flat_tol", "step_min", "climb_max", "descend_max", "slope_max")
-_ANALYSIS = {p.name: p for p in A.PARAMS}
+_ANALYSIS = {p.name: p for p in analysis.PARAMS}
 SETTINGS = (
     Param("tau", 0.005, "temperature of the sigmoid relaxation of each threshold test", "m", lo=0.0, hi=0.1,
           lo_open=True),
@@ -78,8 +78,8 @@ SETTINGS = (
           "'undetectable'", "", lo=0.0, hi=1000.0, lo_open=True),
     Param("samples", 4096, "size of the fixed sample bank", "", kind="int", lo=16, hi=1 << 17),
     Param("seed", 0, "PRNG seed of the sample bank", "", kind="int", lo=0, hi=2**31 - 1),
-    Param("terrains", ",".join(A.TERRAINS), "comma-separated terrain types drawn uniformly (of "
-          f"{', '.join(A.TERRAINS)})", "", kind="str"),
+    Param("terrains", ",".join(analysis.TERRAINS), "comma-separated terrain types drawn uniformly (of "
+          f"{', '.join(analysis.TERRAINS)})", "", kind="str"),
     Param("height_min", 0.0, "lowest step height / slope rise / rough amplitude drawn", "m", lo=0.0, hi=0.7),
     Param("height_max", 0.6, "highest step height / slope rise / rough amplitude drawn", "m", lo=0.0, hi=0.7),
     *(_ANALYSIS[name] for name in _SHARED),
@@ -133,9 +133,9 @@ def _terrain_codes(text: str) -> tuple[int, ...]:
     if not names:
         raise SpecError("settings.terrains: empty; give terrain types, e.g. 'step_up,step_down'")
     for name in names:
-        if name not in A.TERRAINS:
-            raise SpecError(f"settings.terrains: unknown terrain '{name}' (known: {', '.join(A.TERRAINS)})")
-    return tuple(dict.fromkeys(A.TERRAINS.index(n) for n in names))
+        if name not in analysis.TERRAINS:
+            raise SpecError(f"settings.terrains: unknown terrain '{name}' (known: {', '.join(analysis.TERRAINS)})")
+    return tuple(dict.fromkeys(analysis.TERRAINS.index(n) for n in names))
 
 
 def check_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
@@ -165,7 +165,9 @@ def _sense(v: Mapping[str, jax.Array], key: jax.Array) -> tuple[jax.Array, jax.A
     """Sensed differences (2,) [m] in {C}, the correct classes (4,) and the smallest IK
     reach margin [m] of one sample: `analysis.run_sample` itself (the thresholds it is
     given do not change these three)."""
-    out = A.run_sample({**v, **{k: jnp.asarray(SIGMA[i], v["height"].dtype) for i, k in enumerate(_SIGMAS)}}, key)
+    out = analysis.run_sample(
+        {**v, **{k: jnp.asarray(SIGMA[i], v["height"].dtype) for i, k in enumerate(_SIGMAS)}}, key
+    )
     return out["diffs"], out["truth"], out["margin"]
 
 

@@ -34,22 +34,18 @@ import numpy as np
 
 from jaxloco import geometry as geo
 from jaxloco.analysis import Analysis, Metric, Param, Summary
-from jaxloco.robots.snake import control as C
-from jaxloco.robots.snake import experiments as E
-from jaxloco.robots.snake import kinematics as K
-from jaxloco.robots.snake import kinsim as S
-from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import control, experiments, kinematics, kinsim, params
 
-MODE_ORDERS = C.MODE_ORDERS
-POS_TOL, ATT_TOL = E.PAPER_HEAD_ERROR  # 0.03 m, 0.1 rad
+MODE_ORDERS = control.MODE_ORDERS
+POS_TOL, ATT_TOL = experiments.PAPER_HEAD_ERROR  # 0.03 m, 0.1 rad
 
 PARAMS = (
-    Param("kv_head_yaw", C.PAPER_KV_HEAD_YAW, "K_V weight of the head yaw joints theta_1..theta_3", "",
+    Param("kv_head_yaw", control.PAPER_KV_HEAD_YAW, "K_V weight of the head yaw joints theta_1..theta_3", "",
           lo=0.0, hi=1e4),
-    Param("kv_head_pitch", C.PAPER_KV_HEAD_PITCH, "K_V weight of the head pitch joints psi_1..psi_3", "",
+    Param("kv_head_pitch", control.PAPER_KV_HEAD_PITCH, "K_V weight of the head pitch joints psi_1..psi_3", "",
           lo=0.0, hi=1e4),
-    Param("kv_base", C.PAPER_KV_BASE, "K_V weight of theta_4, the head end of the base part", "", lo=0.0, hi=1e4),
-    Param("kv_ratio", C.PAPER_KV_RATIO, "K_V ratio from one base joint to the next towards the tail "
+    Param("kv_base", control.PAPER_KV_BASE, "K_V weight of theta_4, the head end of the base part", "", lo=0.0, hi=1e4),
+    Param("kv_ratio", control.PAPER_KV_RATIO, "K_V ratio from one base joint to the next towards the tail "
           "(0.5: the weights double from the tail to the head, as the paper's)", "", lo=0.0, hi=4.0, lo_open=True),
     Param("k_eta", 0.1, "null-space gain k_eta of Eq. 14", "", lo=0.0, hi=100.0),
     Param("gain", 1.0, "task gain K (the same on the 7 controlled variables) of Eq. 13", "1/s",
@@ -57,13 +53,13 @@ PARAMS = (
     Param("delta_t", 1.0, "Delta T: period of the mode switching", "s", lo=0.02, hi=30.0),
     Param("mode_order", 0, "switching order: 0 = 2,3,4,5,6 (paper, tail to head), 1 = 6,5,4,3,2, "
           "2 = 2,4,6,3,5", kind="int", choices=(0, 1, 2)),
-    Param("switch_at", E.SWITCH_AT, "operator's command of the switching state (fixing state before)", "s",
+    Param("switch_at", experiments.SWITCH_AT, "operator's command of the switching state (fixing state before)", "s",
           lo=0.0, hi=1e3),
     Param("a2", 0.0, "Eq. 20 weight of 1/||d|| (distances of P_G from the support polygon's sides); 0 = Eq. 19",
           "m", lo=0.0, hi=1e3),
-    Param("amplitude", E.ZIGZAG_AMPLITUDE, "zigzag amplitude of the base yaw joints at t = 0 (limit 1.134)",
-          "rad", lo=0.0, hi=P.YAW_LIMIT),
-    Param("joint_speed_max", S.JOINT_SPEED_MAX, "servo speed limit of the joints", "rad/s", lo=0.0, hi=100.0,
+    Param("amplitude", experiments.ZIGZAG_AMPLITUDE, "zigzag amplitude of the base yaw joints at t = 0 (limit 1.134)",
+          "rad", lo=0.0, hi=params.YAW_LIMIT),
+    Param("joint_speed_max", kinsim.JOINT_SPEED_MAX, "servo speed limit of the joints", "rad/s", lo=0.0, hi=100.0,
           lo_open=True),
     Param("recover_ratio", 0.7, "recovered once every base joint is below this fraction of its limit", "",
           lo=0.0, hi=1.0, lo_open=True, hi_open=True),
@@ -102,15 +98,15 @@ STATUSES = (
 _KV_NAMES = ("kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio")
 
 
-def control_params(values: Mapping[str, jax.Array]) -> C.ControlParams:
+def control_params(values: Mapping[str, jax.Array]) -> control.ControlParams:
     """`ControlParams` of one row (values: scalar arrays of the sweepable parameters)."""
     dtype = jnp.asarray(values["k_eta"]).dtype
-    kv = C.kv_diagonal(*(values[n] for n in _KV_NAMES))
+    kv = control.kv_diagonal(*(values[n] for n in _KV_NAMES))
     order = jnp.asarray(MODE_ORDERS)[jnp.asarray(values["mode_order"], jnp.int32)]
-    return E.limit_params(
+    return experiments.limit_params(
         kv=kv.astype(dtype),
         k_eta=values["k_eta"],
-        gain=jnp.full(C.N_TASK, values["gain"], dtype),
+        gain=jnp.full(control.N_TASK, values["gain"], dtype),
         delta_t=values["delta_t"],
         mode_order=order,
         switch_at=values["switch_at"],
@@ -129,27 +125,27 @@ def limit_loss(recs: Mapping[str, jax.Array], recover_ratio: jax.Array, w_limit:
     (about 1 per joint at the limit), averaged over time."""
     pos = jnp.sum(recs["error"][:, :3] ** 2, axis=-1) / POS_TOL**2
     att = jnp.sum(recs["error"][:, 3:6] ** 2, axis=-1) / ATT_TOL**2
-    ratio = jnp.abs(recs["phi"][:, P.N_H :]) / P.YAW_LIMIT
+    ratio = jnp.abs(recs["phi"][:, params.N_H :]) / params.YAW_LIMIT
     excess = temperature * jax.nn.softplus((ratio - recover_ratio) / temperature) / (1.0 - recover_ratio)
     return jnp.mean(pos + att) + w_limit * jnp.mean(jnp.sum(excess, axis=-1))
 
 
-def rollout_config(horizon: float, dt: float, feedback: bool) -> S.RolloutConfig:
-    return S.RolloutConfig(steps=round(horizon / dt) + 1, dt=dt, point="tip", feedback=bool(feedback))
+def rollout_config(horizon: float, dt: float, feedback: bool) -> kinsim.RolloutConfig:
+    return kinsim.RolloutConfig(steps=round(horizon / dt) + 1, dt=dt, point="tip", feedback=bool(feedback))
 
 
-def run_one(values: Mapping[str, jax.Array], config: S.RolloutConfig) -> tuple[dict[str, jax.Array], dict]:
+def run_one(values: Mapping[str, jax.Array], config: kinsim.RolloutConfig) -> tuple[dict[str, jax.Array], dict]:
     """(metrics with status, records) of one row (scalar values of every sweepable
     parameter)."""
     dtype = jnp.asarray(values["k_eta"]).dtype
-    x0, target = E.limit_setup(values["amplitude"], dtype)
+    x0, target = experiments.limit_setup(values["amplitude"], dtype)
     cp = control_params(values)
-    plant = S.PlantParams(joint_speed_max=values["joint_speed_max"])
-    recs = S.rollout(x0, target, cp, config, plant)
-    m = E.limit_metrics(recs, values["recover_ratio"])
-    w_h = K.point_to_head(recs["w"][-1], "tip")
-    joints = K.full_joint_angles(recs["phi"][-1])
-    pts = K.wheel_contacts(w_h, joints).reshape(-1, 3)[:, :2]
+    plant = kinsim.PlantParams(joint_speed_max=values["joint_speed_max"])
+    recs = kinsim.rollout(x0, target, cp, config, plant)
+    m = experiments.limit_metrics(recs, values["recover_ratio"])
+    w_h = kinematics.point_to_head(recs["w"][-1], "tip")
+    joints = kinematics.full_joint_angles(recs["phi"][-1])
+    pts = kinematics.wheel_contacts(w_h, joints).reshape(-1, 3)[:, :2]
     verts, valid = geo.convex_hull(pts, jnp.ones(pts.shape[0], bool))
     m["final_margin"] = recs["margin"][-1]
     m["final_area"] = geo.polygon_area(verts, valid)
@@ -189,9 +185,22 @@ def summarize(table) -> Summary:
     ok = np.asarray(cols["status"]) == "ok"
     order = sorted(range(n), key=lambda i: (not ok[i], cols["recovery_time"][i] if ok[i] else cols["loss"][i]))
     paper = [
-        i for i in range(n)
-        if all(np.isclose(cols[k][i], d) for k, d in zip(_KV_NAMES + ("k_eta",), (
-            C.PAPER_KV_HEAD_YAW, C.PAPER_KV_HEAD_PITCH, C.PAPER_KV_BASE, C.PAPER_KV_RATIO, 0.1), strict=True))
+        i
+        for i in range(n)
+        if all(
+            np.isclose(cols[k][i], d)
+            for k, d in zip(
+                _KV_NAMES + ("k_eta",),
+                (
+                    control.PAPER_KV_HEAD_YAW,
+                    control.PAPER_KV_HEAD_PITCH,
+                    control.PAPER_KV_BASE,
+                    control.PAPER_KV_RATIO,
+                    0.1,
+                ),
+                strict=True,
+            )
+        )
     ]
     shown = order[:10] + [i for i in paper[:1] if i not in order[:10]]
     varying = [p.name for p in PARAMS if p.name in cols and len(set(np.asarray(cols[p.name]).tolist())) > 1]

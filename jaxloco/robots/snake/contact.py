@@ -48,14 +48,9 @@ import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
 from jaxloco.errors import SpecError
-from jaxloco.robots.snake import control as C
-from jaxloco.robots.snake import experiments as E
-from jaxloco.robots.snake import kinematics as K
-from jaxloco.robots.snake import kinsim as S
-from jaxloco.robots.snake import params as P
-from jaxloco.robots.snake import scenarios as SC
+from jaxloco.robots.snake import control, experiments, kinematics, kinsim, scenarios, trials
+from jaxloco.robots.snake import params as snake_params
 from jaxloco.robots.snake import sim_control as SCt
-from jaxloco.robots.snake import trials as TR
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.scenario import Scenario
 
@@ -95,19 +90,21 @@ TOUCH_MARGIN = 0.01  # [m] the touch site is the plate grown by this
 # 24.0 N gives mu = 0.46 (the scenarios' default, 1.0, gave 51 N).
 FLOOR_MU = 0.46
 SMOOTH_RECORDS = 5  # control periods (0.1 s) the plate force is averaged over (`push_force`)
-GRIPPER_MID = P.GRIPPER_TIP - 0.5 * P.GRIPPER_LENGTH  # [m] the gripper's centre ahead of the head frame
+GRIPPER_MID = (
+    snake_params.GRIPPER_TIP - 0.5 * snake_params.GRIPPER_LENGTH
+)  # [m] the gripper's centre ahead of the head frame
 
 PARAMS = (
     Param("posture", "ii", "the paper's posture (Tables IV-V): " + "; ".join(
         f"{k}: z_h {z:g} m, y_h {y:g} m, {b}" for k, (z, y, b) in POSTURES.items()), kind="str",
         choices=POSTURE_NAMES),
     Param("press", 0.1, "how far the head target moves into the plate (default (ours))", "m", lo=0.0, hi=0.5),
-    *TR.trial_params(FLOOR_MU),
+    *trials.trial_params(FLOOR_MU),
     Param("ramp", 4.0, "duration of the head target's move into the plate (default (ours))", "s", lo=0.5,
           hi=30.0, sweepable=False),
     Param("hold", 3.0, "time the target is held in the plate after the ramp", "s", lo=0.0, hi=30.0,
           sweepable=False),
-    *TR.RUN_PARAMS,
+    *trials.RUN_PARAMS,
 )
 METRICS = (
     Metric("fx", "largest normal force of the head on the plate, pushing along +x", "N"),
@@ -118,7 +115,7 @@ METRICS = (
     Metric("max_tilt", "largest tilt of the first base link over the three pushes", "rad"),
     Metric("t_diverged", "time a push diverged (nan: none did)", "s"),
 )
-STATUSES = TR.STATUSES
+STATUSES = trials.STATUSES
 
 
 # ------------------------------------------------------------------------- postures
@@ -134,12 +131,14 @@ def head_posture(z_h: float, y_h: float, base: str) -> tuple[np.ndarray, np.ndar
     if base not in ("straight", "L"):
         raise SpecError(f"base: {base!r} is not 'straight' or 'L'")
     with jax.enable_x64(True):
-        phi0 = np.concatenate([P.INITIAL_PHI[:P.N_H], L_SHAPE if base == "L" else np.zeros(P.N_B)])
-        phi0[P.SCP_INDEX] = P.SCP_TARGET
-        x0 = S.initial_state(jnp.asarray(phi0))
-        w0 = C.controlled_variable(S.point_pose(x0, point="head"), x0.phi)
+        phi0 = np.concatenate(
+            [snake_params.INITIAL_PHI[: snake_params.N_H], L_SHAPE if base == "L" else np.zeros(snake_params.N_B)]
+        )
+        phi0[snake_params.SCP_INDEX] = snake_params.SCP_TARGET
+        x0 = kinsim.initial_state(jnp.asarray(phi0))
+        w0 = control.controlled_variable(kinsim.point_pose(x0, point="head"), x0.phi)
         delta = jnp.zeros(7).at[1].set(y_h).at[2].set(z_h - w0[2])
-        rec = _posture_rollout(x0, S.Target(w0, delta, jnp.float64(0.0), jnp.float64(POSTURE_RAMP)))
+        rec = _posture_rollout(x0, kinsim.Target(w0, delta, jnp.float64(0.0), jnp.float64(POSTURE_RAMP)))
         phi, base_pose, err = (np.asarray(rec[k][-1]) for k in ("phi", "base", "error"))
     if np.abs(err[:3]).max() > 0.005 or np.abs(err[3:]).max() > 0.02:
         raise SpecError(f"posture z_h {z_h:g} m, y_h {y_h:g} m, {base}: the head does not get there")
@@ -149,8 +148,8 @@ def head_posture(z_h: float, y_h: float, base: str) -> tuple[np.ndarray, np.ndar
 @jax.jit
 def _posture_rollout(x0, target):
     steps = round((POSTURE_RAMP + 2.0) / CONTROL_DT)
-    config = S.RolloutConfig(steps=steps, dt=CONTROL_DT, point="head", feedback=False)
-    return S.rollout(x0, target, C.ControlParams(enter_ratio=2.0, k_eta=0.0), config)
+    config = kinsim.RolloutConfig(steps=steps, dt=CONTROL_DT, point="head", feedback=False)
+    return kinsim.rollout(x0, target, control.ControlParams(enter_ratio=2.0, k_eta=0.0), config)
 
 
 def plate_pose(phi: np.ndarray, base: np.ndarray, direction: int) -> tuple[np.ndarray, np.ndarray]:
@@ -159,17 +158,20 @@ def plate_pose(phi: np.ndarray, base: np.ndarray, direction: int) -> tuple[np.nd
     2 -z): PLATE_GAP beyond the gripper's surface (the head taken as level and facing
     +x, as the posture holds it), its thin side along the push."""
     with jax.enable_x64(True):
-        w = np.asarray(K.base_frame_pose(jnp.asarray(base, jnp.float64), jnp.asarray(phi)))
+        w = np.asarray(kinematics.base_frame_pose(jnp.asarray(base, jnp.float64), jnp.asarray(phi)))
     head = w[:3]
     grip = head + np.array([GRIPPER_MID, 0.0, 0.0])  # the head is level and faces +x
     t = PLATE_HALF[0]
     if direction == 0:
-        centre, quat = head + np.array([P.GRIPPER_TIP + PLATE_GAP + t, 0.0, 0.0]), np.array([1.0, 0.0, 0.0, 0.0])
+        centre, quat = (
+            head + np.array([snake_params.GRIPPER_TIP + PLATE_GAP + t, 0.0, 0.0]),
+            np.array([1.0, 0.0, 0.0, 0.0]),
+        )
     elif direction == 1:
-        centre = grip + np.array([0.0, P.GRIPPER_RADIUS + PLATE_GAP + t, 0.0])
+        centre = grip + np.array([0.0, snake_params.GRIPPER_RADIUS + PLATE_GAP + t, 0.0])
         quat = np.array([math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4)])  # thin along y
     else:
-        centre = grip - np.array([0.0, 0.0, P.GRIPPER_RADIUS + PLATE_GAP + t])
+        centre = grip - np.array([0.0, 0.0, snake_params.GRIPPER_RADIUS + PLATE_GAP + t])
         quat = np.array([math.cos(math.pi / 4), 0.0, -math.sin(math.pi / 4), 0.0])  # thin along z
     return centre, quat
 
@@ -189,15 +191,15 @@ def _plate_pose(p: Mapping[str, Any], dtype) -> tuple[Array, Array]:
     return jnp.asarray(p["plate_pos"], dtype)[None], jnp.asarray(p["plate_quat"], dtype)[None]
 
 
-PLATE = SC.Fixture(add=_add_plate, bodies=("plate",), pose=_plate_pose, sensors=("plate_touch",))
+PLATE = scenarios.Fixture(add=_add_plate, bodies=("plate",), pose=_plate_pose, sensors=("plate_touch",))
 
 
 @functools.lru_cache(maxsize=4)
 def contact_scenario(ramp: float, hold: float, settle: float) -> Scenario:
     """The flat-ground snake scenario with the force plate, the head driven by the
     paper's feedforward task-space control (`sim_control.task_space_controller`)."""
-    horizon = settle + E.T_START + ramp + hold
-    return SC.snake_scenario(horizon, CONTROL_DT, SCt.task_space_controller(CONTROL_DT, "head", False),
+    horizon = settle + experiments.T_START + ramp + hold
+    return scenarios.snake_scenario(horizon, CONTROL_DT, SCt.task_space_controller(CONTROL_DT, "head", False),
                              fixture=PLATE)
 
 
@@ -228,7 +230,7 @@ def push_params(postures: np.ndarray, mu: np.ndarray, heading: np.ndarray, press
     start = _rotate_z(np.concatenate([b3[:, :2], np.zeros((3 * n, 1))], -1), h3)
     push = _rotate_z(np.tile(PUSH, (n, 1)), h3) * np.repeat(press, 3)[:, None]
     params = SCt.params_batch(3 * n, mu=np.repeat(mu, 3), x0=start[:, 0], y0=start[:, 1], heading0=h3 + b3[:, 2],
-                              t0=settle + E.T_START, duration=ramp,
+                              t0=settle + experiments.T_START, duration=ramp,
                               d_x=push[:, 0], d_y=push[:, 1], d_z=push[:, 2])
     params["phi0"] = np.repeat(phis, 3, axis=0)
     params["plate_pos"] = _rotate_z(pos.reshape(-1, 3), h3)
@@ -248,7 +250,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
         n = keys.shape[0]
         v = {k: np.asarray(swept[k]) if k in swept else np.full(n, fixed[k]) for k in swept_names}
         postures = v["posture"].astype(str)
-        mu, heading = TR.perturbed(v, keys)
+        mu, heading = trials.perturbed(v, keys)
         params = push_params(postures, mu, heading, v["press"].astype(float), ramp, settle)
         params["key"] = np.repeat(np.asarray(keys, np.uint32), 3, axis=0)
         res = rollout(scenario, params, backend="native", nthread=int(fixed["nthread"]))
@@ -263,7 +265,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
             "max_tilt": tilt.max(-1),
             "t_diverged": np.where(np.isfinite(t_div).any(-1), np.nanmin(np.where(np.isfinite(t_div), t_div, np.inf),
                                                                           -1), np.nan),
-            "status": TR.status(diverged, fell),
+            "status": trials.status(diverged, fell),
         }
 
     return batch

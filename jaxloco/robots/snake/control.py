@@ -49,16 +49,19 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco import linalg, stability
-from jaxloco.robots.snake import kinematics as K
-from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import kinematics
+from jaxloco.robots.snake import params as snake_params
 
 Array = jax.Array
 
-N_TASK = 6 + K.M_SCP  # 7: w~ = [w, psi_3]
-N_ORDER = P.N_MODES - 1  # 5 modes in the switching state
+N_TASK = 6 + kinematics.M_SCP  # 7: w~ = [w, psi_3]
+N_ORDER = snake_params.N_MODES - 1  # 5 modes in the switching state
 ANGLE_TASK = np.array([False, False, False, True, True, True, True])  # wrapped errors
 PHI_LIMITS = np.array(
-    [P.PITCH_LIMIT if P.JOINT_IS_PITCH[k] else P.YAW_LIMIT for k in P.PHI_JOINTS]
+    [
+        snake_params.PITCH_LIMIT if snake_params.JOINT_IS_PITCH[k] else snake_params.YAW_LIMIT
+        for k in snake_params.PHI_JOINTS
+    ]
 )  # (12,) [rad], Table I
 
 MODE_ORDERS = np.array(
@@ -88,17 +91,17 @@ def kv_diagonal(
     head_yaw, head_pitch, base, ratio = jnp.broadcast_arrays(
         *(jnp.asarray(x, jnp.result_type(float)) for x in (head_yaw, head_pitch, base, ratio))
     )
-    head = jnp.stack([head_yaw, head_pitch] * (P.N_H // 2))
-    tail = base * ratio ** jnp.arange(P.N_B, dtype=base.dtype)
+    head = jnp.stack([head_yaw, head_pitch] * (snake_params.N_H // 2))
+    tail = base * ratio ** jnp.arange(snake_params.N_B, dtype=base.dtype)
     return jnp.concatenate([head, tail])
 
 
-def default_weights(params: P.SnakeParams | None = None) -> Array:
+def default_weights(params: snake_params.SnakeParams | None = None) -> Array:
     """W (19,) = [l^2 (12), r^2 (7)] (module docstring)."""
-    params = P.default_params() if params is None else params
+    params = snake_params.default_params() if params is None else params
     l2 = jnp.asarray(params.link_length) ** 2
     r2 = jnp.asarray(params.wheel_radius) ** 2
-    return jnp.concatenate([jnp.full(P.N_PHI, l2), jnp.full(P.N_W, r2)])
+    return jnp.concatenate([jnp.full(snake_params.N_PHI, l2), jnp.full(snake_params.N_W, r2)])
 
 
 @jax.tree_util.register_dataclass
@@ -114,7 +117,7 @@ class ControlParams:
     a1: Array = 1.0  # Eq. 20 weight of phi^T K_V phi
     a2: Array = 0.0  # Eq. 20 weight of 1 / ||d|| [m]; 0 gives Eq. 19
     delta_t: Array = 1.0  # Delta T [s], switching period
-    mode_order: Array = field(default_factory=lambda: jnp.arange(2, P.N_MODES + 1))  # (5,) sigma values
+    mode_order: Array = field(default_factory=lambda: jnp.arange(2, snake_params.N_MODES + 1))  # (5,) sigma values
     fixed_mode: Array = 1  # sigma of the fixing state
     switch_at: Array = jnp.inf  # [s] operator's command of the switching state
     enter_ratio: Array = 0.99  # auto switching: |phi_i| >= ratio * limit_i (> 1: off)
@@ -140,14 +143,14 @@ def support_distances(
     w_h: Array,
     phi: Array,
     grounded: Array,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
 ) -> tuple[Array, Array, Array]:
     """Signed distances of the projected centre of mass P_G from the support polygon's
     side lines (Fig. 15): (d (14, 14), edges (14, 14) bool, static margin [m]). The
     polygon spans both wheels of every grounded base pair (`grounded` (7,))."""
-    joints = K.full_joint_angles(phi)
-    cog = K.center_of_mass(w_h, joints, params)
-    pts = K.wheel_contacts(w_h, joints, params).reshape(-1, 3)
+    joints = kinematics.full_joint_angles(phi)
+    cog = kinematics.center_of_mass(w_h, joints, params)
+    pts = kinematics.wheel_contacts(w_h, joints, params).reshape(-1, 3)
     mask = jnp.repeat(jnp.asarray(grounded, bool), 2)
     d, E = stability.support_edge_distances(cog, pts, mask)
     return d, E, stability.static_margin(cog, pts, mask)
@@ -165,12 +168,12 @@ def cost(
     phi: Array,
     grounded: Array,
     cp: ControlParams,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
     point: str = "tip",
 ) -> Array:
     """V of Eq. 20 (Eq. 19 when a2 = 0) at the controlled-point pose w and joints phi."""
     v = cp.a1 * cost_joint(phi, cp.kv)
-    w_h = K.point_to_head(w, point, params)
+    w_h = kinematics.point_to_head(w, point, params)
     # always evaluated (no branch on a2): V is affine in a2, and its derivative in a2
     # at a2 = 0 is 1 / ||d||, which a branch would hide from gradient tuning
     return v + jnp.asarray(cp.a2, v.dtype) / support_norm(w_h, phi, grounded, params)
@@ -181,12 +184,12 @@ def eta(
     phi: Array,
     grounded: Array,
     cp: ControlParams,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
     point: str = "tip",
 ) -> Array:
     """Eq. 17: eta = dV/dvarphi (19,), varphi = [phi, rho], at fixed w (zeros for rho)."""
     g = jax.grad(cost, argnums=1)(w, phi, grounded, cp, params, point)
-    return jnp.concatenate([g, jnp.zeros(P.N_W, g.dtype)])
+    return jnp.concatenate([g, jnp.zeros(snake_params.N_W, g.dtype)])
 
 
 # ------------------------------------------------------------------ control law (12-14)
@@ -202,7 +205,7 @@ def weighted_pinv(Bt: Array, weights: Array, keep: Array) -> Array:
 
 def keep_rows(grounded: Array) -> Array:
     """(18,) rows of A~ / B~ kept in a mode: `kinematics.row_mask` plus the SCP row."""
-    return jnp.concatenate([K.row_mask(grounded), jnp.ones(K.M_SCP, bool)])
+    return jnp.concatenate([kinematics.row_mask(grounded), jnp.ones(kinematics.M_SCP, bool)])
 
 
 def task_error(wt: Array, wt_d: Array) -> Array:
@@ -214,7 +217,7 @@ def task_error(wt: Array, wt_d: Array) -> Array:
 
 def controlled_variable(w: Array, phi: Array) -> Array:
     """w~ = [w, S phi] (7,): the controlled-point pose and the SCP psi_3."""
-    return jnp.concatenate([w, phi[P.SCP_INDEX : P.SCP_INDEX + 1]])
+    return jnp.concatenate([w, phi[snake_params.SCP_INDEX : snake_params.SCP_INDEX + 1]])
 
 
 @jax.tree_util.register_dataclass
@@ -237,7 +240,7 @@ def control_terms(
     wt_d_dot: Array,
     grounded: Array,
     cp: ControlParams,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
     point: str = "tip",
     matrices: tuple[Array, Array] | None = None,
 ) -> ControlTerms:
@@ -245,7 +248,7 @@ def control_terms(
     with grounded base pairs `grounded` (7,); targets w~_d (7,) and w~_d_dot (7,).
     `matrices` = (A~, B~) from `kinematics.augmented_matrices` if already computed."""
     At, Bt = (
-        K.augmented_matrices(w, phi, grounded, params=params, point=point)
+        kinematics.augmented_matrices(w, phi, grounded, params=params, point=point)
         if matrices is None
         else matrices
     )
@@ -278,7 +281,7 @@ def initial_mode_state(dtype=None) -> ModeState:
     return ModeState(jnp.asarray(False), jnp.asarray(0.0, dtype))
 
 
-NOT_SCP = np.arange(P.N_PHI) != P.SCP_INDEX  # the SCP psi_3 is held near its limit on purpose
+NOT_SCP = np.arange(snake_params.N_PHI) != snake_params.SCP_INDEX  # the SCP psi_3 is held near its limit on purpose
 
 
 def limit_ratio(phi: Array) -> Array:
@@ -302,4 +305,4 @@ def update_mode(t: Array, phi: Array, state: ModeState, cp: ControlParams) -> tu
 
 def grounded_of(sigma: Array) -> Array:
     """Table II row of mode sigma (1-based): (7,) bool, True = grounded."""
-    return jnp.asarray(P.MODES)[jnp.asarray(sigma) - 1]
+    return jnp.asarray(snake_params.MODES)[jnp.asarray(sigma) - 1]

@@ -28,9 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.robots.snake import control as C
-from jaxloco.robots.snake import kinsim as S
-from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import control, kinsim, params
 
 Array = jax.Array
 
@@ -77,36 +75,36 @@ PAPER_HEAD_ERROR = (0.030, 0.1)  # [m], [rad] "about 30 mm and 0.1 rad"
 def zigzag_phi(amplitude: float = ZIGZAG_AMPLITUDE) -> np.ndarray:
     """phi (12,) of the joint-limit experiment: head part of Sec. V-A, base yaw joints
     +-amplitude alternating from theta_4 = +amplitude."""
-    phi = np.array(P.INITIAL_PHI, float)
-    phi[P.N_H :] = amplitude * (-1.0) ** np.arange(P.N_B)
+    phi = np.array(params.INITIAL_PHI, float)
+    phi[params.N_H :] = amplitude * (-1.0) ** np.arange(params.N_B)
     return phi
 
 
-def limit_params(**changes) -> C.ControlParams:
+def limit_params(**changes) -> control.ControlParams:
     """Controller settings of Sec. V-B: K_V of the paper, Delta T = 1 s, fixing state
     (sigma = 1) until the operator's command at t = 2 s, no automatic switching."""
     base = {"switch_at": SWITCH_AT, "enter_ratio": 2.0, "delta_t": 1.0}
     base.update(changes)
-    return C.paper_params(**base)
+    return control.paper_params(**base)
 
 
-def limit_setup(amplitude: Array = ZIGZAG_AMPLITUDE, dtype=None) -> tuple[S.SnakeState, S.Target]:
+def limit_setup(amplitude: Array = ZIGZAG_AMPLITUDE, dtype=None) -> tuple[kinsim.SnakeState, kinsim.Target]:
     """(initial state, target) of the joint-limit experiment (gripper tip held, psi_3
     -> 110 deg); `amplitude` may be traced."""
     dtype = dtype or jnp.result_type(float)
-    signs = jnp.asarray((-1.0) ** np.arange(P.N_B), dtype)
-    phi = jnp.asarray(P.INITIAL_PHI, dtype).at[P.N_H :].set(jnp.asarray(amplitude, dtype) * signs)
-    x0 = S.initial_state(phi)
-    return x0, S.hold_target(x0, point="tip", psi3=jnp.asarray(P.SCP_TARGET, dtype))
+    signs = jnp.asarray((-1.0) ** np.arange(params.N_B), dtype)
+    phi = jnp.asarray(params.INITIAL_PHI, dtype).at[params.N_H :].set(jnp.asarray(amplitude, dtype) * signs)
+    x0 = kinsim.initial_state(phi)
+    return x0, kinsim.hold_target(x0, point="tip", psi3=jnp.asarray(params.SCP_TARGET, dtype))
 
 
-def accuracy_setup(dtype=None) -> tuple[S.SnakeState, S.Target]:
+def accuracy_setup(dtype=None) -> tuple[kinsim.SnakeState, kinsim.Target]:
     """(initial state, target batch of 6) of Sec. V-A: head controlled, target ramps."""
     dtype = dtype or jnp.result_type(float)
-    x0 = S.initial_state(jnp.asarray(P.INITIAL_PHI, dtype))
-    w0 = C.controlled_variable(S.point_pose(x0, point="head"), x0.phi)
+    x0 = kinsim.initial_state(jnp.asarray(params.INITIAL_PHI, dtype))
+    w0 = control.controlled_variable(kinsim.point_pose(x0, point="head"), x0.phi)
     delta = jnp.zeros((6, 7), dtype).at[jnp.arange(6), jnp.arange(6)].set(jnp.asarray(ACCURACY_DELTAS, dtype))
-    targets = S.Target(
+    targets = kinsim.Target(
         jnp.broadcast_to(w0, (6, 7)),
         delta,
         jnp.full(6, T_START, dtype),
@@ -136,9 +134,9 @@ def run_accuracy_kinematic(dt: float = 0.02, feedback: bool = False) -> dict[str
     """Table III in the kinematic simulation: displacements (6, 6) and errors (6,) [%]."""
     x0, targets = accuracy_setup()
     steps = round(ACCURACY_HORIZON / dt) + 1
-    config = S.RolloutConfig(steps=steps, dt=dt, point="head", feedback=feedback)
-    cp = C.ControlParams(enter_ratio=2.0)  # fixing state throughout
-    recs = jax.jit(jax.vmap(lambda tg: S.rollout(x0, tg, cp, config)))(targets)
+    config = kinsim.RolloutConfig(steps=steps, dt=dt, point="head", feedback=feedback)
+    cp = control.ControlParams(enter_ratio=2.0)  # fixing state throughout
+    recs = jax.jit(jax.vmap(lambda tg: kinsim.rollout(x0, tg, cp, config)))(targets)
     disp = relative_displacement(np.asarray(recs["t"][0]), np.asarray(recs["w"]), T_START + RAMP)
     return {"displacement": disp, "error": accuracy_errors(disp), "records": recs}
 
@@ -146,7 +144,7 @@ def run_accuracy_kinematic(dt: float = 0.02, feedback: bool = False) -> dict[str
 # ------------------------------------------------------------------------- metrics
 def base_limit_ratio(phi: Array) -> Array:
     """max over the base yaw joints theta_4..theta_9 of |theta| / limit (phi (..., 12))."""
-    return jnp.max(jnp.abs(phi[..., P.N_H :]) / P.YAW_LIMIT, axis=-1)
+    return jnp.max(jnp.abs(phi[..., params.N_H :]) / params.YAW_LIMIT, axis=-1)
 
 
 def limit_metrics(recs: dict[str, Array], recover_ratio: Array = 0.7, near_ratio: Array = 0.95) -> dict[str, Array]:
@@ -181,9 +179,9 @@ def release_times(t: np.ndarray, phi: np.ndarray, ratio: float = 0.7) -> np.ndar
     """Per base joint theta_4..theta_9: the first time |theta| <= ratio * limit and
     stays so to the end (nan if never): the order in which the joints leave the limits."""
     t = np.asarray(t)
-    inside = np.abs(np.asarray(phi)[:, P.N_H :]) <= ratio * P.YAW_LIMIT
-    out = np.full(P.N_B, np.nan)
-    for j in range(P.N_B):
+    inside = np.abs(np.asarray(phi)[:, params.N_H :]) <= ratio * params.YAW_LIMIT
+    out = np.full(params.N_B, np.nan)
+    for j in range(params.N_B):
         bad = np.flatnonzero(~inside[:, j])
         first = 0 if bad.size == 0 else bad[-1] + 1
         if first < t.size:

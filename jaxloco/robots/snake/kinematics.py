@@ -76,16 +76,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco import geometry as geo
-from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import params as snake_params
 
 Array = jax.Array
 
-N_ROWS = P.N_PAIRS_BASE + 3 + P.N_W  # 17 = n_b + n_w + 4
-N_U = P.N_PHI + P.N_W  # 19 = n_h + n_b + n_w
+N_ROWS = snake_params.N_PAIRS_BASE + 3 + snake_params.N_W  # 17 = n_b + n_w + 4
+N_U = snake_params.N_PHI + snake_params.N_W  # 19 = n_h + n_b + n_w
 M_SCP = 1
-SELECTION = np.eye(P.N_PHI)[[P.SCP_INDEX]]  # S (1, 12)
-_BASE_LINK = int(P.PAIR_LINKS[P.BASE_PAIRS[0]]) - 1  # link 7 (0-based 6)
-_PAIR_LINK_IDX = np.asarray(P.PAIR_LINKS) - 1  # 0-based link of each of the 9 pairs
+SELECTION = np.eye(snake_params.N_PHI)[[snake_params.SCP_INDEX]]  # S (1, 12)
+_BASE_LINK = int(snake_params.PAIR_LINKS[snake_params.BASE_PAIRS[0]]) - 1  # link 7 (0-based 6)
+_PAIR_LINK_IDX = np.asarray(snake_params.PAIR_LINKS) - 1  # 0-based link of each of the 9 pairs
 
 
 def _dtype(x: Array) -> jnp.dtype:
@@ -96,9 +96,9 @@ def full_joint_angles(phi: Array, psi_b: Array | None = None) -> Array:
     """The 17 joint angles theta_1, psi_1, ..., theta_9 from phi (12,) and psi_b (5,)
     (default zeros)."""
     phi = jnp.asarray(phi)
-    q = jnp.zeros(P.N_JOINTS, _dtype(phi)).at[P.PHI_JOINTS].set(phi)
+    q = jnp.zeros(snake_params.N_JOINTS, _dtype(phi)).at[snake_params.PHI_JOINTS].set(phi)
     if psi_b is not None:
-        q = q.at[P.PSI_B_JOINTS].set(jnp.asarray(psi_b, q.dtype))
+        q = q.at[snake_params.PSI_B_JOINTS].set(jnp.asarray(psi_b, q.dtype))
     return q
 
 
@@ -108,16 +108,16 @@ def pose_matrix(w: Array) -> tuple[Array, Array]:
 
 
 def link_frames(
-    w_h: Array, joints: Array, params: P.SnakeParams | None = None
+    w_h: Array, joints: Array, params: snake_params.SnakeParams | None = None
 ) -> tuple[Array, Array]:
     """World frames of the 18 links: rotations (18, 3, 3) and origins (18, 3), from the
     head pose w_h (6,) and the 17 joint angles [rad]."""
-    params = P.default_params() if params is None else params
+    params = snake_params.default_params() if params is None else params
     w_h = jnp.asarray(w_h)
     joints = jnp.asarray(joints, w_h.dtype)
     l = jnp.asarray(params.link_length, w_h.dtype)
     R0, p0 = pose_matrix(w_h)
-    is_pitch = jnp.asarray(P.JOINT_IS_PITCH)
+    is_pitch = jnp.asarray(snake_params.JOINT_IS_PITCH)
 
     def step(carry, inp):
         R, p = carry
@@ -131,31 +131,31 @@ def link_frames(
     return jnp.concatenate([R0[None], Rs]), jnp.concatenate([p0[None], ps])
 
 
-def tip_from_head(w_h: Array, params: P.SnakeParams | None = None) -> Array:
+def tip_from_head(w_h: Array, params: snake_params.SnakeParams | None = None) -> Array:
     """Gripper-tip pose w (6,) from the head pose w_h: the tip is `gripper_tip` ahead
     of the head frame along its x, same attitude."""
-    params = P.default_params() if params is None else params
+    params = snake_params.default_params() if params is None else params
     R, p = pose_matrix(w_h)
     return jnp.concatenate([p + params.gripper_tip * R[:, 0], w_h[3:]])
 
 
-def head_from_tip(w: Array, params: P.SnakeParams | None = None) -> Array:
+def head_from_tip(w: Array, params: snake_params.SnakeParams | None = None) -> Array:
     """Inverse of `tip_from_head`."""
-    params = P.default_params() if params is None else params
+    params = snake_params.default_params() if params is None else params
     R, p = pose_matrix(w)
     return jnp.concatenate([p - params.gripper_tip * R[:, 0], w[3:]])
 
 
 def wheel_pairs(
-    w_h: Array, joints: Array, params: P.SnakeParams | None = None
+    w_h: Array, joints: Array, params: snake_params.SnakeParams | None = None
 ) -> tuple[Array, Array, Array]:
     """All 9 wheel pairs (psi_1..psi_8, tail): axle midpoints (9, 3), contact points
     (9, 3) (r below the axle along the carrying link's z) and the carrying links'
     rotations (9, 3, 3) (columns: forward x, axle y, up z)."""
-    params = P.default_params() if params is None else params
+    params = snake_params.default_params() if params is None else params
     Rs, ps = link_frames(w_h, joints, params)
     R = Rs[_PAIR_LINK_IDX]
-    off = jnp.asarray(P.PAIR_OFFSETS, ps.dtype)
+    off = jnp.asarray(snake_params.PAIR_OFFSETS, ps.dtype)
     off = jnp.where(off < 0, -params.tail_axle, off)  # tail pair: -tail_axle
     axle = ps[_PAIR_LINK_IDX] + off[:, None] * R[:, :, 0]
     contact = axle - params.wheel_radius * R[:, :, 2]
@@ -166,12 +166,12 @@ def base_frame_pose(
     base: Array,
     phi: Array,
     psi_b: Array | None = None,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
 ) -> Array:
     """Head pose w_h (6,) that puts the base part flat on the ground z = 0: base =
     [x, y, heading] of the first base link (link 7, origin on the psi_3 axle, wheel
     radius above the ground)."""
-    params = P.default_params() if params is None else params
+    params = snake_params.default_params() if params is None else params
     base = jnp.asarray(base)
     zero = jnp.zeros(6, base.dtype)
     Rs, ps = link_frames(zero, full_joint_angles(phi, psi_b), params)
@@ -191,7 +191,7 @@ def constraint_matrices(
     w: Array,
     phi: Array,
     psi_b: Array | None = None,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
     point: str = "tip",
 ) -> tuple[Array, Array]:
     """A (17, 6) and B (17, 19) of Eqs. 4-6 (all base wheels grounded): A w_dot = B u,
@@ -199,7 +199,7 @@ def constraint_matrices(
     omega_x, omega_y of link 7), rolling of active wheels 1..7]. `w` is the pose of the
     controlled point: the gripper tip (`point="tip"`, the paper's w) or the head
     (`point="head"`, w_h of Sec. V-A)."""
-    params = P.default_params() if params is None else params
+    params = snake_params.default_params() if params is None else params
     w = jnp.asarray(w)
     phi = jnp.asarray(phi, w.dtype)
     to_head = (lambda x: head_from_tip(x, params)) if point == "tip" else (lambda x: x)
@@ -210,8 +210,8 @@ def constraint_matrices(
         joints = full_joint_angles(phi_, psi_b)
         Rs, _ = link_frames(to_head(w_), joints, params)
         _, contact, R = wheel_pairs(to_head(w_), joints, params)
-        base = P.BASE_PAIRS
-        active = contact + (P.ACTIVE_SIDE * pair_wheel_y(params, contact.dtype))[:, None] * R[:, :, 1]
+        base = snake_params.BASE_PAIRS
+        active = contact + (snake_params.ACTIVE_SIDE * pair_wheel_y(params, contact.dtype))[:, None] * R[:, :, 1]
         return contact[base], active[base], R[base], Rs[_BASE_LINK]
 
     _, _, R, R7 = geometry(w, phi)
@@ -231,12 +231,12 @@ def constraint_matrices(
     om_p = jax.vmap(lambda d: _vee(d @ R7.T), in_axes=2, out_axes=1)(dRp)  # (3, 12)
     plane_a = jnp.concatenate([jw[0, 2:3], om_w[:2]])
     plane_b = jnp.concatenate([jp[0, 2:3], om_p[:2]])
-    n_w = P.N_W
+    n_w = snake_params.N_W
     r = jnp.asarray(params.wheel_radius, w.dtype)
     A = jnp.concatenate([slip_a, plane_a, roll_a])
     B_phi = -jnp.concatenate([slip_b, plane_b, roll_b])
     B_rho = jnp.concatenate(
-        [jnp.zeros((P.N_PAIRS_BASE + 3, n_w), w.dtype), r * jnp.eye(n_w, dtype=w.dtype)]
+        [jnp.zeros((snake_params.N_PAIRS_BASE + 3, n_w), w.dtype), r * jnp.eye(n_w, dtype=w.dtype)]
     )  # -(-r rho_dot): rolling row a w_dot + b phi_dot - r rho_dot = 0
     return A, jnp.concatenate([B_phi, B_rho], axis=1)
 
@@ -253,7 +253,7 @@ def mode_matrices(
     phi: Array,
     grounded: Array,
     psi_b: Array | None = None,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
     point: str = "tip",
 ) -> tuple[Array, Array]:
     """A_sigma (17, 6), B_sigma (17, 19) of Eqs. 7-8 with the eliminated rows of the
@@ -268,7 +268,7 @@ def augmented_matrices(
     phi: Array,
     grounded: Array,
     psi_b: Array | None = None,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
     point: str = "tip",
 ) -> tuple[Array, Array]:
     """A_tilde (18, 7) and B_tilde (18, 19) of Eqs. 10-11 with the SCP psi_3 (m = 1):
@@ -282,7 +282,7 @@ def augmented_matrices(
             [jnp.zeros((M_SCP, 6), dt), jnp.eye(M_SCP, dtype=dt)],
         ]
     )
-    Bt = jnp.concatenate([B, jnp.concatenate([S, jnp.zeros((M_SCP, P.N_W), dt)], 1)])
+    Bt = jnp.concatenate([B, jnp.concatenate([S, jnp.zeros((M_SCP, snake_params.N_W), dt)], 1)])
     return At, Bt
 
 
@@ -291,7 +291,7 @@ def constraint_on_velocity(
     phi: Array,
     grounded: Array,
     psi_b: Array | None = None,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
     point: str = "tip",
 ) -> Array:
     """C_sigma = [A_sigma, -B_sigma] (17, 25): C [w_dot; phi_dot; rho_dot] = 0 is the
@@ -307,7 +307,7 @@ def compact_rows(M: np.ndarray, grounded: np.ndarray, extra: int = 0) -> np.ndar
     return np.asarray(M)[keep]
 
 
-def point_to_head(w: Array, point: str, params: P.SnakeParams | None = None) -> Array:
+def point_to_head(w: Array, point: str, params: snake_params.SnakeParams | None = None) -> Array:
     """Head pose w_h of a controlled-point pose `w` (`point` "tip": the gripper tip,
     "head": w is already w_h)."""
     if point == "tip":
@@ -317,7 +317,7 @@ def point_to_head(w: Array, point: str, params: P.SnakeParams | None = None) -> 
     raise ValueError(f"point must be 'tip' or 'head', not {point!r}")
 
 
-def head_to_point(w_h: Array, point: str, params: P.SnakeParams | None = None) -> Array:
+def head_to_point(w_h: Array, point: str, params: snake_params.SnakeParams | None = None) -> Array:
     """Inverse of `point_to_head`."""
     if point == "tip":
         return tip_from_head(w_h, params)
@@ -330,7 +330,7 @@ def base_of(
     w_h: Array,
     phi: Array,
     psi_b: Array | None = None,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
 ) -> Array:
     """Planar pose [x, y, heading] (3,) of the first base link (link 7, origin on the
     psi_3 axle) from the head pose and phi: the inverse of `base_frame_pose` for a base
@@ -343,48 +343,55 @@ def base_of(
 def wheel_contacts(
     w_h: Array,
     joints: Array,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
 ) -> Array:
     """Ground contact points (7, 2, 3) of both wheels of base pairs 1..7 (index 0: the
     active, left wheel; 1: the passive one), world frame: each pair's contact point
     offset by +-wheel_y along its axle."""
-    params = P.default_params() if params is None else params
+    params = snake_params.default_params() if params is None else params
     _, contact, R = wheel_pairs(w_h, joints, params)
-    c, y = contact[P.BASE_PAIRS], R[P.BASE_PAIRS][:, :, 1]
-    d = (P.ACTIVE_SIDE * pair_wheel_y(params, c.dtype)[P.BASE_PAIRS])[:, None]
+    c, y = contact[snake_params.BASE_PAIRS], R[snake_params.BASE_PAIRS][:, :, 1]
+    d = (snake_params.ACTIVE_SIDE * pair_wheel_y(params, c.dtype)[snake_params.BASE_PAIRS])[:, None]
     return jnp.stack([c + d * y, c - d * y], axis=1)
 
 
-def pair_wheel_y(params: P.SnakeParams, dtype=None) -> Array:
+def pair_wheel_y(params: snake_params.SnakeParams, dtype=None) -> Array:
     """(9,) each pair's wheel centres from its axle midpoint [m] (`params.wheel_y`, a
     scalar is the same for every pair)."""
-    return jnp.broadcast_to(jnp.asarray(params.wheel_y, dtype), (P.N_PAIRS,))
+    return jnp.broadcast_to(jnp.asarray(params.wheel_y, dtype), (snake_params.N_PAIRS,))
 
 
 def center_of_mass(
     w_h: Array,
     joints: Array,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
 ) -> Array:
     """Whole-robot centre of mass (3,), world frame [m], with the masses of `params`
     (module docstring there; the same as the MJCF): each link's box centre l/2 behind
     its frame, the 18 wheels at the axle ends, the batteries beside the wide pairs' passive
     wheels, the gripper's centre on the head x axis."""
-    params = P.default_params() if params is None else params
+    params = snake_params.default_params() if params is None else params
     Rs, ps = link_frames(w_h, joints, params)
     dt = ps.dtype
     l = jnp.asarray(params.link_length, dt)
     links = ps - 0.5 * l * Rs[:, :, 0]
-    link_m = jnp.full(P.N_LINKS, P.LINK_MASS, dt).at[0].set(P.HEAD_MASS)
+    link_m = jnp.full(snake_params.N_LINKS, snake_params.LINK_MASS, dt).at[0].set(snake_params.HEAD_MASS)
     axle, _, R = wheel_pairs(w_h, joints, params)
-    y = jnp.asarray(P.PAIR_WHEEL_Y, dt)[:, None] * R[:, :, 1]
+    y = jnp.asarray(snake_params.PAIR_WHEEL_Y, dt)[:, None] * R[:, :, 1]
     wheels = jnp.concatenate([axle + y, axle - y])
-    wide = np.asarray(P.WIDE_PAIRS)
-    batteries = axle[wide] - P.ACTIVE_SIDE * jnp.asarray(P.BATTERY_Y, dt) * R[wide][:, :, 1]
-    grip_c = ps[0] + (P.GRIPPER_TIP - 0.5 * P.GRIPPER_LENGTH) * Rs[0][:, 0]
-    total = jnp.sum(link_m) + 2 * P.N_PAIRS * P.WHEEL_MASS + len(wide) * P.BATTERY_MASS + P.GRIPPER_MASS
+    wide = np.asarray(snake_params.WIDE_PAIRS)
+    batteries = axle[wide] - snake_params.ACTIVE_SIDE * jnp.asarray(snake_params.BATTERY_Y, dt) * R[wide][:, :, 1]
+    grip_c = ps[0] + (snake_params.GRIPPER_TIP - 0.5 * snake_params.GRIPPER_LENGTH) * Rs[0][:, 0]
+    total = (
+        jnp.sum(link_m)
+        + 2 * snake_params.N_PAIRS * snake_params.WHEEL_MASS
+        + len(wide) * snake_params.BATTERY_MASS
+        + snake_params.GRIPPER_MASS
+    )
     moment = (
-        link_m @ links + P.WHEEL_MASS * jnp.sum(wheels, axis=0) + P.BATTERY_MASS * jnp.sum(batteries, axis=0)
-        + P.GRIPPER_MASS * grip_c
+        link_m @ links
+        + snake_params.WHEEL_MASS * jnp.sum(wheels, axis=0)
+        + snake_params.BATTERY_MASS * jnp.sum(batteries, axis=0)
+        + snake_params.GRIPPER_MASS * grip_c
     )
     return moment / total

@@ -38,9 +38,8 @@ import jax
 import jax.numpy as jnp
 
 from jaxloco import linalg
-from jaxloco.robots.snake import control as C
-from jaxloco.robots.snake import kinematics as K
-from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import control, kinematics
+from jaxloco.robots.snake import params as snake_params
 
 Array = jax.Array
 JOINT_SPEED_MAX = 4.7  # [rad/s] Dynamixel MX-106R, 45 rpm at 12 V
@@ -92,17 +91,17 @@ class SnakeState:
 def initial_state(phi: Array, base: Array | None = None) -> SnakeState:
     phi = jnp.asarray(phi)
     base = jnp.zeros(3, phi.dtype) if base is None else jnp.asarray(base, phi.dtype)
-    return SnakeState(base, phi, jnp.zeros(P.N_W, phi.dtype))
+    return SnakeState(base, phi, jnp.zeros(snake_params.N_W, phi.dtype))
 
 
 def head_pose(state: SnakeState, params=None) -> Array:
     """w_h (6,) of a state (base flat on the ground)."""
-    return K.base_frame_pose(state.base, state.phi, params=params)
+    return kinematics.base_frame_pose(state.base, state.phi, params=params)
 
 
 def point_pose(state: SnakeState, params=None, point: str = "tip") -> Array:
     """Pose w (6,) of the controlled point ("tip" or "head")."""
-    return K.head_to_point(head_pose(state, params), point, params)
+    return kinematics.head_to_point(head_pose(state, params), point, params)
 
 
 def integrate(
@@ -114,19 +113,19 @@ def integrate(
     that would pass its stop is cut to reach it, and the body moves with the joint
     speeds actually realized (the least-squares w_dot of the cut input)."""
     At, Bt = matrices
-    A, B = At[: K.N_ROWS, :6], Bt[: K.N_ROWS]
-    lim = jnp.asarray(C.PHI_LIMITS, state.phi.dtype)
-    phi = jnp.clip(state.phi + dt * u[: P.N_PHI], -lim, lim)
+    A, B = At[: kinematics.N_ROWS, :6], Bt[: kinematics.N_ROWS]
+    lim = jnp.asarray(control.PHI_LIMITS, state.phi.dtype)
+    phi = jnp.clip(state.phi + dt * u[: snake_params.N_PHI], -lim, lim)
     phi_dot = (phi - state.phi) / dt
-    rhs = B @ jnp.concatenate([phi_dot, u[P.N_PHI :]])
+    rhs = B @ jnp.concatenate([phi_dot, u[snake_params.N_PHI :]])
     w_dot = linalg.spd_solve(A.T @ A, A.T @ rhs)
     w = point_pose(state, params, point)
 
     def base_fn(w_, phi_):
-        return K.base_of(K.point_to_head(w_, point, params), phi_, params=params)
+        return kinematics.base_of(kinematics.point_to_head(w_, point, params), phi_, params=params)
 
     _, base_dot = jax.jvp(base_fn, (w, state.phi), (w_dot, phi_dot))
-    return SnakeState(state.base + dt * base_dot, phi, state.rho + dt * u[P.N_PHI :]), w_dot
+    return SnakeState(state.base + dt * base_dot, phi, state.rho + dt * u[snake_params.N_PHI :]), w_dot
 
 
 def servo_input(phi: Array, phi_cmd: Array, rho_dot: Array, dt: Array, plant: PlantParams) -> Array:
@@ -153,10 +152,10 @@ class RolloutConfig:
 def rollout(
     x0: SnakeState,
     target: Target,
-    cp: C.ControlParams,
+    cp: control.ControlParams,
     config: RolloutConfig = RolloutConfig(),
     plant: PlantParams = PlantParams(),
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
     choose: Callable[[SnakeState, Array], Array] | None = None,
 ) -> dict[str, Array]:
     """Closed loop from x0 for `config.steps` periods. `choose` (optional): in the
@@ -175,53 +174,55 @@ def rollout(
 
     def aug(state: SnakeState, grounded):
         w = point_pose(state, params, point)
-        return w, K.augmented_matrices(w, state.phi, grounded, params=params, point=point)
+        return w, kinematics.augmented_matrices(w, state.phi, grounded, params=params, point=point)
 
-    lim = jnp.asarray(C.PHI_LIMITS, dtype)
+    lim = jnp.asarray(control.PHI_LIMITS, dtype)
 
     def step(carry, k):
         truth, est, mode, phi_cmd, chosen, last_slot = carry
         t = k * dt
         seen = truth if config.feedback else est
-        mode, sigma = C.update_mode(t, seen.phi, mode, cp)
+        mode, sigma = control.update_mode(t, seen.phi, mode, cp)
         if choose is not None:
             slot = jnp.floor((t - mode.t_enter) / cp.delta_t + 1e-9).astype(jnp.int32)
             fresh = mode.switching & (slot != last_slot)
             picked = jax.lax.cond(fresh, lambda: jnp.asarray(choose(seen, t), jnp.int32), lambda: chosen)
             sigma = jnp.where(mode.switching, picked, sigma).astype(jnp.int32)
             chosen, last_slot = picked, jnp.where(mode.switching, slot, -1)
-        grounded = C.grounded_of(sigma)
+        grounded = control.grounded_of(sigma)
         wd, wd_dot = target.at(t)
         w_seen, mats_seen = aug(seen, grounded)
-        terms = C.control_terms(w_seen, seen.phi, wd, wd_dot, grounded, cp, params, point, mats_seen)
-        phi_cmd = jnp.clip(phi_cmd + dt * terms.u[: P.N_PHI], -lim, lim)  # the servos' target angles
-        u = servo_input(truth.phi, phi_cmd, terms.u[P.N_PHI :], dt, plant)
+        terms = control.control_terms(w_seen, seen.phi, wd, wd_dot, grounded, cp, params, point, mats_seen)
+        phi_cmd = jnp.clip(phi_cmd + dt * terms.u[: snake_params.N_PHI], -lim, lim)  # the servos' target angles
+        u = servo_input(truth.phi, phi_cmd, terms.u[snake_params.N_PHI :], dt, plant)
         if config.feedback:
             w_true, mats_true = w_seen, mats_seen
             est_next = est
         else:
             w_true, mats_true = aug(truth, grounded)
             est_next, _ = integrate(est, terms.u, mats_seen, dt, params, point)
-        wt_true = C.controlled_variable(w_true, truth.phi)
+        wt_true = control.controlled_variable(w_true, truth.phi)
         rec = {
             "t": t,
             "w": w_true,
-            "psi3": truth.phi[P.SCP_INDEX],
+            "psi3": truth.phi[snake_params.SCP_INDEX],
             "base": truth.base,
             "phi": truth.phi,
-            "error": C.task_error(wt_true, wd),
+            "error": control.task_error(wt_true, wd),
             "ctrl_error": terms.error,
-            "V": C.cost(w_true, truth.phi, grounded, cp, params, point),
+            "V": control.cost(w_true, truth.phi, grounded, cp, params, point),
             "sigma": sigma,
             "switching": mode.switching,
-            "margin": C.support_distances(K.point_to_head(w_true, point, params), truth.phi, grounded, params)[2],
+            "margin": control.support_distances(
+                kinematics.point_to_head(w_true, point, params), truth.phi, grounded, params
+            )[2],
             "u": u,
-            "limit_ratio": C.limit_ratio(truth.phi),
+            "limit_ratio": control.limit_ratio(truth.phi),
         }
         truth_next, _ = integrate(truth, u, mats_true, dt, params, point)
         return (truth_next, est_next, mode, phi_cmd, chosen, last_slot), rec
 
-    mode0 = C.initial_mode_state(dtype)
+    mode0 = control.initial_mode_state(dtype)
     ks = jnp.arange(config.steps)
     carry0 = (x0, x0, mode0, x0.phi, jnp.asarray(cp.fixed_mode, jnp.int32), jnp.asarray(-1, jnp.int32))
     _, recs = jax.lax.scan(step, carry0, ks.astype(dtype))
@@ -233,7 +234,7 @@ def rollout(
 def hold_target(x0: SnakeState, params=None, point: str = "tip", psi3: Array | None = None) -> Target:
     """The target that holds the controlled point where x0 puts it (and psi_3 at
     `psi3`, default its initial value): the joint-limit experiment's w~_d (Sec. V-B)."""
-    w0 = C.controlled_variable(point_pose(x0, params, point), x0.phi)
+    w0 = control.controlled_variable(point_pose(x0, params, point), x0.phi)
     if psi3 is not None:
         w0 = w0.at[6].set(psi3)
     return Target(w0, jnp.zeros_like(w0), jnp.asarray(0.0, w0.dtype), jnp.asarray(1.0, w0.dtype))

@@ -41,7 +41,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxloco.analysis import Param
-from jaxloco.robots.snake import sim_analysis as A
+from jaxloco.robots.snake import sim_analysis
 from jaxloco.tune.objective import Objective, Tunable
 
 GROUND = "plane"  # the MJX-compatible model (sim_analysis.build_model)
@@ -51,18 +51,30 @@ TUNABLES = (
             lo=0.05, hi=50.0, scale="log"),
     Tunable("k_eta", 0.1, "null-space gain k_eta of Eq. 14", lo=1e-4, hi=100.0, scale="log"),
 )
-_A = {p.name: p for p in A.PARAMS}
+_A = {p.name: p for p in sim_analysis.PARAMS}
 SETTINGS = (
-    Param("horizon", 3.0, "simulated time of the reach (after the settling): the MJX rollout's length", "s",
-          lo=0.1, hi=10.0),
+    Param(
+        "horizon",
+        3.0,
+        "simulated time of the reach (after the settling): the MJX rollout's length",
+        "s",
+        lo=0.1,
+        hi=10.0,
+    ),
     Param("t_start", 0.1, "the target starts to move at this time", "s", lo=0.0, hi=10.0),
     Param("ramp", 0.8, "duration of the target's smooth step", "s", lo=0.0, hi=10.0, lo_open=True),
     Param("d_x", 0.0, _A["d_x"].doc, "m", lo=-0.3, hi=0.3),
     Param("d_y", 0.0, _A["d_y"].doc, "m", lo=-0.3, hi=0.3),
     Param("d_z", 0.03, _A["d_z"].doc, "m", lo=-0.3, hi=0.3),
     Param("w_effort", 1e-3, _A["w_effort"].doc, "", lo=0.0, hi=1e3),
-    Param("settle", A.SETTLE, "settling before the reach (MuJoCo C, once, outside the gradient)", "s", lo=0.0,
-          hi=20.0),
+    Param(
+        "settle",
+        sim_analysis.SETTLE,
+        "settling before the reach (MuJoCo C, once, outside the gradient)",
+        "s",
+        lo=0.0,
+        hi=20.0,
+    ),
 )
 AUX = ("rms_error", "final_error", "max_error", "effort")
 PAPER = {"gain_k": 1.0, "k_eta": 0.1}
@@ -101,7 +113,7 @@ def single_thread_lapack() -> bool:
 def _rollout_fn(horizon: float, settle: float):
     from jaxloco.sim import mjx as mjx_backend
 
-    return mjx_backend.rollout_fn(A.reach_scenario(GROUND, horizon, settle))
+    return mjx_backend.rollout_fn(sim_analysis.reach_scenario(GROUND, horizon, settle))
 
 
 def make_loss(settings: Mapping[str, Any]):
@@ -110,9 +122,9 @@ def make_loss(settings: Mapping[str, Any]):
     horizon, settle = float(settings["horizon"]), float(settings["settle"])
     single_thread_lapack()
     run = _rollout_fn(horizon, settle)
-    base = A.reach_params(1, t_start=settings["t_start"], ramp=settings["ramp"],
-                          **{k: settings[k] for k in A.DELTA_POS})
-    delta = [float(settings[k]) for k in A.DELTA_POS]
+    base = sim_analysis.reach_params(1, t_start=settings["t_start"], ramp=settings["ramp"],
+                          **{k: settings[k] for k in sim_analysis.DELTA_POS})
+    delta = [float(settings[k]) for k in sim_analysis.DELTA_POS]
 
     def loss_fn(values):
         dtype = jnp.result_type(*values.values())
@@ -120,8 +132,15 @@ def make_loss(settings: Mapping[str, Any]):
         p["gain"] = values["gain_k"]
         p["k_eta"] = values["k_eta"]
         records, _, final = run(p, jax.random.PRNGKey(0))
-        m = A.reach_metrics(records["tip"], records["phi_cmd"], jnp.asarray(delta, dtype), settings["t_start"],
-                            settings["ramp"], 1.0, settings["w_effort"])
+        m = sim_analysis.reach_metrics(
+            records["tip"],
+            records["phi_cmd"],
+            jnp.asarray(delta, dtype),
+            settings["t_start"],
+            settings["ramp"],
+            1.0,
+            settings["w_effort"],
+        )
         loss = jnp.where(final.alive, m["loss"], jnp.nan)
         return loss, {k: m[k] for k in AUX}
 

@@ -77,8 +77,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.robots.snake import kinematics as K
-from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import kinematics, params
 from jaxloco.sim import mjcf
 
 MODEL_PATH = mjcf.MODELS_DIR / "t2snake3.xml"
@@ -91,7 +90,7 @@ WHEEL_KV, WHEEL_TAU, WHEEL_SPEED = 5.0, 2.5, 6.0  # [N m s/rad], [N m], [rad/s]
 WHEEL_ARMATURE = 0.001  # [kg m^2] active wheels: reflected rotor inertia of the motor
 JOINT_DAMPING, ARMATURE = 0.05, 0.01
 FRICTION = (1.0, 0.005, 0.0001)
-WHEEL_NAMES = tuple(f"wheel{i + 1}" for i in range(P.N_PAIRS))
+WHEEL_NAMES = tuple(f"wheel{i + 1}" for i in range(params.N_PAIRS))
 
 _HINGE = mujoco.mjtJoint.mjJNT_HINGE
 _LIMITED = mujoco.mjtLimited.mjLIMITED_TRUE
@@ -112,7 +111,7 @@ _WHEEL_QUAT = [math.cos(math.pi / 4), -math.sin(math.pi / 4), 0.0, 0.0]
 
 
 def joint_range(k: int) -> tuple[float, float]:
-    lim = P.PITCH_LIMIT if P.JOINT_IS_PITCH[k] else P.YAW_LIMIT
+    lim = params.PITCH_LIMIT if params.JOINT_IS_PITCH[k] else params.YAW_LIMIT
     return (-lim, lim)
 
 
@@ -124,19 +123,19 @@ def build_spec() -> mujoco.MjSpec:
     spec.option.timestep = TIMESTEP
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
 
-    l, r = P.LINK_LENGTH, P.WHEEL_RADIUS
+    l, r = params.LINK_LENGTH, params.WHEEL_RADIUS
     parent = spec.worldbody
     links = []
-    for j in range(P.N_LINKS):
+    for j in range(params.N_LINKS):
         pos = [0.0, 0.0, r] if j == 0 else [-l, 0.0, 0.0]
         link = parent.add_body(name=f"link{j + 1}", pos=pos)
         if j == 0:
             link.add_freejoint(name="root")
         else:
             k = j - 1
-            axis = [0, 1, 0] if P.JOINT_IS_PITCH[k] else [0, 0, -1]
+            axis = [0, 1, 0] if params.JOINT_IS_PITCH[k] else [0, 0, -1]
             link.add_joint(
-                name=P.JOINT_NAMES[k],
+                name=params.JOINT_NAMES[k],
                 type=_HINGE,
                 axis=axis,
                 range=list(joint_range(k)),
@@ -147,9 +146,9 @@ def build_spec() -> mujoco.MjSpec:
         link.add_geom(
             name=f"link{j + 1}",
             type=_BOX,
-            size=list(P.LINK_HALF),
+            size=list(params.LINK_HALF),
             pos=[-0.5 * l, 0.0, 0.0],
-            mass=P.HEAD_MASS if j == 0 else P.LINK_MASS,
+            mass=params.HEAD_MASS if j == 0 else params.LINK_MASS,
             rgba=ORANGE,
             **COLLIDE,
         )
@@ -160,34 +159,34 @@ def build_spec() -> mujoco.MjSpec:
     head.add_geom(
         name="gripper",
         type=_CAPSULE,
-        size=[P.GRIPPER_RADIUS, 0, 0],
+        size=[params.GRIPPER_RADIUS, 0, 0],
         fromto=[
-            P.GRIPPER_TIP - P.GRIPPER_LENGTH + P.GRIPPER_RADIUS,
+            params.GRIPPER_TIP - params.GRIPPER_LENGTH + params.GRIPPER_RADIUS,
             0,
             0,
-            P.GRIPPER_TIP - P.GRIPPER_RADIUS,
+            params.GRIPPER_TIP - params.GRIPPER_RADIUS,
             0,
             0,
         ],
-        mass=P.GRIPPER_MASS,
+        mass=params.GRIPPER_MASS,
         rgba=WHITE,
         **COLLIDE,
     )
     head.add_site(name="head", size=[0.01, 0, 0])
-    head.add_site(name="tip", pos=[P.GRIPPER_TIP, 0, 0], size=[0.01, 0, 0])
+    head.add_site(name="tip", pos=[params.GRIPPER_TIP, 0, 0], size=[0.01, 0, 0])
 
-    for i in range(P.N_PAIRS):
-        link = links[P.PAIR_LINKS[i] - 1]
-        x = -P.TAIL_AXLE if P.PAIR_OFFSETS[i] < 0 else 0.0
+    for i in range(params.N_PAIRS):
+        link = links[params.PAIR_LINKS[i] - 1]
+        x = -params.TAIL_AXLE if params.PAIR_OFFSETS[i] < 0 else 0.0
         link.add_site(name=f"pair{i + 1}_axle", pos=[x, 0, 0], size=[0.008, 0, 0])
         link.add_site(name=f"pair{i + 1}_contact", pos=[x, 0, -r], size=[0.008, 0, 0])
-        if i in P.WIDE_PAIRS:  # a battery between the link and the passive wheel (params)
-            link.add_geom(name=f"battery{i + 1}", type=_BOX, size=list(P.BATTERY_HALF),
-                          pos=[x, -P.ACTIVE_SIDE * P.BATTERY_Y, 0.0], mass=P.BATTERY_MASS, rgba=DARK,
+        if i in params.WIDE_PAIRS:  # a battery between the link and the passive wheel (params)
+            link.add_geom(name=f"battery{i + 1}", type=_BOX, size=list(params.BATTERY_HALF),
+                          pos=[x, -params.ACTIVE_SIDE * params.BATTERY_Y, 0.0], mass=params.BATTERY_MASS, rgba=DARK,
                           contype=0, conaffinity=0)
-        for side, sign in (("active", P.ACTIVE_SIDE), ("passive", -P.ACTIVE_SIDE)):
+        for side, sign in (("active", params.ACTIVE_SIDE), ("passive", -params.ACTIVE_SIDE)):
             wheel = link.add_body(
-                name=f"wheel{i + 1}_{side}", pos=[x, sign * float(P.PAIR_WHEEL_Y[i]), 0.0]
+                name=f"wheel{i + 1}_{side}", pos=[x, sign * float(params.PAIR_WHEEL_Y[i]), 0.0]
             )
             wheel.add_joint(
                 name=f"wheel{i + 1}_{side}",
@@ -199,18 +198,18 @@ def build_spec() -> mujoco.MjSpec:
             wheel.add_geom(
                 name=f"wheel{i + 1}_{side}",
                 type=_CYL,
-                size=[r, P.WHEEL_HALF_WIDTH, 0],
+                size=[r, params.WHEEL_HALF_WIDTH, 0],
                 quat=_WHEEL_QUAT,
-                mass=P.WHEEL_MASS,
+                mass=params.WHEEL_MASS,
                 rgba=DARK,
                 **COLLIDE,
             )
 
-    for k, name in enumerate(P.JOINT_NAMES):
+    for k, name in enumerate(params.JOINT_NAMES):
         act = spec.add_actuator(
             name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT
         )
-        base = k >= P.N_H  # theta_4 onwards: the base part
+        base = k >= params.N_H  # theta_4 onwards: the base part
         act.set_to_position(kp=KP_BASE if base else KP, kv=KV_BASE if base else KV)
         mjcf.set_actuator_limits(act, joint_range(k), TAU)
     for name in WHEEL_NAMES:
@@ -220,7 +219,7 @@ def build_spec() -> mujoco.MjSpec:
         act.set_to_velocity(kv=WHEEL_KV)
         mjcf.set_actuator_limits(act, (-WHEEL_SPEED, WHEEL_SPEED), WHEEL_TAU)
     sens, obj = mujoco.mjtSensor, mujoco.mjtObj
-    for name in P.JOINT_NAMES:
+    for name in params.JOINT_NAMES:
         spec.add_sensor(
             name=f"{name}_pos",
             type=sens.mjSENS_JOINTPOS,
@@ -230,8 +229,8 @@ def build_spec() -> mujoco.MjSpec:
 
     model = spec.compile()
     for key, phi, x0 in (
-        ("straight", np.zeros(P.N_PHI), 0.0),
-        ("initial", P.INITIAL_PHI, 0.0),
+        ("straight", np.zeros(params.N_PHI), 0.0),
+        ("initial", params.INITIAL_PHI, 0.0),
     ):
         qpos, ctrl = pose_qpos_ctrl(model, phi, np.array([x0, 0.0, 0.0]))
         spec.add_key(name=key, qpos=qpos.tolist(), ctrl=ctrl.tolist())
@@ -252,14 +251,14 @@ def pose_qpos_ctrl(
         phi64 = jnp.asarray(phi, jnp.float64)
         psi64 = None if psi_b is None else jnp.asarray(psi_b, jnp.float64)
         w_h = np.asarray(
-            K.base_frame_pose(jnp.asarray(base, jnp.float64), phi64, psi64)
+            kinematics.base_frame_pose(jnp.asarray(base, jnp.float64), phi64, psi64)
         )
-        joints = np.asarray(K.full_joint_angles(phi64, psi64))
+        joints = np.asarray(kinematics.full_joint_angles(phi64, psi64))
     qpos = model.qpos0.copy()
     qpos[:3] = w_h[:3]
     qpos[3:7] = rpy_to_quat(w_h[3:])
     ctrl = np.zeros(model.nu)
-    for k, name in enumerate(P.JOINT_NAMES):
+    for k, name in enumerate(params.JOINT_NAMES):
         qpos[model.joint(name).qposadr[0]] = joints[k]
         ctrl[model.actuator(name).id] = joints[k]
     return qpos, ctrl

@@ -52,10 +52,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.robots.snake import kinematics as K
-from jaxloco.robots.snake import params as P
-from jaxloco.robots.snake import predictive as PR
-from jaxloco.robots.snake import scenarios as SC
+from jaxloco.robots.snake import kinematics, predictive, scenarios
+from jaxloco.robots.snake import params as snake_params
 from jaxloco.robots.snake import sim_control as SCt
 from jaxloco.sim.rollout import RolloutResult, rollout
 from jaxloco.sim.scenario import Scenario
@@ -73,7 +71,9 @@ PICK_SCRIPT = (
 )
 PICK_GRIP_AT = 6.5  # [s] the gripper hardens (after the reach, before the lift)
 PICK_HORIZON = 12.0  # [s]
-GRIPPER_MID = P.GRIPPER_TIP - 0.5 * P.GRIPPER_LENGTH  # [m] the gripper's centre ahead of the head frame
+GRIPPER_MID = (
+    snake_params.GRIPPER_TIP - 0.5 * snake_params.GRIPPER_LENGTH
+)  # [m] the gripper's centre ahead of the head frame
 OBJECT = {"contype": 3, "conaffinity": 3, "condim": 3, "friction": [1.0, 0.005, 0.0001]}  # touches robot and floor
 STEEL = [0.7, 0.7, 0.75, 1]
 # the gate valve (ours): handwheel half sizes (radius, half thickness) [m], its gap ahead of the tip [m], the
@@ -101,7 +101,9 @@ VALVE_HORIZON = 10.0  # [s]
 def initial_tip() -> np.ndarray:
     """The gripper tip's pose (6,) in the Sec. V-A posture, base at the origin [m, rad]."""
     with jax.enable_x64(True):
-        return np.asarray(K.tip_from_head(K.base_frame_pose(jnp.zeros(3), jnp.asarray(P.INITIAL_PHI))))
+        return np.asarray(
+            kinematics.tip_from_head(kinematics.base_frame_pose(jnp.zeros(3), jnp.asarray(snake_params.INITIAL_PHI)))
+        )
 
 
 def _add_gripper(spec: mujoco.MjSpec) -> None:
@@ -119,7 +121,7 @@ def _add_pipe(spec: mujoco.MjSpec) -> None:
     """The T-joint pipe on the floor under the gripper's middle (free body), its centre
     recorded (`pipe_pos`), and the gripper."""
     tip = initial_tip()
-    centre = [float(tip[0] - P.GRIPPER_TIP + GRIPPER_MID), 0.0, PIPE_RADIUS]
+    centre = [float(tip[0] - snake_params.GRIPPER_TIP + GRIPPER_MID), 0.0, PIPE_RADIUS]
     pipe = spec.worldbody.add_body(name="pipe", pos=centre)
     pipe.add_freejoint(name="pipe")
     main, branch = PIPE_HALF_LENGTH
@@ -196,19 +198,26 @@ def _no_mocap(p: Any, dtype: Any) -> tuple[Any, Any]:
     return jnp.zeros((0, 3), dtype), jnp.zeros((0, 4), dtype)
 
 
-DOOR = SC.Fixture(add=_add_door, bodies=(), pose=_no_mocap, sensors=("door_angle",), actuators=("gripper",), ctrl=_grip)
-PIPE = SC.Fixture(add=_add_pipe, bodies=(), pose=_no_mocap, sensors=("pipe_pos",), actuators=("gripper",), ctrl=_grip)
-VALVE = SC.Fixture(add=_add_valve, bodies=(), pose=_no_mocap, sensors=("valve_angle",), actuators=("gripper",),
+DOOR = scenarios.Fixture(
+    add=_add_door, bodies=(), pose=_no_mocap, sensors=("door_angle",), actuators=("gripper",), ctrl=_grip
+)
+PIPE = scenarios.Fixture(
+    add=_add_pipe, bodies=(), pose=_no_mocap, sensors=("pipe_pos",), actuators=("gripper",), ctrl=_grip
+)
+VALVE = scenarios.Fixture(add=_add_valve, bodies=(), pose=_no_mocap, sensors=("valve_angle",), actuators=("gripper",),
                    ctrl=_grip)
 
 
 @functools.lru_cache(maxsize=8)
-def operation_scenario(fixture: SC.Fixture, horizon: float, prediction: PR.Prediction | None = None) -> Scenario:
+def operation_scenario(
+    fixture: scenarios.Fixture, horizon: float, prediction: predictive.Prediction | None = None
+) -> Scenario:
     """The flat-ground snake scenario with an operation's objects and the gripper, the
     tip under the paper's feedforward task-space control (`prediction`: the switching
     state's modes chosen by look-ahead, `predictive`, instead of the fixed order)."""
-    return SC.snake_scenario(horizon, CONTROL_DT, SCt.task_space_controller(CONTROL_DT, "tip", False, prediction),
-                             fixture=fixture)
+    return scenarios.snake_scenario(
+        horizon, CONTROL_DT, SCt.task_space_controller(CONTROL_DT, "tip", False, prediction), fixture=fixture
+    )
 
 
 def script_params(script=PICK_SCRIPT, grip_at: float = PICK_GRIP_AT, n: int = 1, **overrides) -> dict[str, Any]:
@@ -240,7 +249,7 @@ def tip_distance(records: Mapping[str, Any]) -> np.ndarray:
 def switching(records: Mapping[str, Any]) -> np.ndarray:
     """(..., T) bool: the commanded mode is not the fixing state's mode 1 (the switching
     state runs modes 2..6, Table II)."""
-    return np.any(np.asarray(records["grounded_cmd"]) != np.asarray(P.MODES[0], bool), axis=-1)
+    return np.any(np.asarray(records["grounded_cmd"]) != np.asarray(snake_params.MODES[0], bool), axis=-1)
 
 
 def tip_errors(res: RolloutResult) -> tuple[np.ndarray, np.ndarray]:
@@ -277,7 +286,7 @@ class Operation:
     measured on the rollout (`measures(result) -> {name: (n,)}`)."""
 
     name: str
-    fixture: SC.Fixture
+    fixture: scenarios.Fixture
     horizon: float
     script: tuple
     grip_at: float
@@ -299,8 +308,15 @@ def measure(operation: Operation, res: RolloutResult) -> dict[str, np.ndarray]:
     return {**operation.measures(res), "max_tip_error": max_err, "final_tip_error": final_err}
 
 
-def run_operation(name: str, n: int = 1, script=None, grip_at: Any = None, horizon: float | None = None,
-                  prediction: PR.Prediction | None = None, **overrides) -> tuple[RolloutResult, dict[str, np.ndarray]]:
+def run_operation(
+    name: str,
+    n: int = 1,
+    script=None,
+    grip_at: Any = None,
+    horizon: float | None = None,
+    prediction: predictive.Prediction | None = None,
+    **overrides,
+) -> tuple[RolloutResult, dict[str, np.ndarray]]:
     """n runs of operation `name` (OPERATIONS) on native MuJoCo, its script and grip time
     unless given, params `overrides` (scalars or (n,)), the switching state's modes
     predicted if `prediction` is given: the rollout and `measure`."""

@@ -29,34 +29,75 @@ from typing import Any
 import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary, mean_worst
-from jaxloco.robots.snake import operations as O
-from jaxloco.robots.snake import operator as OP
-from jaxloco.robots.snake import scenarios as SC
-from jaxloco.robots.snake import trials as TR
+from jaxloco.robots.snake import operations, scenarios, trials
+from jaxloco.robots.snake import operator as snake_operator
 from jaxloco.sim.scenario import seed_jitter
 
-NAMES = tuple(O.OPERATIONS)  # ("pick", "valve", "door")
+NAMES = tuple(operations.OPERATIONS)  # ("pick", "valve", "door")
 TIP_BOUND = 0.03  # [m] the tip's allowed distance from the intended position
 PICK_LIFT_MIN = 0.05  # [m] success: half the script's 0.1 m lift, ours
 VALVE_TURN_MIN = 0.75 * np.pi / 2  # [rad] success: 75 % of the 90 deg roll, ours
 DOOR_OPEN_MIN = 1.0  # [rad] success: of the 1.2 rad the operator pulls for, ours
 
 PARAMS = (
-    Param("operation", "pick", "the operation (Sec. V-D): pick (a T-joint pipe), valve (a gate valve), door (a door "
-          "with a knob)", kind="str", choices=NAMES),
-    Param("operator_gain", 1.0, "the operator's joystick correction of the seen tip position error, 0: none "
-          "(default (ours))", "1/s", lo=0.0, hi=20.0),
-    Param("operator_enter", 0.97, "a base yaw joint at this fraction of its limit: the operator stops the script and "
-          "commands the switching state (> 1: never; default (ours))", "", lo=0.5, hi=2.0),
-    Param("operator_exit", OP.PARAM_DEFAULTS["operator_exit"], "... until every base yaw joint is below this fraction "
-          "(default (ours))", "", lo=0.0, hi=1.0),
-    Param("operator_min_switch", OP.PARAM_DEFAULTS["operator_min_switch"], "... and at least this long (default "
-          "(ours))", "s", lo=0.0, hi=60.0),
-    Param("mu", SC.PARAM_DEFAULTS["mu"], "floor friction coefficient (default (ours))", "", lo=TR.MU_MIN, hi=3.0),
+    Param(
+        "operation",
+        "pick",
+        "the operation (Sec. V-D): pick (a T-joint pipe), valve (a gate valve), door (a door with a knob)",
+        kind="str",
+        choices=NAMES,
+    ),
+    Param(
+        "operator_gain",
+        1.0,
+        "the operator's joystick correction of the seen tip position error, 0: none (default (ours))",
+        "1/s",
+        lo=0.0,
+        hi=20.0,
+    ),
+    Param(
+        "operator_enter",
+        0.97,
+        "a base yaw joint at this fraction of its limit: the operator stops the script and "
+        "commands the switching state (> 1: never; default (ours))",
+        "",
+        lo=0.5,
+        hi=2.0,
+    ),
+    Param(
+        "operator_exit",
+        snake_operator.PARAM_DEFAULTS["operator_exit"],
+        "... until every base yaw joint is below this fraction (default (ours))",
+        "",
+        lo=0.0,
+        hi=1.0,
+    ),
+    Param(
+        "operator_min_switch",
+        snake_operator.PARAM_DEFAULTS["operator_min_switch"],
+        "... and at least this long (default (ours))",
+        "s",
+        lo=0.0,
+        hi=60.0,
+    ),
+    Param(
+        "mu",
+        scenarios.PARAM_DEFAULTS["mu"],
+        "floor friction coefficient (default (ours))",
+        "",
+        lo=trials.MU_MIN,
+        hi=3.0,
+    ),
     Param("mu_jitter", 0.1, "mu + U(-1, 1) x this, from the row's seed (default (ours))", "", lo=0.0, hi=1.0),
-    Param("place_jitter", 0.005, "the robot's start shifted by U(-1, 1) x this in x and y, from the row's seed "
-          "(default (ours))", "m", lo=0.0, hi=0.05),
-    TR.RUN_PARAMS[1],
+    Param(
+        "place_jitter",
+        0.005,
+        "the robot's start shifted by U(-1, 1) x this in x and y, from the row's seed (default (ours))",
+        "m",
+        lo=0.0,
+        hi=0.05,
+    ),
+    trials.RUN_PARAMS[1],
 )
 
 METRICS = (
@@ -71,21 +112,21 @@ METRICS = (
     Metric("tip_ok", "max_tip_error below 30 mm", kind="bool"),
     Metric("stalls", "times the operator commanded the switching state at a base joint's limit", kind="int"),
     Metric("switch_time", "time spent in the switching state", "s"),
-    TR.T_DIVERGED,
+    trials.T_DIVERGED,
 )
-STATUSES = TR.STATUSES
+STATUSES = trials.STATUSES
 MEASURES = ("pipe_lift", "valve_turn", "door_max", "door_angle")
 
 
 def trial_params(operation: str, values: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, Any]:
     """Simulation params of n trials of one operation from their rows' values and PRNG keys (n, 2)."""
-    op = O.OPERATIONS[operation]
+    op = operations.OPERATIONS[operation]
     n = keys.shape[0]
     u = seed_jitter(keys, 3)
-    mu = np.maximum(np.asarray(values["mu"], float) + u[:, 0] * np.asarray(values["mu_jitter"], float), TR.MU_MIN)
+    mu = np.maximum(np.asarray(values["mu"], float) + u[:, 0] * np.asarray(values["mu_jitter"], float), trials.MU_MIN)
     shift = u[:, 1:] * np.asarray(values["place_jitter"], float)[:, None]
-    operator = {k: np.asarray(values[k], float) for k in OP.PARAM_DEFAULTS if k in values}
-    params = O.script_params(op.script, op.grip_at, n, mu=mu, x0=shift[:, 0], y0=shift[:, 1], **operator)
+    operator = {k: np.asarray(values[k], float) for k in snake_operator.PARAM_DEFAULTS if k in values}
+    params = operations.script_params(op.script, op.grip_at, n, mu=mu, x0=shift[:, 0], y0=shift[:, 1], **operator)
     params["key"] = np.asarray(keys, np.uint32)
     return params
 
@@ -121,12 +162,12 @@ def make_batch_fn(fixed: Mapping[str, Any]):
             rows = np.flatnonzero(names == name)
             if rows.size == 0:
                 continue
-            op = O.OPERATIONS[name]
+            op = operations.OPERATIONS[name]
             params = trial_params(name, {k: a[rows] for k, a in v.items()}, keys[rows])
-            res = rollout(O.operation_scenario(op.fixture, op.horizon), params, backend="native",
+            res = rollout(operations.operation_scenario(op.fixture, op.horizon), params, backend="native",
                           nthread=int(fixed["nthread"]))
-            m = O.measure(op, res)
-            switching = O.switching_record(res)
+            m = operations.measure(op, res)
+            switching = operations.switching_record(res)
             for key in (*MEASURES, "max_tip_error", "final_tip_error"):
                 if key in m:
                     out[key][rows] = m[key]
@@ -135,7 +176,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
             out["stalls"][rows] = stall_counts(switching)
             out["switch_time"][rows] = switching.sum(-1) * (res.times[1] - res.times[0])
             out["t_diverged"][rows] = res.t_diverged
-            out["status"][rows] = TR.status(res.diverged, res.metrics["fell"])
+            out["status"][rows] = trials.status(res.diverged, res.metrics["fell"])
         out["success"] = out["success"].astype(bool)
         out["tip_ok"] = out["tip_ok"].astype(bool)
         out["stalls"] = out["stalls"].astype(int)

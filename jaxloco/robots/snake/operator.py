@@ -36,9 +36,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from jaxloco.robots.snake import control as C
-from jaxloco.robots.snake import kinsim as S
-from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import control, kinsim, params
 
 Array = jax.Array
 
@@ -87,8 +85,8 @@ def initial_state(seen0: Array) -> OperatorState:
 def base_limit_ratio(phi: Array) -> Array:
     """max |theta_i| / limit_i over the base part's yaw joints theta_4..theta_9 of phi (12,)
     (1 at a limit, Table I)."""
-    base = slice(P.N_H, P.N_PHI)
-    return jnp.max(jnp.abs(phi[base]) / jnp.asarray(C.PHI_LIMITS, phi.dtype)[base])
+    base = slice(params.N_H, params.N_PHI)
+    return jnp.max(jnp.abs(phi[base]) / jnp.asarray(control.PHI_LIMITS, phi.dtype)[base])
 
 
 def switch_command(switching: Array, held: Array, ratio: Array, enter: Array, exit_: Array, min_switch: Array) -> Array:
@@ -98,7 +96,7 @@ def switch_command(switching: Array, held: Array, ratio: Array, enter: Array, ex
     return jnp.where(switching, (ratio > exit_) | (held < min_switch), ratio >= enter)
 
 
-def step(state: OperatorState, script: S.Target, t: Array, seen: Array, ratio: Array, dt: float, gain: Array,
+def step(state: OperatorState, script: kinsim.Target, t: Array, seen: Array, ratio: Array, dt: float, gain: Array,
          limit: Array, enter: Array, exit_: Array, min_switch: Array) -> tuple[OperatorState, Command]:
     """One control period of the operator at time t [s] (module docstring): `seen` the controlled
     point's pose (6,) as the operator sees it, `ratio` the joints' limit ratio

@@ -151,11 +151,11 @@ def plot_contact_forces(table: Any, *, figsize=(10.0, 3.2)):
     force."""
     import matplotlib.pyplot as plt
 
-    from jaxloco.robots.snake import contact as CT
+    from jaxloco.robots.snake import contact
 
     postures = np.asarray(column(table, "posture")).astype(str)
     ok = np.asarray(column(table, "status")).astype(str) == "ok"
-    names = [k for k in CT.POSTURE_NAMES if np.any(postures == k)]
+    names = [k for k in contact.POSTURE_NAMES if np.any(postures == k)]
     x = np.arange(len(names))
     fig, axes = plt.subplots(1, 3, figsize=figsize, layout="constrained", sharey=True)
     for j, (ax, force) in enumerate(zip(axes, ("fx", "fy", "fz"), strict=True)):
@@ -164,8 +164,15 @@ def plot_contact_forces(table: Any, *, figsize=(10.0, 3.2)):
         mean = [v.mean() if v.size else np.nan for v in ours]
         sd = [v.std(ddof=1) if v.size > 1 else 0.0 for v in ours]
         ax.bar(x - 0.2, mean, 0.4, yerr=sd, label="ours", color="C0", capsize=2)
-        ax.bar(x + 0.2, [CT.PAPER_FORCES[k][j][0] for k in names], 0.4, yerr=[CT.PAPER_FORCES[k][j][1] for k in names],
-               label="paper", color="C3", capsize=2)
+        ax.bar(
+            x + 0.2,
+            [contact.PAPER_FORCES[k][j][0] for k in names],
+            0.4,
+            yerr=[contact.PAPER_FORCES[k][j][1] for k in names],
+            label="paper",
+            color="C3",
+            capsize=2,
+        )
         ax.set_xticks(x, [f"({k})" for k in names], fontsize="small")
         ax.set_title(f"f_{force[1]} [N]", fontsize="medium")
         ax.grid(alpha=0.3, axis="y")
@@ -181,14 +188,17 @@ def plot_operations(table: Any, *, figsize=(10.0, 3.2)):
     the 30 mm bound; bars the mean over the trials, dots each trial."""
     import matplotlib.pyplot as plt
 
-    from jaxloco.robots.snake import operations_analysis as OA
+    from jaxloco.robots.snake import operations_analysis
 
     ops = column(table, "operation").astype(str)
     gains = column(table, "operator_gain").astype(float)
-    goal = {"pick": ("pipe_lift", OA.PICK_LIFT_MIN), "valve": ("valve_turn", OA.VALVE_TURN_MIN),
-            "door": ("door_max", OA.DOOR_OPEN_MIN)}
+    goal = {
+        "pick": ("pipe_lift", operations_analysis.PICK_LIFT_MIN),
+        "valve": ("valve_turn", operations_analysis.VALVE_TURN_MIN),
+        "door": ("door_max", operations_analysis.DOOR_OPEN_MIN),
+    }
     fig, (a1, a2) = plt.subplots(1, 2, figsize=figsize, layout="constrained")
-    names = [n for n in OA.NAMES if np.any(ops == n)]
+    names = [n for n in operations_analysis.NAMES if np.any(ops == n)]
     levels = np.unique(gains)
     width = 0.8 / max(len(levels), 1)
     for j, g in enumerate(levels):
@@ -206,7 +216,7 @@ def plot_operations(table: Any, *, figsize=(10.0, 3.2)):
                        label=f"operator gain {g:g} /s" if i == 0 else None)
                 ax.plot(np.full(v.size, x), v, ".", color="k", ms=3)
     a1.axhline(1.0, color="k", lw=0.8, ls="--")
-    a2.axhline(1e3 * OA.TIP_BOUND, color="k", lw=0.8, ls="--")
+    a2.axhline(1e3 * operations_analysis.TIP_BOUND, color="k", lw=0.8, ls="--")
     for ax, title in (
         (a1, "goal reached (measure / success threshold)"),
         (a2, "largest tip error [mm] (30 mm dashed)"),

@@ -26,13 +26,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.robots.snake import control as C
-from jaxloco.robots.snake import experiments as E
-from jaxloco.robots.snake import kinsim as S
-from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import control, experiments, kinsim
+from jaxloco.robots.snake import params as snake_params
 
 Array = jax.Array
-CANDIDATES = np.arange(2, P.N_MODES + 1)  # Table II's switching modes 2..6
+CANDIDATES = np.arange(2, snake_params.N_MODES + 1)  # Table II's switching modes 2..6
 
 
 @dataclass(frozen=True)
@@ -44,20 +42,28 @@ class Prediction:
     w_error: float = 1.0
 
 
-def mode_scores(state: S.SnakeState, t: Array, target: S.Target, cp: C.ControlParams, dt: float, point: str,
-                prediction: Prediction = Prediction(), plant: S.PlantParams | None = None,
-                params: P.SnakeParams | None = None) -> Array:
+def mode_scores(
+    state: kinsim.SnakeState,
+    t: Array,
+    target: kinsim.Target,
+    cp: control.ControlParams,
+    dt: float,
+    point: str,
+    prediction: Prediction = Prediction(),
+    plant: kinsim.PlantParams | None = None,
+    params: snake_params.SnakeParams | None = None,
+) -> Array:
     """J(sigma) (5,) of the candidate modes 2..6 (module docstring) from `state` at time t
     [s] (the target's clock), each a `kinsim.rollout` of horizon_s in that fixed mode."""
-    plant = S.PlantParams() if plant is None else plant
+    plant = kinsim.PlantParams() if plant is None else plant
     steps = max(1, round(prediction.horizon_s / dt))
-    config = S.RolloutConfig(steps=steps, dt=dt, point=point, feedback=False)
-    ahead = S.Target(target.w0, target.delta, target.t0 - t, target.duration)  # the target from time t on
-    e_p0, e_a0 = E.PAPER_HEAD_ERROR
+    config = kinsim.RolloutConfig(steps=steps, dt=dt, point=point, feedback=False)
+    ahead = kinsim.Target(target.w0, target.delta, target.t0 - t, target.duration)  # the target from time t on
+    e_p0, e_a0 = experiments.PAPER_HEAD_ERROR
 
     def score(sigma: Array) -> Array:
         fixed = cp.with_(fixed_mode=sigma, switch_at=jnp.inf, enter_ratio=2.0)
-        rec = S.rollout(state, ahead, fixed, config, plant, params)
+        rec = kinsim.rollout(state, ahead, fixed, config, plant, params)
         e = rec["error"]
         err = jnp.sum(e[:, :3] ** 2, -1) / e_p0**2 + jnp.sum(e[:, 3:6] ** 2, -1) / e_a0**2
         return rec["V"][-1] / rec["V"][0] + prediction.w_error * jnp.mean(err)
@@ -65,13 +71,19 @@ def mode_scores(state: S.SnakeState, t: Array, target: S.Target, cp: C.ControlPa
     return jax.vmap(score)(jnp.asarray(CANDIDATES, jnp.int32))
 
 
-def chooser(target: S.Target, cp: C.ControlParams, dt: float, point: str, prediction: Prediction = Prediction(),
-            plant: S.PlantParams | None = None, params: P.SnakeParams | None = None
-            ) -> Callable[[S.SnakeState, Array], Array]:
+def chooser(
+    target: kinsim.Target,
+    cp: control.ControlParams,
+    dt: float,
+    point: str,
+    prediction: Prediction = Prediction(),
+    plant: kinsim.PlantParams | None = None,
+    params: snake_params.SnakeParams | None = None,
+) -> Callable[[kinsim.SnakeState, Array], Array]:
     """choose(state, t) -> the candidate mode of lowest J (for `kinsim.rollout`'s
     `choose`)."""
 
-    def choose(state: S.SnakeState, t: Array) -> Array:
+    def choose(state: kinsim.SnakeState, t: Array) -> Array:
         scores = mode_scores(state, t, target, cp, dt, point, prediction, plant, params)
         return jnp.asarray(CANDIDATES, jnp.int32)[jnp.argmin(scores)]
 

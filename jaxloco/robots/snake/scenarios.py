@@ -102,9 +102,9 @@ import mujoco
 import numpy as np
 
 from jaxloco import geometry as geo
-from jaxloco.robots.snake import kinematics as K
+from jaxloco.robots.snake import kinematics
 from jaxloco.robots.snake import model as snake_model
-from jaxloco.robots.snake import params as P
+from jaxloco.robots.snake import params as snake_params
 from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.data import SimData
@@ -135,8 +135,8 @@ PARAM_DEFAULTS: dict[str, float] = {
 }
 INT_KEYS = ("mode",)
 
-_PAIR_LINK = np.asarray(P.PAIR_LINKS) - 1  # 0-based link of each of the 9 pairs
-_BASE_LINK = _PAIR_LINK[P.BASE_PAIRS[0]]  # link 7 (0-based 6)
+_PAIR_LINK = np.asarray(snake_params.PAIR_LINKS) - 1  # 0-based link of each of the 9 pairs
+_BASE_LINK = _PAIR_LINK[snake_params.BASE_PAIRS[0]]  # link 7 (0-based 6)
 
 
 # ----------------------------------------------------------------------- wheel lifting
@@ -148,7 +148,7 @@ def lift_angles(
     grounded: Array,
     lift_height: Array,
     theta_b: Array | None = None,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
 ) -> tuple[Array, Array]:
     """Base pitch angles psi_b = psi_4..psi_8 (5,) [rad] that put the axle midpoints of
     base pairs 1..7 at heights r + (0 if grounded else lift_height) above the plane of
@@ -161,16 +161,16 @@ def lift_angles(
     equation (a sinusoid in the angle) along the chain, so a bent base lifts the pairs by
     exactly the same heights; the solution nearest 0 is taken.
     """
-    params = P.default_params() if params is None else params
+    params = snake_params.default_params() if params is None else params
     dtype = jnp.result_type(lift_height, float) if theta_b is None else jnp.result_type(lift_height, theta_b, float)
     grounded = jnp.asarray(grounded, bool)
     h = jnp.where(grounded, 0.0, jnp.asarray(lift_height, dtype))  # (7,)
-    theta = jnp.zeros(P.N_B, dtype) if theta_b is None else jnp.asarray(theta_b, dtype)
+    theta = jnp.zeros(snake_params.N_B, dtype) if theta_b is None else jnp.asarray(theta_b, dtype)
     l = jnp.asarray(params.link_length, dtype)
-    rear = jnp.concatenate([jnp.full(P.N_B - 1, l), jnp.asarray(params.tail_axle, dtype)[None]])
+    rear = jnp.concatenate([jnp.full(snake_params.N_B - 1, l), jnp.asarray(params.tail_axle, dtype)[None]])
     R = jnp.eye(3, dtype=dtype)  # frame of the link in front of the current pitch joint
     angles = []
-    for i in range(P.N_B):  # segment i: pair i + 1 -> pair i + 2 (0-based i)
+    for i in range(snake_params.N_B):  # segment i: pair i + 1 -> pair i + 2 (0-based i)
         # axle-to-axle vector in the frame behind the pitch joint (before its rotation)
         u = jnp.stack([-l, 0.0 * l, 0.0 * l]) + geo.rot_z(-theta[i]) @ jnp.stack([-rear[i], 0.0 * l, 0.0 * l])
         g = R[2]  # world z in the current frame: height change = g . Ry(psi) u
@@ -193,21 +193,21 @@ def _actuator_ids() -> tuple[np.ndarray, np.ndarray]:
     """Actuator indices of the 17 joint servos (JOINT_NAMES order) and of the 9 wheel
     velocity servos (model pairs 1..9), from the model file."""
     m = snake_model.load_model()
-    joints = np.array([m.actuator(n).id for n in P.JOINT_NAMES])
+    joints = np.array([m.actuator(n).id for n in snake_params.JOINT_NAMES])
     wheels = np.array([m.actuator(n).id for n in snake_model.WHEEL_NAMES])
     return joints, wheels
 
 
 def joint_targets(
-    phi_target: Array, grounded: Array, lift_height: Array, params: P.SnakeParams | None = None
+    phi_target: Array, grounded: Array, lift_height: Array, params: snake_params.SnakeParams | None = None
 ) -> Array:
     """The 17 joint position targets (theta_1, psi_1, ..., theta_9): phi_target with
     psi_b of `lift_angles` (the base yaw angles of phi_target) and psi_3 + dpsi3."""
     phi_target = jnp.asarray(phi_target)
-    psi_b, dpsi3 = lift_angles(grounded, lift_height, phi_target[P.N_H:], params)
+    psi_b, dpsi3 = lift_angles(grounded, lift_height, phi_target[snake_params.N_H:], params)
     dtype = jnp.result_type(phi_target, psi_b)
-    phi = phi_target.astype(dtype).at[P.SCP_INDEX].add(dpsi3.astype(dtype))
-    return K.full_joint_angles(phi, psi_b.astype(dtype))
+    phi = phi_target.astype(dtype).at[snake_params.SCP_INDEX].add(dpsi3.astype(dtype))
+    return kinematics.full_joint_angles(phi, psi_b.astype(dtype))
 
 
 def actuator_command(
@@ -215,7 +215,7 @@ def actuator_command(
     rho_dot: Array,
     grounded: Array,
     lift_height: Array,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
 ) -> Array:
     """ctrl (nu = 26,) of the model: joint servo targets (`joint_targets`), base wheels
     (model pairs 3..9) at rho_dot (7,) [rad/s], head wheels (pairs 1, 2) at 0.
@@ -223,7 +223,7 @@ def actuator_command(
     phi_target (12,) [rad]; grounded (7,) bool (the mode); lift_height [m]."""
     joint_ids, wheel_ids = _actuator_ids()
     q = joint_targets(phi_target, grounded, lift_height, params)
-    wheels = jnp.zeros(P.N_PAIRS, q.dtype).at[P.BASE_PAIRS].set(jnp.asarray(rho_dot, q.dtype))
+    wheels = jnp.zeros(snake_params.N_PAIRS, q.dtype).at[snake_params.BASE_PAIRS].set(jnp.asarray(rho_dot, q.dtype))
     nu = len(joint_ids) + len(wheel_ids)
     return jnp.zeros(nu, q.dtype).at[joint_ids].set(q).at[wheel_ids].set(wheels)
 
@@ -244,24 +244,24 @@ def placed_head_pose(
     joints: Array,
     grounded: Array,
     lift_height: Array,
-    params: P.SnakeParams | None = None,
+    params: snake_params.SnakeParams | None = None,
 ) -> tuple[Array, Array]:
     """Head position (3,) and quaternion (4,) (free joint qpos) that put the base on the
     ground for joint angles `joints` (17,) designed by `joint_targets`: link 7's origin
     (the psi_3 axle) at (base[0], base[1], r + h_1), link 7 oriented Rz(base[2])
     Ry(beta_1) (its segment's inclination of `lift_angles`)."""
-    params = P.default_params() if params is None else params
+    params = snake_params.default_params() if params is None else params
     joints = jnp.asarray(joints)
     dtype = joints.dtype
     base = jnp.asarray(base, dtype)
     grounded = jnp.asarray(grounded, bool)
-    _, beta1 = lift_angles(grounded, lift_height, joints[P.N_H + 2 * np.arange(P.N_B)], params)
+    _, beta1 = lift_angles(grounded, lift_height, joints[snake_params.N_H + 2 * np.arange(snake_params.N_B)], params)
     h1 = jnp.where(grounded[0], 0.0, jnp.asarray(lift_height, dtype))
-    _, ps = K.link_frames(jnp.zeros(6, dtype), joints, params)
+    _, ps = kinematics.link_frames(jnp.zeros(6, dtype), joints, params)
     # link 7 relative to the head: the product of the joint rotations before it
     q_rel = jnp.asarray([1.0, 0.0, 0.0, 0.0], dtype)
     for k in range(_BASE_LINK):
-        qk = _axis_quat(1, joints[k]) if P.JOINT_IS_PITCH[k] else _axis_quat(2, -joints[k])
+        qk = _axis_quat(1, joints[k]) if snake_params.JOINT_IS_PITCH[k] else _axis_quat(2, -joints[k])
         q_rel = tr.quat_mul(q_rel, qk)
     q7 = tr.quat_mul(tr.quat_z(base[2]), _axis_quat(1, beta1.astype(dtype)))
     quat = tr.quat_mul(q7, _quat_conj(q_rel))
@@ -276,18 +276,18 @@ def placed_head_pose(
 def _layout() -> dict[str, np.ndarray]:
     m = snake_model.load_model()
     return {
-        "joint_qpos": np.array([m.joint(n).qposadr[0] for n in P.JOINT_NAMES]),
-        "joint_dof": np.array([m.joint(n).dofadr[0] for n in P.JOINT_NAMES]),
+        "joint_qpos": np.array([m.joint(n).qposadr[0] for n in snake_params.JOINT_NAMES]),
+        "joint_dof": np.array([m.joint(n).dofadr[0] for n in snake_params.JOINT_NAMES]),
         "wheel_dof": np.array([m.joint(f"{n}_active").dofadr[0] for n in snake_model.WHEEL_NAMES]),
     }
 
 
-def state_geometry(qpos: Array, qvel: Array, params: P.SnakeParams | None = None) -> dict[str, Array]:
+def state_geometry(qpos: Array, qvel: Array, params: snake_params.SnakeParams | None = None) -> dict[str, Array]:
     """What the scenario reads from one simulation's state (see the module docstring):
     head, tip, base (6,) poses, joints, joint_vel (17,), wheel_speed (9,), clearance
     (9,), slip (9,) lateral slip of each pair's contact point, roll_slip (9,) rolling slip
     of each active wheel, tilt () of link 7 [rad]."""
-    params = P.default_params() if params is None else params
+    params = snake_params.default_params() if params is None else params
     lay = _layout()
     qpos, qvel = jnp.asarray(qpos), jnp.asarray(qvel)
     dtype = qpos.dtype
@@ -297,11 +297,11 @@ def state_geometry(qpos: Array, qvel: Array, params: P.SnakeParams | None = None
     joints, jvel = qpos[lay["joint_qpos"]], qvel[lay["joint_dof"]]
     spin = qvel[lay["wheel_dof"]]
     zero = jnp.zeros(6, dtype)
-    wy = K.pair_wheel_y(params, dtype)  # (9,)
-    d = (P.ACTIVE_SIDE * wy)[:, None]
+    wy = kinematics.pair_wheel_y(params, dtype)  # (9,)
+    d = (snake_params.ACTIVE_SIDE * wy)[:, None]
 
     def rel(q):  # in the head frame: pair contact points, active wheels' contacts, axes
-        axle, contact, R = K.wheel_pairs(zero, q, params)
+        axle, contact, R = kinematics.wheel_pairs(zero, q, params)
         return contact, contact + d * R[:, :, 1], axle, R
 
     (c_rel, a_rel, axle_rel, R_rel), (dc, da, _, _) = jax.jvp(rel, (joints,), (jvel,))
@@ -316,10 +316,12 @@ def state_geometry(qpos: Array, qvel: Array, params: P.SnakeParams | None = None
     # clearance: lowest point of each wheel cylinder (radius r, half width hw, axle y)
     axle = p_h + axle_rel @ R_h.T
     a_z = y_ax[:, 2]
-    drop = params.wheel_radius * jnp.sqrt(jnp.clip(1.0 - a_z**2, 0.0, 1.0)) + P.WHEEL_HALF_WIDTH * jnp.abs(a_z)
+    drop = params.wheel_radius * jnp.sqrt(jnp.clip(1.0 - a_z**2, 0.0, 1.0)) + snake_params.WHEEL_HALF_WIDTH * jnp.abs(
+        a_z
+    )
     centre_z = axle[:, 2][:, None] + wy[:, None] * jnp.stack([a_z, -a_z], -1)
     clearance = jnp.min(centre_z, -1) - drop
-    Rs, ps = K.link_frames(zero, joints, params)
+    Rs, ps = kinematics.link_frames(zero, joints, params)
     R7, p7 = R_h @ Rs[_BASE_LINK], p_h + R_h @ ps[_BASE_LINK]
     rpy = sm.quat_to_rpy(quat)
     head = jnp.concatenate([p_h, rpy])
@@ -352,7 +354,7 @@ def make_controller(init: Callable[[Mapping[str, Any], Any], Any], policy: Polic
         return {
             "policy": init(p, obs),
             "phi_target": obs["phi"],
-            "rho_dot": jnp.zeros(P.N_W, dtype),
+            "rho_dot": jnp.zeros(snake_params.N_W, dtype),
             "grounded": obs["contact"],
         }
 
@@ -370,17 +372,17 @@ def make_controller(init: Callable[[Mapping[str, Any], Any], Any], policy: Polic
 
 def mode_mask(mode: Array) -> Array:
     """Grounded mask (7,) of Table II mode `mode` (1..6, traced ok)."""
-    return jnp.asarray(P.MODES)[jnp.clip(jnp.asarray(mode) - 1, 0, P.N_MODES - 1)]
+    return jnp.asarray(snake_params.MODES)[jnp.clip(jnp.asarray(mode) - 1, 0, snake_params.N_MODES - 1)]
 
 
 def constant_controller(phi: np.ndarray | None = None) -> Controller:
     """Holds phi (default params.INITIAL_PHI), every base wheel at params["rho_dot"], mode
     params["mode"] (for holding / driving tests and benchmarks)."""
-    phi = np.asarray(P.INITIAL_PHI if phi is None else phi, float)
+    phi = np.asarray(snake_params.INITIAL_PHI if phi is None else phi, float)
 
     def policy(p, s, obs):
         dtype = obs["phi"].dtype
-        rho = jnp.full(P.N_W, jnp.asarray(p["rho_dot"], dtype))
+        rho = jnp.full(snake_params.N_W, jnp.asarray(p["rho_dot"], dtype))
         return s, jnp.asarray(phi, dtype), rho, mode_mask(p["mode"])
 
     return make_controller(lambda p, obs: jnp.zeros(()), policy, name="constant")
@@ -443,7 +445,7 @@ def snake_scenario(
     params.INITIAL_PHI, Sec. V-A; a params entry "phi0" (12,) per simulation replaces
     it) with the wheels of params["mode"] lifted; `fixture`: bodies beside the ground."""
     m, terrain = build_model(fixture)
-    phi0 = np.asarray(P.INITIAL_PHI if phi0 is None else phi0, float)
+    phi0 = np.asarray(snake_params.INITIAL_PHI if phi0 is None else phi0, float)
     controller = controller or constant_controller(phi0)
     if fixture is not None and fixture.actuators:
         controller = _with_fixture_ctrl(controller, fixture)
@@ -455,12 +457,12 @@ def snake_scenario(
     ground = np.array([m.geom(n).id for n in terrain.body_names()])
     robot = np.array([g for g in range(m.ngeom) if m.geom_contype[g] == snake_model.ROBOT_CONTYPE])
     lay = _layout()  # of the robot-only model: the ground (a mocap body) adds no joints
-    assert all(m.joint(n).qposadr[0] == a for n, a in zip(P.JOINT_NAMES, lay["joint_qpos"], strict=True))
-    assert all(m.actuator(n).id == a for n, a in zip(P.JOINT_NAMES, _actuator_ids()[0], strict=True))
-    wheel_qpos = np.array([m.joint(f"wheel{i + 1}_{s}").qposadr[0] for i in range(P.N_PAIRS)
+    assert all(m.joint(n).qposadr[0] == a for n, a in zip(snake_params.JOINT_NAMES, lay["joint_qpos"], strict=True))
+    assert all(m.actuator(n).id == a for n, a in zip(snake_params.JOINT_NAMES, _actuator_ids()[0], strict=True))
+    wheel_qpos = np.array([m.joint(f"wheel{i + 1}_{s}").qposadr[0] for i in range(snake_params.N_PAIRS)
                            for s in ("active", "passive")])
-    sp = P.default_params()
-    base_pairs = np.asarray(P.BASE_PAIRS)
+    sp = snake_params.default_params()
+    base_pairs = np.asarray(snake_params.BASE_PAIRS)
     fixture_rows = np.array([m.body_mocapid[m.body(b).id] for b in fixture.bodies], int) if fixture else None
     fixture_adr = np.concatenate([m.sensor_adr[m.sensor(n).id] + np.arange(m.sensor_dim[m.sensor(n).id])
                                   for n in fixture.sensors]) if fixture and fixture.sensors else None
@@ -476,7 +478,7 @@ def snake_scenario(
         grounded = mode_mask(p["mode"])
         lift = jnp.asarray(p["lift_height"], dtype)
         start = jnp.asarray(p.get("phi0", phi0), dtype)
-        ctrl = actuator_command(start, jnp.zeros(P.N_W, dtype), grounded, lift)
+        ctrl = actuator_command(start, jnp.zeros(snake_params.N_W, dtype), grounded, lift)
         if fixture is not None and fixture.actuators:
             ctrl = jnp.concatenate([ctrl, jnp.asarray(fixture.ctrl(p, jnp.zeros((), dtype)), dtype)])
         joints = joint_targets(start, grounded, lift)
@@ -490,7 +492,7 @@ def snake_scenario(
     def observe(data: SimData):
         g = state_geometry(data.qpos, data.qvel, sp)
         contact = g["clearance"][base_pairs] < CONTACT_TOL
-        return {"time": data.time, "phi": g["joints"][P.PHI_JOINTS], "contact": contact, **g}
+        return {"time": data.time, "phi": g["joints"][snake_params.PHI_JOINTS], "contact": contact, **g}
 
     def record(p, data: SimData, obs, c, e):
         g = obs
@@ -499,7 +501,11 @@ def snake_scenario(
         if isinstance(c, dict) and "phi_target" in c:
             cmd = (c["phi_target"], c["rho_dot"], c["grounded"])
         else:
-            cmd = (jnp.zeros(P.N_PHI, dtype), jnp.zeros(P.N_W, dtype), jnp.zeros(P.N_W, bool))
+            cmd = (
+                jnp.zeros(snake_params.N_PHI, dtype),
+                jnp.zeros(snake_params.N_W, dtype),
+                jnp.zeros(snake_params.N_W, bool),
+            )
         policy = c.get("policy") if isinstance(c, dict) else None
         intent = {"intent": policy["intent"]} if isinstance(policy, dict) and "intent" in policy else {}
         return {
@@ -547,7 +553,7 @@ def snake_scenario(
         substeps=substeps,
         record_every=record_every,
         model_fields=(friction_field(np.concatenate([ground, robot])),
-                      *position_servo_fields(_actuator_ids()[0][:P.N_H], "head_kp", "head_kv")),
+                      *position_servo_fields(_actuator_ids()[0][:snake_params.N_H], "head_kp", "head_kv")),
         statuses=STATUSES,
     )
 

@@ -53,12 +53,10 @@ import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
 from jaxloco.errors import SpecError
-from jaxloco.robots.snake import kinsim as S
+from jaxloco.robots.snake import kinsim, scenarios, trials
 from jaxloco.robots.snake import model as snake_model
-from jaxloco.robots.snake import params as P
-from jaxloco.robots.snake import scenarios as SC
+from jaxloco.robots.snake import params as snake_params
 from jaxloco.robots.snake import sim_control as SCt
-from jaxloco.robots.snake import trials as TR
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.scenario import Controller, InitialState, Scenario
 
@@ -117,10 +115,10 @@ def build_model(ground: str = "box") -> mujoco.MjModel:
     if ground not in GROUNDS:
         raise SpecError(f"ground: {ground!r} is not one of {', '.join(GROUNDS)}")
     if ground == "box":
-        return SC.build_model()[0]
+        return scenarios.build_model()[0]
     spec = snake_model.load_spec()
     terrain = tr.flat(half_extent=10.0, half_depth=0.5)
-    terrain.add_to(spec, friction=(SC.PARAM_DEFAULTS["mu"], 0.005, 0.0001))
+    terrain.add_to(spec, friction=(scenarios.PARAM_DEFAULTS["mu"], 0.005, 0.0001))
     names = set(terrain.body_names())
     for geom in spec.geoms:
         if geom.name in names:
@@ -140,8 +138,8 @@ def settled_state(ground: str = "box", settle: float = SETTLE) -> dict[str, np.n
     mocap_pos, mocap_quat (numpy) and max_speed (largest |qvel| at the end, rad/s or
     m/s: how settled it is)."""
     m = build_model(ground)
-    sc = SC.snake_scenario(1.0, CONTROL_DT)
-    p = {k: np.asarray(v[0]) for k, v in SC.params_batch(1).items()}
+    sc = scenarios.snake_scenario(1.0, CONTROL_DT)
+    p = {k: np.asarray(v[0]) for k, v in scenarios.params_batch(1).items()}
     s0 = jax.tree_util.tree_map(np.asarray, sc.initial_state(p, jax.random.PRNGKey(0)))
     d = mujoco.MjData(m)
     d.qpos[:], d.qvel[:], d.ctrl[:] = s0.qpos, s0.qvel, s0.ctrl
@@ -166,7 +164,7 @@ def reach_controller(control_dt: float = CONTROL_DT) -> Controller:
 
     def init(p, obs):
         s = inner.init(p, obs)
-        hold = jnp.asarray(P.INITIAL_PHI, obs["phi"].dtype)
+        hold = jnp.asarray(snake_params.INITIAL_PHI, obs["phi"].dtype)
         return {**s, "policy": {**s["policy"], "phi_cmd": hold}, "phi_target": hold}
 
     return Controller(init=init, step=inner.step, name="reach_fb_tip")
@@ -178,7 +176,7 @@ def reach_scenario(ground: str = "box", horizon: float = 3.0, settle: float = SE
     for `horizon` s from the settled state (`settled_state`), recording every control
     period. Params: `reach_params`."""
     m = build_model(ground)
-    sc = SC.snake_scenario(horizon, CONTROL_DT, reach_controller(CONTROL_DT))
+    sc = scenarios.snake_scenario(horizon, CONTROL_DT, reach_controller(CONTROL_DT))
     # the scenario's indices (friction geoms, mocap rows, joints) were taken from its own model
     assert (m.ngeom, m.nq, m.nmocap, m.nu) == (sc.model.ngeom, sc.model.nq, sc.model.nmocap, sc.model.nu)
     assert all(m.geom(i).name == sc.model.geom(i).name for i in range(m.ngeom))
@@ -213,7 +211,7 @@ def reach_metrics(tip: Array, phi_cmd: Array, delta: Array, t_start: Array, ramp
     t = jnp.arange(n, dtype=dtype) * control_dt
     delta = jnp.asarray(delta, dtype)
     z = jnp.zeros(4, dtype)
-    target = S.Target(jnp.zeros(7, dtype), jnp.concatenate([delta, z]), jnp.asarray(t_start, dtype),
+    target = kinsim.Target(jnp.zeros(7, dtype), jnp.concatenate([delta, z]), jnp.asarray(t_start, dtype),
                       jnp.asarray(ramp, dtype))
     moved = jax.vmap(lambda ti: target.at(ti)[0][:3])(t)  # the target's displacement at t (the controller's)
     e = tip[:, :3] - (tip[0, :3] + moved)
@@ -271,7 +269,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
         out = {k: np.asarray(x, float) for k, x in m.items()}
         out["max_slip"] = np.asarray(result.metrics["max_slip"], float)
         out["t_diverged"] = result.t_diverged
-        out["status"] = TR.status(result.diverged, result.metrics["fell"])
+        out["status"] = trials.status(result.diverged, result.metrics["fell"])
         return out
 
     return batch

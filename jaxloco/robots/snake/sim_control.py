@@ -35,14 +35,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.robots.snake import control as C
-from jaxloco.robots.snake import experiments as E
-from jaxloco.robots.snake import kinematics as K
-from jaxloco.robots.snake import kinsim as S
-from jaxloco.robots.snake import operator as OP
-from jaxloco.robots.snake import params as P
-from jaxloco.robots.snake import predictive as PR
-from jaxloco.robots.snake import scenarios as SC
+from jaxloco.robots.snake import control, experiments, kinematics, kinsim, operator, predictive, scenarios
+from jaxloco.robots.snake import params as snake_params
 from jaxloco.sim.rollout import RolloutResult, rollout
 from jaxloco.sim.scenario import Controller
 
@@ -51,10 +45,10 @@ DELTA_KEYS = ("d_x", "d_y", "d_z", "d_roll", "d_pitch", "d_yaw", "d_psi3")
 
 PARAM_DEFAULTS: dict[str, float] = {
     "k_eta": 0.1,
-    "kv_head_yaw": C.PAPER_KV_HEAD_YAW,
-    "kv_head_pitch": C.PAPER_KV_HEAD_PITCH,
-    "kv_base": C.PAPER_KV_BASE,
-    "kv_ratio": C.PAPER_KV_RATIO,
+    "kv_head_yaw": control.PAPER_KV_HEAD_YAW,
+    "kv_head_pitch": control.PAPER_KV_HEAD_PITCH,
+    "kv_base": control.PAPER_KV_BASE,
+    "kv_ratio": control.PAPER_KV_RATIO,
     "gain": 1.0,  # K [1/s]
     "a2": 0.0,  # Eq. 20 weight
     "delta_t": 1.0,  # [s]
@@ -63,28 +57,28 @@ PARAM_DEFAULTS: dict[str, float] = {
     "switch_at": float("inf"),  # [s]
     "enter_ratio": 2.0,  # automatic switching off
     "exit_ratio": 0.9,
-    "wheel_speed_max": S.WHEEL_SPEED_MAX,  # [rad/s]
-    "t0": E.T_START,  # [s] the target starts to change
-    "duration": E.RAMP,  # [s] ... over this time
+    "wheel_speed_max": kinsim.WHEEL_SPEED_MAX,  # [rad/s]
+    "t0": experiments.T_START,  # [s] the target starts to change
+    "duration": experiments.RAMP,  # [s] ... over this time
     **{k: 0.0 for k in DELTA_KEYS},
     "psi3_target": float("nan"),  # [rad] SCP target (nan: hold its start value)
     "hold_until": 0.0,  # [s] no null-space motion (k_eta = 0) before this time (settling)
-    **OP.PARAM_DEFAULTS,  # the teleoperator (`operator`): off by default
+    **operator.PARAM_DEFAULTS,  # the teleoperator (`operator`): off by default
 }
 
 
-def control_params(p: Mapping[str, Array]) -> C.ControlParams:
+def control_params(p: Mapping[str, Array]) -> control.ControlParams:
     """`ControlParams` from one simulation's params dict."""
     dtype = jnp.asarray(p["k_eta"]).dtype
-    kv = C.kv_diagonal(p["kv_head_yaw"], p["kv_head_pitch"], p["kv_base"], p["kv_ratio"]).astype(dtype)
-    return C.ControlParams(
-        gain=jnp.full(C.N_TASK, p["gain"], dtype),
-        weights=C.default_weights().astype(dtype),
+    kv = control.kv_diagonal(p["kv_head_yaw"], p["kv_head_pitch"], p["kv_base"], p["kv_ratio"]).astype(dtype)
+    return control.ControlParams(
+        gain=jnp.full(control.N_TASK, p["gain"], dtype),
+        weights=control.default_weights().astype(dtype),
         k_eta=p["k_eta"],
         kv=kv,
         a2=p["a2"],
         delta_t=p["delta_t"],
-        mode_order=jnp.asarray(C.MODE_ORDERS)[jnp.asarray(p["mode_order"]).astype(jnp.int32)],
+        mode_order=jnp.asarray(control.MODE_ORDERS)[jnp.asarray(p["mode_order"]).astype(jnp.int32)],
         fixed_mode=jnp.asarray(p["fixed_mode"]).astype(jnp.int32),
         switch_at=p["switch_at"],
         enter_ratio=p["enter_ratio"],
@@ -93,7 +87,7 @@ def control_params(p: Mapping[str, Array]) -> C.ControlParams:
 
 
 def task_space_controller(control_dt: float, point: str = "tip", feedback: bool = False,
-                          prediction: PR.Prediction | None = None) -> Controller:
+                          prediction: predictive.Prediction | None = None) -> Controller:
     """The Eq. 12 controller as a `jaxloco.sim` controller (module docstring); `point`:
     the controlled point ("tip": the gripper tip, "head": w_h of Sec. V-A);
     `prediction`: in the switching state, each Delta T slot's mode is the best look-ahead
@@ -106,20 +100,20 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
     def init(p, obs):
         dtype = obs["phi"].dtype
         base = obs["base"]  # link 7's pose (6,): x, y, z, roll, pitch, yaw
-        est = S.SnakeState(jnp.stack([base[0], base[1], base[5]]), obs["phi"], jnp.zeros(P.N_W, dtype))
-        w0 = S.point_pose(est, point=point) if not feedback else seen_pose(obs)
-        wt0 = C.controlled_variable(w0, obs["phi"])
+        est = kinsim.SnakeState(jnp.stack([base[0], base[1], base[5]]), obs["phi"], jnp.zeros(snake_params.N_W, dtype))
+        w0 = kinsim.point_pose(est, point=point) if not feedback else seen_pose(obs)
+        wt0 = control.controlled_variable(w0, obs["phi"])
         wt0 = wt0.at[6].set(jnp.where(jnp.isfinite(p["psi3_target"]), p["psi3_target"], wt0[6]))
         if "script_delta" in p:  # an operator's script: K smooth steps (`kinsim.Target`)
-            target = S.Target(wt0, jnp.asarray(p["script_delta"], dtype), jnp.asarray(p["script_t0"], dtype),
+            target = kinsim.Target(wt0, jnp.asarray(p["script_delta"], dtype), jnp.asarray(p["script_t0"], dtype),
                               jnp.asarray(p["script_duration"], dtype))
         else:
             delta = jnp.stack([jnp.asarray(p[k], dtype) for k in DELTA_KEYS])
-            target = S.Target(wt0, delta, jnp.asarray(p["t0"], dtype), jnp.asarray(p["duration"], dtype))
+            target = kinsim.Target(wt0, delta, jnp.asarray(p["t0"], dtype), jnp.asarray(p["duration"], dtype))
         seen0 = seen_pose(obs)
-        return {"est": est, "target": target, "mode": C.initial_mode_state(dtype), "phi_cmd": obs["phi"],
+        return {"est": est, "target": target, "mode": control.initial_mode_state(dtype), "phi_cmd": obs["phi"],
                 "chosen": jnp.asarray(1, jnp.int32), "slot": jnp.asarray(-1, jnp.int32),
-                "operator": OP.initial_state(seen0), "intent": seen0}
+                "operator": operator.initial_state(seen0), "intent": seen0}
 
     def policy(p, s, obs):
         t = obs["time"]
@@ -129,42 +123,52 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
         if feedback:
             w, phi = seen_pose(obs), obs["phi"]
         else:
-            w, phi = S.point_pose(est, point=point), est.phi
-        op, command = OP.step(s["operator"], s["target"], t, seen_pose(obs), OP.base_limit_ratio(obs["phi"]), dt,
-                              p["operator_gain"], p["operator_limit"], p["operator_enter"], p["operator_exit"],
-                              p["operator_min_switch"])
+            w, phi = kinsim.point_pose(est, point=point), est.phi
+        op, command = operator.step(
+            s["operator"],
+            s["target"],
+            t,
+            seen_pose(obs),
+            operator.base_limit_ratio(obs["phi"]),
+            dt,
+            p["operator_gain"],
+            p["operator_limit"],
+            p["operator_enter"],
+            p["operator_exit"],
+            p["operator_min_switch"],
+        )
         cp = cp.with_(switch_at=jnp.where(command.switching, -jnp.inf, cp.switch_at))
-        mode, sigma = C.update_mode(t, phi, s["mode"], cp)
+        mode, sigma = control.update_mode(t, phi, s["mode"], cp)
         chosen, slot = s["chosen"], s["slot"]
         if prediction is not None:
             b = obs["base"]  # link 7's measured pose; the estimate's without feedback
-            view = S.SnakeState(jnp.stack([b[0], b[1], b[5]]) if feedback else est.base, phi, est.rho)
+            view = kinsim.SnakeState(jnp.stack([b[0], b[1], b[5]]) if feedback else est.base, phi, est.rho)
             k = jnp.floor((t - mode.t_enter) / cp.delta_t + 1e-9).astype(jnp.int32)
             fresh = mode.switching & (k != slot)
-            held = S.Target(command.wd, jnp.zeros_like(command.wd))  # the target held while switching
-            pick = PR.chooser(held, cp, dt, point, prediction)
+            held = kinsim.Target(command.wd, jnp.zeros_like(command.wd))  # the target held while switching
+            pick = predictive.chooser(held, cp, dt, point, prediction)
             chosen = jax.lax.cond(fresh, lambda: jnp.asarray(pick(view, t), jnp.int32), lambda: chosen)
             sigma = jnp.where(mode.switching, chosen, sigma).astype(jnp.int32)
             slot = jnp.where(mode.switching, k, -1)
-        grounded = C.grounded_of(sigma)
+        grounded = control.grounded_of(sigma)
         wd, wd_dot = command.wd, command.wd_dot
-        mats = K.augmented_matrices(w, phi, grounded, point=point)
-        terms = C.control_terms(w, phi, wd, wd_dot, grounded, cp, None, point, mats)
-        lim = jnp.asarray(C.PHI_LIMITS, phi.dtype)
-        phi_cmd = jnp.clip(s["phi_cmd"] + dt * terms.u[: P.N_PHI], -lim, lim)
-        rho_dot = jnp.clip(terms.u[P.N_PHI :], -p["wheel_speed_max"], p["wheel_speed_max"])
+        mats = kinematics.augmented_matrices(w, phi, grounded, point=point)
+        terms = control.control_terms(w, phi, wd, wd_dot, grounded, cp, None, point, mats)
+        lim = jnp.asarray(control.PHI_LIMITS, phi.dtype)
+        phi_cmd = jnp.clip(s["phi_cmd"] + dt * terms.u[: snake_params.N_PHI], -lim, lim)
+        rho_dot = jnp.clip(terms.u[snake_params.N_PHI :], -p["wheel_speed_max"], p["wheel_speed_max"])
         if not feedback:
-            est, _ = S.integrate(est, terms.u, mats, jnp.asarray(dt, phi.dtype), None, point)
+            est, _ = kinsim.integrate(est, terms.u, mats, jnp.asarray(dt, phi.dtype), None, point)
         state = {"est": est, "target": s["target"], "mode": mode, "phi_cmd": phi_cmd, "chosen": chosen, "slot": slot,
                  "operator": op, "intent": command.intent}
         return state, phi_cmd, rho_dot, grounded
 
-    return SC.make_controller(init, policy, name=f"task_space_{'fb' if feedback else 'ff'}_{point}")
+    return scenarios.make_controller(init, policy, name=f"task_space_{'fb' if feedback else 'ff'}_{point}")
 
 
 def params_batch(n: int = 1, **overrides) -> dict[str, Array]:
     """Scenario + controller parameters for n simulations (`scenarios.params_batch`)."""
-    return SC.params_batch(n, defaults=PARAM_DEFAULTS, **overrides)
+    return scenarios.params_batch(n, defaults=PARAM_DEFAULTS, **overrides)
 
 
 # ---------------------------------------------------------------- Table III in MuJoCo
@@ -178,36 +182,36 @@ def run_accuracy(feedback: bool = False, mu: float = 1.0, control_dt: float = 0.
     side slip [m/s] per row and the rollout. The simulation starts with the servos at
     their targets and no load; the robot settles for `settle` s (the head part sags by
     several cm) before the paper's clock starts (its t = 0, the change at t = 1)."""
-    horizon = settle + E.ACCURACY_HORIZON + 0.1
-    sc = SC.snake_scenario(horizon, control_dt, task_space_controller(control_dt, "head", feedback))
+    horizon = settle + experiments.ACCURACY_HORIZON + 0.1
+    sc = scenarios.snake_scenario(horizon, control_dt, task_space_controller(control_dt, "head", feedback))
     deltas = {k: np.zeros(6) for k in DELTA_KEYS}
     for i, k in enumerate(DELTA_KEYS[:6]):
-        deltas[k][i] = E.ACCURACY_DELTAS[i]
-    t0 = settle + E.T_START
+        deltas[k][i] = experiments.ACCURACY_DELTAS[i]
+    t0 = settle + experiments.T_START
     res = rollout(sc, params_batch(6, mu=mu, t0=t0, **deltas), progress=progress)
-    disp = E.relative_displacement(res.times, np.asarray(res.records["head"]), t0 + E.RAMP, t0)
+    disp = experiments.relative_displacement(res.times, np.asarray(res.records["head"]), t0 + experiments.RAMP, t0)
     return {
         "displacement": disp,
-        "error": E.accuracy_errors(disp),
+        "error": experiments.accuracy_errors(disp),
         "max_slip": np.asarray(res.metrics["max_slip"]),
         "result": res,
     }
 
 
 # ------------------------------------------------------------ Figs. 8-10 in MuJoCo
-def run_joint_limit(overrides: Mapping[str, Any] | None = None, n: int = 1, horizon: float = E.LIMIT_HORIZON,
+def run_joint_limit(overrides: Mapping[str, Any] | None = None, n: int = 1, horizon: float = experiments.LIMIT_HORIZON,
                     feedback: bool = False, control_dt: float = 0.02, mu: float = 1.0, settle: float = SETTLE,
-                    progress: bool = False, point: str = "head", prediction: PR.Prediction | None = None
+                    progress: bool = False, point: str = "head", prediction: predictive.Prediction | None = None
                     ) -> tuple[RolloutResult, dict[str, np.ndarray]]:
     """Sec. V-B in MuJoCo: the zigzag posture, the controlled point (`point`: "head", as
     in the paper's Fig. 9, which plots w_h; "tip" for the gripper tip) held, fixing state
     until 2 s then switching every Delta T (params overrides, batch of n), after `settle` s
     of settling with the null-space term off (the paper's clock starts then: switch_at is
     counted from it). Returns the rollout and `limit_records` from the paper's t = 0."""
-    phi0 = E.zigzag_phi()
+    phi0 = experiments.zigzag_phi()
     ctrl = task_space_controller(control_dt, point, feedback, prediction)
-    sc = SC.snake_scenario(settle + horizon, control_dt, ctrl, phi0=phi0)
-    over = {"switch_at": E.SWITCH_AT, "psi3_target": P.SCP_TARGET, "mu": mu, **(overrides or {})}
+    sc = scenarios.snake_scenario(settle + horizon, control_dt, ctrl, phi0=phi0)
+    over = {"switch_at": experiments.SWITCH_AT, "psi3_target": snake_params.SCP_TARGET, "mu": mu, **(overrides or {})}
     over["switch_at"] = np.asarray(over["switch_at"], float) + settle
     over["hold_until"] = settle
     params = params_batch(n, **over)
@@ -218,10 +222,10 @@ def run_joint_limit(overrides: Mapping[str, Any] | None = None, n: int = 1, hori
 def _limit_signals_one(p, wt_i, phi_i, g_i, tgt, point):
     """Task error, V and static margin over one simulation's records."""
     cp = control_params(p)
-    err = jax.vmap(lambda a: C.task_error(a, tgt))(wt_i)
-    V = jax.vmap(lambda w, f, g: C.cost(w, f, g, cp, point=point))(wt_i[:, :6], phi_i, g_i)
-    w_h = jax.vmap(lambda w: K.point_to_head(w, point))(wt_i[:, :6])
-    margin = jax.vmap(lambda h, f, g: C.support_distances(h, f, g)[2])(w_h, phi_i, g_i)
+    err = jax.vmap(lambda a: control.task_error(a, tgt))(wt_i)
+    V = jax.vmap(lambda w, f, g: control.cost(w, f, g, cp, point=point))(wt_i[:, :6], phi_i, g_i)
+    w_h = jax.vmap(lambda w: kinematics.point_to_head(w, point))(wt_i[:, :6])
+    margin = jax.vmap(lambda h, f, g: control.support_distances(h, f, g)[2])(w_h, phi_i, g_i)
     return err, V, margin
 
 
@@ -244,14 +248,14 @@ def limit_records(res: RolloutResult, params: Mapping[str, Array], settle: float
     times = res.times[keep] - settle
     n = tip.shape[0]
     psi3_t = np.asarray(params["psi3_target"])
-    target = np.concatenate([tip[:, :1], phi[:, :1, P.SCP_INDEX : P.SCP_INDEX + 1]], -1)
+    target = np.concatenate([tip[:, :1], phi[:, :1, snake_params.SCP_INDEX : snake_params.SCP_INDEX + 1]], -1)
     target[:, 0, 6] = np.where(np.isfinite(psi3_t), psi3_t, target[:, 0, 6])
-    wt = np.concatenate([tip, phi[..., P.SCP_INDEX : P.SCP_INDEX + 1]], -1)
+    wt = np.concatenate([tip, phi[..., snake_params.SCP_INDEX : snake_params.SCP_INDEX + 1]], -1)
 
     p = {k: jnp.asarray(v) for k, v in params.items()}
     err, V, margin = _limit_signals(p, jnp.asarray(wt), jnp.asarray(phi), jnp.asarray(grounded),
                                     jnp.asarray(target[:, 0]), point)
-    modes = np.asarray(P.MODES)
+    modes = np.asarray(snake_params.MODES)
     sigma = 1 + np.argmax(np.all(grounded[..., None, :] == modes, axis=-1), axis=-1)
     t = np.broadcast_to(times, (n, times.size))
     return {
@@ -261,7 +265,9 @@ def limit_records(res: RolloutResult, params: Mapping[str, Array], settle: float
         "error": np.asarray(err),
         "V": np.asarray(V),
         "margin": np.asarray(margin),
-        "limit_ratio": np.asarray(jax.vmap(C.limit_ratio)(jnp.asarray(phi.reshape(-1, P.N_PHI)))).reshape(n, -1),
+        "limit_ratio": np.asarray(
+            jax.vmap(control.limit_ratio)(jnp.asarray(phi.reshape(-1, snake_params.N_PHI)))
+        ).reshape(n, -1),
         "sigma": sigma,
         "slip": np.asarray(res.records["slip"])[:, keep],
     }

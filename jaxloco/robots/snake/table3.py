@@ -33,14 +33,12 @@ from typing import Any
 import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
-from jaxloco.robots.snake import experiments as E
+from jaxloco.robots.snake import experiments, scenarios, trials
 from jaxloco.robots.snake import model as snake_model
-from jaxloco.robots.snake import scenarios as SC
 from jaxloco.robots.snake import sim_control as SCt
-from jaxloco.robots.snake import trials as TR
 from jaxloco.sim.scenario import Scenario
 
-TARGETS = E.ACCURACY_NAMES  # ("x", "y", "z", "alpha", "beta", "gamma")
+TARGETS = experiments.ACCURACY_NAMES  # ("x", "y", "z", "alpha", "beta", "gamma")
 COMPONENTS = ("dx", "dy", "dz", "dalpha", "dbeta", "dgamma")
 UNITS = ("m", "m", "m", "rad", "rad", "rad")
 CONTROL_DT = 0.02  # [s]
@@ -48,15 +46,15 @@ CONTROL_DT = 0.02  # [s]
 PARAMS = (
     Param("target", "x", "the component of w_h changed (Table III row): x 0.2 m, y 0.1 m, z -0.1 m, "
           "alpha pi/2, beta -pi/6, gamma pi/4", kind="str", choices=TARGETS),
-    *TR.trial_params(SC.PARAM_DEFAULTS["mu"]),
+    *trials.trial_params(scenarios.PARAM_DEFAULTS["mu"]),
     Param("head_kp", snake_model.KP, "stiffness of the head part's six servos (model.py: chosen from Table III)",
           "N m/rad", lo=1.0, hi=1e4),
     Param("head_kv", snake_model.KV, "damping of the head part's six servos", "N m s/rad", lo=0.0, hi=1e3),
-    Param("ramp", E.RAMP, "duration of the target's change (default (ours): the paper gives none)", "s",
+    Param("ramp", experiments.RAMP, "duration of the target's change (default (ours): the paper gives none)", "s",
           lo=0.5, hi=30.0, sweepable=False),
     Param("feedback", 0, "0: the paper's feedforward control (Sec. IV-C2); 1: the simulated head pose fed back "
           "(Fig. 7(b))", "", kind="int", lo=0, hi=1, sweepable=False),
-    *TR.RUN_PARAMS,
+    *trials.RUN_PARAMS,
 )
 
 METRICS = (
@@ -65,17 +63,17 @@ METRICS = (
     Metric("error", "|changed component - target| / |target| (Table III's 'Error')", "%"),
     Metric("max_slip", "largest lateral slip of a grounded base wheel pair", "m/s"),
     Metric("max_roll_slip", "largest rolling slip of a grounded base active wheel", "m/s"),
-    TR.T_DIVERGED,
+    trials.T_DIVERGED,
 )
-STATUSES = TR.STATUSES
+STATUSES = trials.STATUSES
 
 
 @functools.lru_cache(maxsize=4)
 def table3_scenario(ramp: float, settle: float, feedback: bool) -> Scenario:
     """The flat-ground snake scenario driven by the task-space controller on the head
     (`sim_control.task_space_controller`), long enough for t_e + 5 after `settle`."""
-    horizon = settle + E.T_START + ramp + 5.0 + 0.1
-    return SC.snake_scenario(horizon, CONTROL_DT, SCt.task_space_controller(CONTROL_DT, "head", feedback))
+    horizon = settle + experiments.T_START + ramp + 5.0 + 0.1
+    return scenarios.snake_scenario(horizon, CONTROL_DT, SCt.task_space_controller(CONTROL_DT, "head", feedback))
 
 
 def target_deltas(targets: np.ndarray) -> dict[str, np.ndarray]:
@@ -83,7 +81,7 @@ def target_deltas(targets: np.ndarray) -> dict[str, np.ndarray]:
     index = np.array([TARGETS.index(str(t)) for t in targets])
     out = {k: np.zeros(len(index)) for k in SCt.DELTA_KEYS}
     for j, key in enumerate(SCt.DELTA_KEYS[:6]):
-        out[key] = np.where(index == j, E.ACCURACY_DELTAS[j], 0.0)
+        out[key] = np.where(index == j, experiments.ACCURACY_DELTAS[j], 0.0)
     return out
 
 
@@ -93,27 +91,29 @@ def make_batch_fn(fixed: Mapping[str, Any]):
 
     ramp, settle = float(fixed["ramp"]), float(fixed["settle"])
     scenario = table3_scenario(ramp, settle, bool(fixed["feedback"]))
-    t0 = settle + E.T_START
+    t0 = settle + experiments.T_START
     swept_names = [p.name for p in PARAMS if p.sweepable]
 
     def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
         n = keys.shape[0]
         v = {k: np.asarray(swept[k]) if k in swept else np.full(n, fixed[k]) for k in swept_names}
-        mu, heading = TR.perturbed(v, keys)
+        mu, heading = trials.perturbed(v, keys)
         params = SCt.params_batch(n, mu=mu, heading0=heading, t0=t0, duration=ramp,
                                   head_kp=v["head_kp"].astype(float), head_kv=v["head_kv"].astype(float),
                                   **target_deltas(v["target"]))
         params["key"] = np.asarray(keys, np.uint32)
         res = rollout(scenario, params, backend="native", nthread=int(fixed["nthread"]))
-        disp = E.relative_displacement(res.times, np.asarray(res.records["head"]), t0 + ramp, t0)
+        disp = experiments.relative_displacement(res.times, np.asarray(res.records["head"]), t0 + ramp, t0)
         index = np.array([TARGETS.index(str(t)) for t in v["target"]])
         changed = disp[np.arange(n), index]
         out = {c: disp[:, j] for j, c in enumerate(COMPONENTS)}
-        out["error"] = 100.0 * np.abs(changed - E.ACCURACY_DELTAS[index]) / np.abs(E.ACCURACY_DELTAS[index])
+        out["error"] = (
+            100.0 * np.abs(changed - experiments.ACCURACY_DELTAS[index]) / np.abs(experiments.ACCURACY_DELTAS[index])
+        )
         out["max_slip"] = np.asarray(res.metrics["max_slip"], float)
         out["max_roll_slip"] = np.asarray(res.metrics["max_roll_slip"], float)
         out["t_diverged"] = res.t_diverged
-        out["status"] = TR.status(res.diverged, res.metrics["fell"])
+        out["status"] = trials.status(res.diverged, res.metrics["fell"])
         return out
 
     return batch
@@ -140,15 +140,25 @@ def summarize(table) -> Summary:
         err = cols["error"][sel].astype(float)
         rows.append(
             (
-                f"d{name} = {E.ACCURACY_DELTAS[j]:+.3f}",
+                f"d{name} = {experiments.ACCURACY_DELTAS[j]:+.3f}",
                 f"ours ({int(sel.sum())}/{int((targets == name).sum())})",
                 *(_cell(m, s, u) for m, s, u in zip(d.mean(0), sd, UNITS, strict=True)),
                 f"{err.mean():.1f}" if err.size else "-",
             )
         )
-        rows.append(("", "paper (5)", *(_cell(m, s, u) for m, s, u in
-                                         zip(E.PAPER_ACCURACY_ROWS[j], E.PAPER_ACCURACY_SD[j], UNITS, strict=True)),
-                     f"{E.PAPER_ACCURACY_ERROR[j]:.1f}"))
+        rows.append(
+            (
+                "",
+                "paper (5)",
+                *(
+                    _cell(m, s, u)
+                    for m, s, u in zip(
+                        experiments.PAPER_ACCURACY_ROWS[j], experiments.PAPER_ACCURACY_SD[j], UNITS, strict=True
+                    )
+                ),
+                f"{experiments.PAPER_ACCURACY_ERROR[j]:.1f}",
+            )
+        )
     first = {k: (cols[k][0] if k in cols and len(cols[k]) else "-") for k in ("feedback", "head_kp", "mu", "ramp")}
     mode = "feedback of the simulated head pose (Fig. 7(b))" if str(first["feedback"]) == "1" else \
         "the paper's feedforward control"

@@ -23,41 +23,44 @@ from typing import Any
 
 import jax.numpy as jnp
 
-from jaxloco.robots.snake import analysis as A
-from jaxloco.robots.snake import control as C
+from jaxloco.robots.snake import analysis, control
 from jaxloco.tune.objective import Objective, Tunable
 
 TUNABLES = (
-    Tunable("kv_head_yaw", C.PAPER_KV_HEAD_YAW, "K_V weight of the head yaw joints theta_1..theta_3", scale="log"),
-    Tunable("kv_head_pitch", C.PAPER_KV_HEAD_PITCH, "K_V weight of the head pitch joints psi_1..psi_3",
-            scale="log"),
-    Tunable("kv_base", C.PAPER_KV_BASE, "K_V weight of theta_4 (head end of the base part)", scale="log"),
-    Tunable("kv_ratio", C.PAPER_KV_RATIO, "K_V ratio from one base joint to the next towards the tail",
-            scale="log"),
+    Tunable(
+        "kv_head_yaw", control.PAPER_KV_HEAD_YAW, "K_V weight of the head yaw joints theta_1..theta_3", scale="log"
+    ),
+    Tunable(
+        "kv_head_pitch", control.PAPER_KV_HEAD_PITCH, "K_V weight of the head pitch joints psi_1..psi_3", scale="log"
+    ),
+    Tunable("kv_base", control.PAPER_KV_BASE, "K_V weight of theta_4 (head end of the base part)", scale="log"),
+    Tunable(
+        "kv_ratio", control.PAPER_KV_RATIO, "K_V ratio from one base joint to the next towards the tail", scale="log"
+    ),
     Tunable("k_eta", 0.1, "null-space gain k_eta of Eq. 14", scale="log"),
 )
 _TUNED = {t.name for t in TUNABLES}
-SETTINGS = tuple(p for p in A.PARAMS if p.name not in _TUNED)
+SETTINGS = tuple(p for p in analysis.PARAMS if p.name not in _TUNED)
 AUX = ("recovery_time", "max_pos_error", "max_att_error", "final_V", "min_margin", "time_near_limit")
 PAPER = {
-    "kv_head_yaw": C.PAPER_KV_HEAD_YAW,
-    "kv_head_pitch": C.PAPER_KV_HEAD_PITCH,
-    "kv_base": C.PAPER_KV_BASE,
-    "kv_ratio": C.PAPER_KV_RATIO,
+    "kv_head_yaw": control.PAPER_KV_HEAD_YAW,
+    "kv_head_pitch": control.PAPER_KV_HEAD_PITCH,
+    "kv_base": control.PAPER_KV_BASE,
+    "kv_ratio": control.PAPER_KV_RATIO,
     "k_eta": 0.1,
 }
 
 
 def make_loss(settings: Mapping[str, Any]):
     """`Objective.make_loss`: loss_fn(values) -> (limit_loss, metrics) of one rollout."""
-    config = A.rollout_config(settings["horizon"], settings["dt"], settings["feedback"])
+    config = analysis.rollout_config(settings["horizon"], settings["dt"], settings["feedback"])
     fixed = {p.name: settings[p.name] for p in SETTINGS if p.sweepable}
 
     def loss_fn(values):
         dtype = jnp.result_type(*values.values())
         row = {k: jnp.asarray(v, jnp.int32 if k == "mode_order" else dtype) for k, v in fixed.items()}
         row.update(values)
-        m, _ = A.run_one(row, config)
+        m, _ = analysis.run_one(row, config)
         return m["loss"], {k: m[k] for k in AUX}
 
     return loss_fn

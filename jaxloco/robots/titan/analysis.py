@@ -58,45 +58,102 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
-from jaxloco.robots.titan import gait as G
-from jaxloco.robots.titan import params as P
-from jaxloco.robots.titan import plots
+from jaxloco.robots.titan import gait, plots
+from jaxloco.robots.titan import params as titan_params
 
 NESM_TOL = 1e-9  # [m] rounding allowance of nesm_ok's min_nesm >= S_NE^c
 TITAN_PARAMS = ("l_std", "w_std", "s_ne_c", "tether")  # fields of `TitanParams` set per row
 
 PARAMS = (
-    Param("l_std", P.L_STD, "L_std: standard COG longitudinal shift per half cycle (stroke 2 L_std)", "m",
-          lo=0.0, hi=1.0, lo_open=True),
-    Param("w_std", P.W_STD, "W_std: standard COG lateral shift per half cycle (zigzag +-W_std / 2)", "m",
-          lo=0.0, hi=2.0),
-    Param("s_ne_c", P.S_NE_C, "S_NE^c: critical NE stability margin of every planned step", "m", lo=0.0, hi=0.3),
-    Param("frame_size", P.FRAME_SMALL, "square section (width = height) of the frames; 0 = flat ground", "m",
-          lo=0.0, hi=0.3),
-    Param("frame_interval", P.GRID_SMALL, "frame grid spacing (centre lines at (k + 1/2) interval in x and y)", "m",
-          lo=1.0, hi=5.0),
-    Param("frame_size_b", 0.0, "second field's frame section in a mixed field (mix_block > 0)", "m",
-          lo=0.0, hi=0.3),
-    Param("frame_interval_b", P.GRID_LARGE, "second field's frame grid spacing in a mixed field", "m",
-          lo=1.0, hi=5.0),
-    Param("mix_block", 0.0, "side of the checkerboard blocks alternating the two fields (maps.mixed_frame_map); "
-          "0 = one field", "m", lo=0.0, hi=50.0),
-    Param("slope", 0.0, "slope angle of the map frame about the world y axis (Sec. 8.4: 30 deg)", "rad",
-          lo=0.0, hi=0.7),
-    Param("direction", 0.0, "map-frame walking direction (0 = +x, up the fall line on a slope); "
-          "every heading plans (gait.directional_stride); start_x and the map must leave room for the walk",
-          "rad", lo=-2 * math.pi, hi=2 * math.pi),
-    Param("start_x", G.SWEEP_START_X, "map x of the start COG (y: the map's centre line)", "m", lo=0.0, hi=100.0),
-    Param("tether", 1.0, "fraction of the slope-parallel gravity the tethers cancel (Sec. 8.1)", "",
-          lo=0.0, hi=1.0),
-    Param("softmin_tau", 0.005, "temperature tau of the soft-min NESM (log-sum-exp) and of the objective's sigmoid",
-          "m", lo=0.0, hi=0.1, lo_open=True),
-    Param("n_cycles", 4, "gait cycles planned per row (6 steps each)", "", kind="int", lo=1, hi=64,
-          sweepable=False),
+    Param(
+        "l_std",
+        titan_params.L_STD,
+        "L_std: standard COG longitudinal shift per half cycle (stroke 2 L_std)",
+        "m",
+        lo=0.0,
+        hi=1.0,
+        lo_open=True,
+    ),
+    Param(
+        "w_std",
+        titan_params.W_STD,
+        "W_std: standard COG lateral shift per half cycle (zigzag +-W_std / 2)",
+        "m",
+        lo=0.0,
+        hi=2.0,
+    ),
+    Param(
+        "s_ne_c", titan_params.S_NE_C, "S_NE^c: critical NE stability margin of every planned step", "m", lo=0.0, hi=0.3
+    ),
+    Param(
+        "frame_size",
+        titan_params.FRAME_SMALL,
+        "square section (width = height) of the frames; 0 = flat ground",
+        "m",
+        lo=0.0,
+        hi=0.3,
+    ),
+    Param(
+        "frame_interval",
+        titan_params.GRID_SMALL,
+        "frame grid spacing (centre lines at (k + 1/2) interval in x and y)",
+        "m",
+        lo=1.0,
+        hi=5.0,
+    ),
+    Param("frame_size_b", 0.0, "second field's frame section in a mixed field (mix_block > 0)", "m", lo=0.0, hi=0.3),
+    Param(
+        "frame_interval_b",
+        titan_params.GRID_LARGE,
+        "second field's frame grid spacing in a mixed field",
+        "m",
+        lo=1.0,
+        hi=5.0,
+    ),
+    Param(
+        "mix_block",
+        0.0,
+        "side of the checkerboard blocks alternating the two fields (maps.mixed_frame_map); 0 = one field",
+        "m",
+        lo=0.0,
+        hi=50.0,
+    ),
+    Param(
+        "slope", 0.0, "slope angle of the map frame about the world y axis (Sec. 8.4: 30 deg)", "rad", lo=0.0, hi=0.7
+    ),
+    Param(
+        "direction",
+        0.0,
+        "map-frame walking direction (0 = +x, up the fall line on a slope); "
+        "every heading plans (gait.directional_stride); start_x and the map must leave room for the walk",
+        "rad",
+        lo=-2 * math.pi,
+        hi=2 * math.pi,
+    ),
+    Param("start_x", gait.SWEEP_START_X, "map x of the start COG (y: the map's centre line)", "m", lo=0.0, hi=100.0),
+    Param("tether", 1.0, "fraction of the slope-parallel gravity the tethers cancel (Sec. 8.1)", "", lo=0.0, hi=1.0),
+    Param(
+        "softmin_tau",
+        0.005,
+        "temperature tau of the soft-min NESM (log-sum-exp) and of the objective's sigmoid",
+        "m",
+        lo=0.0,
+        hi=0.1,
+        lo_open=True,
+    ),
+    Param("n_cycles", 4, "gait cycles planned per row (6 steps each)", "", kind="int", lo=1, hi=64, sweepable=False),
     Param("map_nx", 160, "grid map cells along x", "", kind="int", lo=60, hi=1000, sweepable=False),
-    Param("map_ny", 100, "grid map cells along y (the start COG is at y = map_ny cell / 2)", "", kind="int",
-          lo=60, hi=1000, sweepable=False),
-    Param("cell", P.CELL, "grid map cell size", "m", lo=0.02, hi=0.2, sweepable=False),
+    Param(
+        "map_ny",
+        100,
+        "grid map cells along y (the start COG is at y = map_ny cell / 2)",
+        "",
+        kind="int",
+        lo=60,
+        hi=1000,
+        sweepable=False,
+    ),
+    Param("cell", titan_params.CELL, "grid map cell size", "m", lo=0.02, hi=0.2, sweepable=False),
 )
 
 METRICS = (
@@ -125,7 +182,7 @@ def softmin(x: jax.Array, tau: jax.Array) -> jax.Array:
     return -tau * jax.nn.logsumexp(-x / tau)
 
 
-def plan_metrics(plan: G.GaitPlan, s_ne_c: jax.Array, tau: jax.Array) -> dict[str, jax.Array]:
+def plan_metrics(plan: gait.GaitPlan, s_ne_c: jax.Array, tau: jax.Array) -> dict[str, jax.Array]:
     """The metrics of `METRICS` and the status code of one plan (module docstring)."""
     soft = softmin(plan.nesm, tau)
     objective = plan.distance_per_cycle * jax.nn.sigmoid((soft - s_ne_c) / tau)
@@ -144,9 +201,9 @@ def plan_metrics(plan: G.GaitPlan, s_ne_c: jax.Array, tau: jax.Array) -> dict[st
     }
 
 
-def row_params(values: Mapping[str, jax.Array], dtype) -> P.TitanParams:
+def row_params(values: Mapping[str, jax.Array], dtype) -> titan_params.TitanParams:
     """`TitanParams` (defaults in `dtype`) with the row's l_std, w_std, s_ne_c, tether."""
-    return P.default_params().astype(dtype).with_(**{n: jnp.asarray(values[n], dtype) for n in TITAN_PARAMS})
+    return titan_params.default_params().astype(dtype).with_(**{n: jnp.asarray(values[n], dtype) for n in TITAN_PARAMS})
 
 
 def run_one(values: Mapping[str, jax.Array], n_cycles: int, shape: tuple[int, int], cell: float
@@ -154,7 +211,7 @@ def run_one(values: Mapping[str, jax.Array], n_cycles: int, shape: tuple[int, in
     """Metrics and status of one row for scalar parameter `values` (every sweepable one)."""
     dtype = jnp.asarray(values["l_std"]).dtype
     params = row_params(values, dtype)
-    plan = G.sweep_plan(params, values["frame_size"], values["frame_interval"], values["slope"],
+    plan = gait.sweep_plan(params, values["frame_size"], values["frame_interval"], values["slope"],
                         values["direction"], n_cycles, shape, cell, **field_values(values))
     return plan_metrics(plan, params.s_ne_c, values["softmin_tau"])
 
@@ -258,7 +315,7 @@ def summarize_directions(cols: Mapping[str, np.ndarray]) -> Summary:
         f"{', '.join(map(str, n_cycles))} cycles per walk from the standard start; headings in deg (map frame, "
         f"body axes at 0, 90, 180, 270); S_NE^c = {float(cols['s_ne_c'][0]):g} m",
         f"stride L_std = {float(cols['l_std'][0]):g} m along a body axis, / max(|cos|, |sin|)^"
-        f"{P.STRIDE_EXPONENT:g} off it (gait.directional_stride; ours, the paper gives no stride)",
+        f"{titan_params.STRIDE_EXPONENT:g} off it (gait.directional_stride; ours, the paper gives no stride)",
         "paper (Sec. 7): \"we confirmed that the robot walks in all directions without a problem\"",
     ]
     return Summary(
@@ -296,12 +353,19 @@ def summarize(table) -> Summary:
         rows.append(tuple(cells))
     n_cycles = sorted(set(np.asarray(cols["n_cycles"], int).tolist()))
     notes = (
-        ("ok = rows with min NESM >= S_NE^c and no failed cycle; best = the ok row with the largest "
-         "distance per cycle (ties within 1 mm: largest min NESM - S_NE^c)"),
-        (f"{', '.join(map(str, n_cycles))} cycles per row from the standard start; slope in deg, direction in rad "
-         "(map frame); objective = dist * sigmoid((softmin NESM - S_NE^c) / tau)"),
-        (f"default strides (ours; the paper gives no values): L_std = {P.L_STD:g} m, W_std = {P.W_STD:g} m, "
-         f"S_NE^c = {P.S_NE_C:g} m (params.py; 1 m per cycle on flat ground)"),
+        (
+            "ok = rows with min NESM >= S_NE^c and no failed cycle; best = the ok row with the largest "
+            "distance per cycle (ties within 1 mm: largest min NESM - S_NE^c)"
+        ),
+        (
+            f"{', '.join(map(str, n_cycles))} cycles per row from the standard start; slope in deg, direction in rad "
+            "(map frame); objective = dist * sigmoid((softmin NESM - S_NE^c) / tau)"
+        ),
+        (
+            f"default strides (ours; the paper gives no values): L_std = {titan_params.L_STD:g} m, "
+            f"W_std = {titan_params.W_STD:g} m, "
+            f"S_NE^c = {titan_params.S_NE_C:g} m (params.py; 1 m per cycle on flat ground)"
+        ),
     )
     columns = ("frame [m]", "interval [m]", "slope", "dir", *(("tether",) if tether_varies else ()), "ok",
                "L_std", "W_std", "S_NE^c", "dist/cycle", "min NESM", "mods", "deviation", "objective")

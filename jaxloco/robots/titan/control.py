@@ -41,7 +41,7 @@ import numpy as np
 
 from jaxloco import geometry as geo
 from jaxloco import stability as stab
-from jaxloco.robots.titan import kinematics as K
+from jaxloco.robots.titan import kinematics
 from jaxloco.robots.titan import model as titan_model
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.scenario import Controller
@@ -108,7 +108,7 @@ def leg_targets(p, feet_c: Array, body_c: Array, rot: Array | None = None) -> Ar
     _, R = frames(p)
     if rot is not None:
         R = geo.rpy_to_matrix(rot[0], rot[1], rot[2]) @ R
-    q, _ = K.legs_inverse_kinematics((feet_c - body_c[None]) @ R)
+    q, _ = kinematics.legs_inverse_kinematics((feet_c - body_c[None]) @ R)
     return q.reshape(-1)
 
 
@@ -121,7 +121,7 @@ def body_for_com(p, feet_c: Array, com: Array) -> Array:
     n, R = frames(p)
     body = com
     for _ in range(2):
-        off = R @ K.com_offset((feet_c - body[None]) @ R)
+        off = R @ kinematics.com_offset((feet_c - body[None]) @ R)
         body = com - p["mass_feedforward"] * (off - (off @ n) * n)
     return body
 
@@ -140,7 +140,7 @@ def end_time(p, n_steps: int) -> Array:
 def executor_init(p, obs) -> ExecutorState:
     """The state before the first step: the plan's start, no correction."""
     n, _ = frames(p)
-    feet = p["plan_feet0"] + K.FOOT_RADIUS * n
+    feet = p["plan_feet0"] + kinematics.FOOT_RADIUS * n
     body = p["plan_body0"]
     zero = jnp.zeros(3, feet.dtype)
     return ExecutorState(k=jnp.asarray(-1, jnp.int32), feet=feet, body=body, feet_end=feet, body_end=body,
@@ -175,8 +175,10 @@ def step_targets(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tuple
     support = (jnp.arange(4) != u)[:, None]
     drift = jnp.sum(jnp.where(support, obs["feet"] - feet_prev, 0.0), axis=0) / jnp.sum(support)
     drift = drift - (drift @ n) * n
-    goal = p["plan_feet"][kk, uu] + K.FOOT_RADIUS * n - drift
-    top = jnp.maximum(jnp.maximum(start @ n, goal @ n) + p["swing_height"], p["plan_swing_top"][kk] + K.FOOT_RADIUS)
+    goal = p["plan_feet"][kk, uu] + kinematics.FOOT_RADIUS * n - drift
+    top = jnp.maximum(
+        jnp.maximum(start @ n, goal @ n) + p["swing_height"], p["plan_swing_top"][kk] + kinematics.FOOT_RADIUS
+    )
     start_top = start + (top - start @ n) * n
     goal_top = goal + (top - goal @ n) * n
     bottom = goal - PRESS * n
@@ -283,7 +285,7 @@ def load_feedforward(p, weight: float, now: StepTargets, q: Array, rot: Array) -
     blend = smooth(now.phase / UNLOAD)
     w = w_prev + (w_now - w_prev) * blend
     forces = (w[:, None] * jnp.linalg.norm(g_eff) * up[None]) @ R  # (4, 3) in Sigma_b
-    jac = jax.vmap(jax.jacfwd(K.foot_position, argnums=1))(legs, q.reshape(4, 3))  # (4, 3, 3)
+    jac = jax.vmap(jax.jacfwd(kinematics.foot_position, argnums=1))(legs, q.reshape(4, 3))  # (4, 3, 3)
     tau = -jnp.einsum("lij,li->lj", jac, forces).reshape(-1)
     return p["load_feedforward"] * jnp.asarray(SERVO_COMPLIANCE, q.dtype) * tau
 
@@ -313,7 +315,7 @@ def support_shift(p, n_steps: int, now: StepTargets, obs) -> Array:
     n, _ = frames(p)
     kk = jnp.clip(now.k, 0, n_steps - 1)
     planned = jnp.where(now.k >= 0, p["plan_feet"][kk], p["plan_feet0"])  # ground contacts
-    actual = obs["feet"] - K.FOOT_RADIUS * n
+    actual = obs["feet"] - kinematics.FOOT_RADIUS * n
     support = jnp.arange(4) != now.swing
     g_eff = jnp.array([0.0, 0.0, -1.0], actual.dtype) + tether_force(p, 1.0)
     up = -g_eff / jnp.linalg.norm(g_eff)

@@ -81,9 +81,8 @@ import numpy as np
 
 from jaxloco import geometry as geo
 from jaxloco import stability as stab
-from jaxloco.robots.titan import kinematics as K
-from jaxloco.robots.titan import maps as M
-from jaxloco.robots.titan import params as P
+from jaxloco.robots.titan import kinematics, maps
+from jaxloco.robots.titan import params as titan_params
 
 Array = jax.Array
 
@@ -163,7 +162,7 @@ def _left(v: Array) -> Array:
     return jnp.stack([-v[..., 1], v[..., 0]], axis=-1)
 
 
-def effective_up(params: P.TitanParams, slope: Array) -> Array:
+def effective_up(params: titan_params.TitanParams, slope: Array) -> Array:
     """Unit 'up' of the effective gravity in the map frame (tethers, Sec. 8.1)."""
     up = jnp.stack(
         [(1.0 - params.tether) * jnp.sin(slope), jnp.zeros_like(slope), jnp.cos(slope)]
@@ -171,11 +170,11 @@ def effective_up(params: P.TitanParams, slope: Array) -> Array:
     return up / jnp.linalg.norm(up)
 
 
-def in_fan(q: Array, leg: Array, params: P.TitanParams) -> Array:
+def in_fan(q: Array, leg: Array, params: titan_params.TitanParams) -> Array:
     """Whether body-frame points q (..., 2), relative to the pivot of `leg`, are in its
     fan-shaped reachable area (Fig. 3: R_in <= |q| <= R_out, within R_theta / 2 of the
     leg axis)."""
-    axis = jnp.asarray(P.LEG_AXIS_ANGLES, q.dtype)[leg]
+    axis = jnp.asarray(titan_params.LEG_AXIS_ANGLES, q.dtype)[leg]
     r = jnp.linalg.norm(q, axis=-1)
     ang = jnp.arctan2(q[..., 1], q[..., 0]) - axis
     ang = jnp.arctan2(jnp.sin(ang), jnp.cos(ang))
@@ -186,12 +185,12 @@ def in_fan(q: Array, leg: Array, params: P.TitanParams) -> Array:
     )
 
 
-def fan_exit_distance(q0: Array, u: Array, leg: Array, params: P.TitanParams) -> Array:
+def fan_exit_distance(q0: Array, u: Array, leg: Array, params: titan_params.TitanParams) -> Array:
     """Distance a point q0 (2,) (body frame, relative to the pivot of `leg`) can move along
     the unit direction u before leaving the leg's reachable area; 0 if q0 is outside.
     Exact: the fan is the intersection of the R_out disc and the wedge (convex) with the
     outside of the R_in disc, so the exit is the first of the three exits."""
-    axis = jnp.asarray(P.LEG_AXIS_ANGLES, q0.dtype)[leg]
+    axis = jnp.asarray(titan_params.LEG_AXIS_ANGLES, q0.dtype)[leg]
     b = jnp.dot(q0, u)
     c_out = jnp.dot(q0, q0) - params.r_out**2
     t_out = -b + jnp.sqrt(jnp.maximum(b * b - c_out, 0.0))
@@ -227,7 +226,7 @@ def swing_cog(cog: Array) -> Array:
     on `cog` (`control.body_for_com`), along the map normal (the body's z_b) the raised
     leg lifts it `kinematics.swing_com_height` above the body origin. Every NE margin of
     a three-leg support in the planner uses it (added: the paper's COG is the body's)."""
-    return cog.at[..., 2].add(K.swing_com_height())
+    return cog.at[..., 2].add(kinematics.swing_com_height())
 
 
 def _axis_margin(c: Array, a: Array, b: Array, ref: Array) -> Array:
@@ -248,7 +247,7 @@ def edge_energy_margin(cog: Array, a: Array, b: Array, ref: Array, up: Array) ->
 
 
 # ------------------------------------------------------------------- roles and strokes
-def directional_stride(params: P.TitanParams, d_b: Array) -> Array:
+def directional_stride(params: titan_params.TitanParams, d_b: Array) -> Array:
     """Standard stride L_std(psi) [m] for the body-frame walking direction d_b (unit, (2,)):
     L_std / m^k with m = max(|cos psi_b|, |sin psi_b|) and k = `stride_exponent` (added;
     the paper gives no stride). L_std along a body axis, L_std / 0.707^k at 45 deg.
@@ -263,7 +262,7 @@ def directional_stride(params: P.TitanParams, d_b: Array) -> Array:
     return params.l_std / m**params.stride_exponent
 
 
-def directional_params(params: P.TitanParams, d_b: Array) -> P.TitanParams:
+def directional_params(params: titan_params.TitanParams, d_b: Array) -> titan_params.TitanParams:
     """`params` with l_std replaced by `directional_stride` for the direction d_b."""
     return params.with_(l_std=directional_stride(params, d_b))
 
@@ -285,11 +284,11 @@ def leg_roles(feet_b: Array, d_b: Array, prev: Array = -1) -> tuple[Array, Array
     x = jnp.asarray(_PARTNER_XOR)[q]
     roles = jnp.stack([r, r ^ x, rb, rb ^ x])
     axis = jnp.asarray(_AXES, d_b.dtype)[q]
-    side = jnp.sign(geo.cross2(axis, jnp.asarray(P.NEUTRAL_FEET[:, :2], d_b.dtype)[r]))
+    side = jnp.sign(geo.cross2(axis, jnp.asarray(titan_params.NEUTRAL_FEET[:, :2], d_b.dtype)[r]))
     return roles, side * _left(d_b)
 
 
-def stroke_centres(params: P.TitanParams, roles: Array, n_r: Array) -> Array:
+def stroke_centres(params: titan_params.TitanParams, roles: Array, n_r: Array) -> Array:
     """Body-frame centres (4, 2) of the standard strokes: neutral foot + W_std / 2
     outward (+n_r for the legs r, f; -n_r for r-bar, f-bar)."""
     neutral = params.neutral_feet()[:, :2]
@@ -302,7 +301,7 @@ def stroke_centres(params: P.TitanParams, roles: Array, n_r: Array) -> Array:
 
 
 def initial_search_position(
-    params: P.TitanParams,
+    params: titan_params.TitanParams,
     centre_u: Array,
     centre_star: Array,
     foot_star_b: Array,
@@ -321,7 +320,7 @@ def initial_search_position(
 
 
 def search_offsets(
-    half_rows: int = P.SEARCH_HALF_ROWS, half_cols: int = P.SEARCH_HALF_COLS
+    half_rows: int = titan_params.SEARCH_HALF_ROWS, half_cols: int = titan_params.SEARCH_HALF_COLS
 ) -> np.ndarray:
     """Search order of Sec. 5.3 as integer (along L_G, lateral) offsets (K, 2) from I_u:
     I_u first; along each row +y and -y alternately outwards; rows 0, -1 .. -half_rows
@@ -338,8 +337,8 @@ def first_valid(valid: Array) -> tuple[Array, Array]:
 
 # ------------------------------------------------------------------------- half cycle
 def half_cycle(
-    params: P.TitanParams,
-    gmap: M.GridMap,
+    params: titan_params.TitanParams,
+    gmap: maps.GridMap,
     feet: Array,
     cog: Array,
     yaw: Array,
@@ -368,8 +367,8 @@ def half_cycle(
     def candidates(i_b):
         c_b = i_b + offs[:, :1] * d_b + offs[:, 1:] * lat
         xy = cog[:2] + c_b @ R.T
-        z = M.sample_height(gmap, xy)
-        free = ~M.sample_forbidden(gmap, xy)
+        z = maps.sample_height(gmap, xy)
+        free = ~maps.sample_forbidden(gmap, xy)
         return c_b, jnp.concatenate([xy, z[:, None]], axis=1), free
 
     def reach(c_b, leg):
@@ -414,13 +413,13 @@ def half_cycle(
     # diagonal J_r-bar J_f by S_NE^c. Without it a short J_f (a frame ahead) lets the
     # COG advance and the cycle after deadlocks (no J_r can satisfy condition 1).
     q_b = centres[rb] + params.l_std * d_b + g_b  # relative to P_g
-    la = jnp.asarray(search_offsets(P.LOOKAHEAD_HALF, P.LOOKAHEAD_HALF), dtype) * (
+    la = jnp.asarray(search_offsets(titan_params.LOOKAHEAD_HALF, titan_params.LOOKAHEAD_HALF), dtype) * (
         2.0 * params.search_step
     )
     y_b = q_b + la[:, :1] * d_b + la[:, 1:] * lat
     y_xy = cog[:2] + y_b @ R.T
-    y3 = jnp.concatenate([y_xy, M.sample_height(gmap, y_xy)[:, None]], axis=1)
-    y_ok = ~M.sample_forbidden(gmap, y_xy) & in_fan(y_b - g_b - pivots[rb], rb, params)
+    y3 = jnp.concatenate([y_xy, maps.sample_height(gmap, y_xy)[:, None]], axis=1)
+    y_ok = ~maps.sample_forbidden(gmap, y_xy) & in_fan(y_b - g_b - pivots[rb], rb, params)
 
     B = stab.vertical_frame(up, dtype)
     y3u, cog2u, fbu = y3 @ B.T, B @ swing_cog(cog2), B @ feet[fb]
@@ -444,11 +443,11 @@ def half_cycle(
     )
 
 
-def trial_lateral(params: P.TitanParams, i: Array) -> Array:
+def trial_lateral(params: titan_params.TitanParams, i: Array) -> Array:
     """|W| of lateral trial i: W_std + i dW for i < N_W (Sec. 5.2.3, modification (b)),
     then (added) W_std - k dW for k = 1 .. N_W_DOWN."""
-    k = i - P.N_W + 1
-    return jnp.where(i < P.N_W, params.w_std + i * params.dw, params.w_std - k * params.dw)
+    k = i - titan_params.N_W + 1
+    return jnp.where(i < titan_params.N_W, params.w_std + i * params.dw, params.w_std - k * params.dw)
 
 
 def max_longitudinal(params, feet_b, roles, d_b, n_r, w_len) -> Array:
@@ -476,8 +475,8 @@ class _Trial(NamedTuple):
 
 
 def plan_cycle(
-    params: P.TitanParams,
-    gmap: M.GridMap,
+    params: titan_params.TitanParams,
+    gmap: maps.GridMap,
     state: GaitState,
     direction: Array,
     first: Array,
@@ -506,7 +505,7 @@ def plan_cycle(
     n_r = jnp.where(use_alt, n_alt, n_r)
     start_ok = up_ok(roles)
     roles2 = jnp.stack([roles[2], roles[3], roles[0], roles[1]])
-    n_w, n_l = P.N_W + P.N_W_DOWN, P.N_L
+    n_w, n_l = titan_params.N_W + titan_params.N_W_DOWN, titan_params.N_L
 
     zero = jnp.zeros((), dtype)
     no = jnp.asarray(False)
@@ -654,7 +653,7 @@ def _step_margins(feet_before, cog0, cog1, leg, up, d_map):
 
 
 def swing_path(
-    params: P.TitanParams, gmap: M.GridMap, before: Array, after: Array, leg: Array
+    params: titan_params.TitanParams, gmap: maps.GridMap, before: Array, after: Array, leg: Array
 ) -> Array:
     """Rectangular swing trajectory (Sec. 6.4.1, Fig. 18) of `leg` from its foot in
     `before` to the one in `after` (4, 3): lift-off, top above lift-off, top above
@@ -672,7 +671,7 @@ def swing_path(
     seg = a0[None] + s * (b[:2] + params.foot_radius * u - a0)[None]
     n = _left(u) * params.foot_radius
     pts = jnp.concatenate([seg, seg + n, seg - n])
-    hmax = jnp.max(M.sample_height(gmap, pts))
+    hmax = jnp.max(maps.sample_height(gmap, pts))
     nrm, off = virtual_plane(before)
     plane_top = (
         jnp.max(plane_height(nrm, off, jnp.stack([a[:2], b[:2]])))
@@ -687,8 +686,8 @@ def swing_path(
 
 # --------------------------------------------------------------------------- planning
 def standard_start(
-    params: P.TitanParams,
-    gmap: M.GridMap,
+    params: titan_params.TitanParams,
+    gmap: maps.GridMap,
     cog_xy: Array,
     direction: Array = 0.0,
     yaw: Array = 0.0,
@@ -713,15 +712,15 @@ def standard_start(
         sigma[:, None] > 0, centres - params.l_std * d_b, centres + params.w_std * n_r
     )
     xy = cog_xy + feet_b @ _rot2(yaw).T
-    feet = jnp.concatenate([xy, M.sample_height(gmap, xy)[:, None]], axis=1)
+    feet = jnp.concatenate([xy, maps.sample_height(gmap, xy)[:, None]], axis=1)
     nrm, off = virtual_plane(feet)
     cog = jnp.concatenate([cog_xy, (plane_height(nrm, off, cog_xy) + params.h_g)[None]])
     return GaitState(feet, cog, yaw, roles[0])
 
 
 def plan_cycles(
-    params: P.TitanParams,
-    gmap: M.GridMap,
+    params: titan_params.TitanParams,
+    gmap: maps.GridMap,
     start: GaitState,
     n_cycles: int,
     direction: Array = 0.0,
@@ -745,8 +744,8 @@ def plan_cycles(
     return GaitPlan(
         feet=feet,
         cog=cog,
-        feet_world=M.map_to_world(gmap, feet),
-        cog_world=M.map_to_world(gmap, cog),
+        feet_world=maps.map_to_world(gmap, feet),
+        cog_world=maps.map_to_world(gmap, cog),
         swing_leg=rec["swing_leg"].reshape(S),
         nesm=rec["nesm"].reshape(S),
         long_margin=rec["long_margin"].reshape(S),
@@ -770,18 +769,18 @@ SWEEP_START_X = 3.0  # [m] map x of the start COG of a sweep point
 
 
 def sweep_setup(
-    params: P.TitanParams,
+    params: titan_params.TitanParams,
     frame_size: Array,
     frame_interval: Array,
     slope: Array,
     direction: Array,
     shape: tuple[int, int] = (160, 100),
-    cell: float = P.CELL,
+    cell: float = titan_params.CELL,
     start_x: Array = SWEEP_START_X,
     field_b: tuple[Array, Array] = (0.0, 1.0),
     mix_block: Array = 0.0,
     phase: Array = (0.0, 0.0),
-) -> tuple[M.GridMap, GaitState]:
+) -> tuple[maps.GridMap, GaitState]:
     """The map and the standard start of one sweep point: frames of `frame_size` every
     `frame_interval`, centre lines at (k + 1/2) interval, map origin (0, 0), slope angle
     `slope`; with `mix_block` > 0 a checkerboard of blocks of that side alternating with
@@ -791,7 +790,7 @@ def sweep_setup(
     dtype = jnp.asarray(params.l_std).dtype
     _nx, ny = shape
     half = 0.5 + jnp.asarray(phase, dtype)
-    gmap = M.mixed_frame_map(
+    gmap = maps.mixed_frame_map(
         shape,
         jnp.zeros(2, dtype),
         jnp.asarray(cell, dtype),
@@ -805,14 +804,14 @@ def sweep_setup(
 
 
 def sweep_plan(
-    params: P.TitanParams,
+    params: titan_params.TitanParams,
     frame_size: Array,
     frame_interval: Array,
     slope: Array,
     direction: Array,
     n_cycles: int,
     shape: tuple[int, int] = (160, 100),
-    cell: float = P.CELL,
+    cell: float = titan_params.CELL,
     **field,
 ) -> GaitPlan:
     """The plan of one sweep point (Sec. 4 sweeps): `n_cycles` along `direction` from

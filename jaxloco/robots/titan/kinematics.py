@@ -42,20 +42,20 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.robots.titan import params as P
+from jaxloco.robots.titan import params
 
 Array = jax.Array
 
 LEG_NAMES = ("fl", "fr", "rl", "rr")  # = params.LEG_NAMES ("LF", "RF", "LR", "RR")
 JOINT_NAMES = ("yaw", "pitch", "knee")
-PIVOTS = np.asarray(P.PIVOTS, float)  # (4, 3) [m] in Sigma_b
+PIVOTS = np.asarray(params.PIVOTS, float)  # (4, 3) [m] in Sigma_b
 YAW0 = np.asarray(
-    P.LEG_AXIS_ANGLES, float
+    params.LEG_AXIS_ANGLES, float
 )  # (4,) [rad] azimuth of the leg plane at q0 = 0
 L1, L2 = 1.6, 2.1  # [m] thigh, shank
 FOOT_RADIUS = 0.04  # [m] contact sphere of the foot (the pad's radius is P.FOOT_RADIUS)
-R_IN, R_OUT, R_THETA = float(P.R_IN), float(P.R_OUT), float(P.R_THETA)  # Fig. 3
-HOME_HEIGHT = float(P.H_G)  # [m] body origin above flat ground in the home pose (H_g)
+R_IN, R_OUT, R_THETA = float(params.R_IN), float(params.R_OUT), float(params.R_THETA)  # Fig. 3
+HOME_HEIGHT = float(params.H_G)  # [m] body origin above flat ground in the home pose (H_g)
 
 # masses [kg] (ours; Table 1 gives 7,000 kg in all): `model` builds the MJCF from these and
 # `com_offset` puts the centre of mass where the MJCF has it
@@ -68,7 +68,7 @@ SHANK_END_GAP = 0.2  # [m] the shank's capsule stops this short of the foot
 
 def home_feet() -> np.ndarray:
     """Foot centres (4, 3) in Sigma_b of the home pose on flat ground."""
-    out = np.asarray(P.NEUTRAL_FEET, float).copy()
+    out = np.asarray(params.NEUTRAL_FEET, float).copy()
     out[:, 2] = FOOT_RADIUS - HOME_HEIGHT
     return out
 
@@ -187,7 +187,7 @@ def home_joint_angles() -> np.ndarray:
 
 
 @functools.cache
-def swing_com_height(lift: float = float(P.SWING_HEIGHT)) -> float:
+def swing_com_height(lift: float = float(params.SWING_HEIGHT)) -> float:
     """Height [m] along z_b of the whole-robot centre of mass above the body origin while
     a leg swings: the home stance with one foot raised by `lift`, the largest over the
     legs (2.1 cm at the executor's 0.5 m lift; at the body origin in the home stance)."""

@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxloco import geometry as geo
-from jaxloco.robots.titan import params as P
+from jaxloco.robots.titan import params
 
 Array = jax.Array
 
@@ -119,7 +119,7 @@ def forbidden_map(
     ground: Array,
     cell: Array,
     foot_radius: Array,
-    uneven_max: Array = P.UNEVEN_MAX,
+    uneven_max: Array = params.UNEVEN_MAX,
 ) -> Array:
     """Forbidden-foothold map (Sec. 8.2.1 step 4): frames within the foot pad radius of any
     point of the cell (`frame_distance` is the distance from the cell centre to the nearest
@@ -172,7 +172,7 @@ def frame_grid_map(
     interval: Array,
     frame_offset: Array | None = None,
     slope: Array = 0.0,
-    foot_radius: Array = P.FOOT_RADIUS,
+    foot_radius: Array = params.FOOT_RADIUS,
     ground: Array | None = None,
 ) -> GridMap:
     """Square grid of frames of square section `frame_size` (width = height) with centre
@@ -195,7 +195,7 @@ def mixed_frame_map(
     field_b: tuple[Array, Array, Array],
     block: Array,
     slope: Array = 0.0,
-    foot_radius: Array = P.FOOT_RADIUS,
+    foot_radius: Array = params.FOOT_RADIUS,
 ) -> GridMap:
     """A field combining two frame grids (Sec. 7: "environments combining these
     conditions"): a checkerboard of square blocks of side `block` [m] (edges at
@@ -215,7 +215,7 @@ def mixed_frame_map(
     return _frames_map(dist, size, cell, origin, slope, foot_radius, None)
 
 
-def flat_map(shape: tuple[int, int], origin: Array, cell: Array = P.CELL) -> GridMap:
+def flat_map(shape: tuple[int, int], origin: Array, cell: Array = params.CELL) -> GridMap:
     """Flat ground without frames (the analytic standard-gait check)."""
     return frame_grid_map(shape, origin, jnp.asarray(cell), 0.0, 1.0)
 
@@ -294,8 +294,8 @@ def map_from_survey(
     frame_height: Array,
     shape: tuple[int, int],
     origin: Array,
-    cell: Array = P.CELL,
-    foot_radius: Array = P.FOOT_RADIUS,
+    cell: Array = params.CELL,
+    foot_radius: Array = params.FOOT_RADIUS,
     slope: Array = 0.0,
 ) -> GridMap:
     """Unevenness and forbidden-foothold grid maps from surveyed points (Sec. 8.2.1):
@@ -366,9 +366,9 @@ def section7_map(
 ) -> GridMap:
     """Section 7 flat ground: 0.2 m frames on a 2.0 m grid (or 0.3 m on 3.0 m, `large`)."""
     size, grid = (
-        (P.FRAME_LARGE, P.GRID_LARGE) if large else (P.FRAME_SMALL, P.GRID_SMALL)
+        (params.FRAME_LARGE, params.GRID_LARGE) if large else (params.FRAME_SMALL, params.GRID_SMALL)
     )
-    return frame_grid_map(shape, origin, jnp.asarray(P.CELL), size, grid, offset)
+    return frame_grid_map(shape, origin, jnp.asarray(params.CELL), size, grid, offset)
 
 
 def slope_map(
@@ -378,9 +378,9 @@ def slope_map(
     return frame_grid_map(
         shape,
         origin,
-        jnp.asarray(P.CELL),
-        P.SLOPE_FRAME,
-        P.SLOPE_GRID,
+        jnp.asarray(params.CELL),
+        params.SLOPE_FRAME,
+        params.SLOPE_GRID,
         offset,
-        P.SLOPE_ANGLE,
+        params.SLOPE_ANGLE,
     )

@@ -66,8 +66,7 @@ import math
 import mujoco
 import numpy as np
 
-from jaxloco.robots.titan import kinematics as K
-from jaxloco.robots.titan import params as P
+from jaxloco.robots.titan import kinematics, params
 from jaxloco.sim import mjcf
 
 MODEL_PATH = mjcf.MODELS_DIR / "titan_xi.xml"
@@ -75,19 +74,24 @@ TIMESTEP = 0.002  # [s]
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 2  # = jaxloco.sim.terrain.ROBOT_* (tested)
 
 # Table 1 and the chosen dimensions [m, kg]
-SIZE = tuple(float(v) for v in P.ENVELOPE)  # Table 1: 4.8 x 5.0 x 3.0 m (x, y, z)
-TOTAL_MASS = float(P.MASS)  # 7,000 kg
+SIZE = tuple(float(v) for v in params.ENVELOPE)  # Table 1: 4.8 x 5.0 x 3.0 m (x, y, z)
+TOTAL_MASS = float(params.MASS)  # 7,000 kg
 TRUNK_HALF = (1.4, 1.5, 0.4)
-TRUNK_MASS = K.TRUNK_MASS
+TRUNK_MASS = kinematics.TRUNK_MASS
 TOWER_RADIUS, TOWER_TOP, TOWER_MASS = (
     0.25,
-    SIZE[2] - K.HOME_HEIGHT,
-    K.TOWER_MASS,
+    SIZE[2] - kinematics.HOME_HEIGHT,
+    kinematics.TOWER_MASS,
 )  # pivot towers (z up to TOWER_TOP)
-HUB_MASS, THIGH_MASS, SHANK_MASS, FOOT_MASS = K.HUB_MASS, K.THIGH_MASS, K.SHANK_MASS, K.FOOT_MASS
+HUB_MASS, THIGH_MASS, SHANK_MASS, FOOT_MASS = (
+    kinematics.HUB_MASS,
+    kinematics.THIGH_MASS,
+    kinematics.SHANK_MASS,
+    kinematics.FOOT_MASS,
+)
 THIGH_RADIUS, SHANK_RADIUS = 0.12, 0.10
 TOUCH_MARGIN = 0.02  # [m] touch site radius beyond the foot sphere
-SHANK_END_GAP = K.SHANK_END_GAP  # [m] the shank capsule stops short of the foot (only the foot touches)
+SHANK_END_GAP = kinematics.SHANK_END_GAP  # [m] the shank capsule stops short of the foot (only the foot touches)
 
 # Servos (yaw, pitch, knee): stiffness [N m/rad], damping [N m s/rad], torque limit [N m]
 KP = (1.7e6, 3.3e6, 3.3e6)
@@ -99,7 +103,7 @@ JOINT_RANGE = ((-1.2, 1.2), (-1.2, 1.4), (0.05, 2.9))  # [rad]
 TETHER_MAX = 1.0e5  # [N] per world axis
 FRICTION = (0.1, 0.005, 0.0001)
 
-ACTUATOR_NAMES = tuple(f"{leg}_{j}" for leg in K.LEG_NAMES for j in K.JOINT_NAMES) + (
+ACTUATOR_NAMES = tuple(f"{leg}_{j}" for leg in kinematics.LEG_NAMES for j in kinematics.JOINT_NAMES) + (
     "tether_x",
     "tether_y",
     "tether_z",
@@ -136,7 +140,7 @@ def build_spec() -> mujoco.MjSpec:
     spec.option.ls_iterations = 10
 
     spec.worldbody.add_site(name="tether_ref", size=[0.05, 0, 0])
-    body = spec.worldbody.add_body(name="body", pos=[0, 0, K.HOME_HEIGHT])
+    body = spec.worldbody.add_body(name="body", pos=[0, 0, kinematics.HOME_HEIGHT])
     body.add_freejoint(name="root")
     body.add_geom(
         name="trunk",
@@ -149,8 +153,8 @@ def build_spec() -> mujoco.MjSpec:
     body.add_site(name="imu", size=[0.05, 0, 0])
     body.add_site(name="tether", size=[0.05, 0, 0])
     bottom = -TRUNK_HALF[2]
-    for i, leg in enumerate(K.LEG_NAMES):
-        pivot = K.PIVOTS[i]
+    for i, leg in enumerate(kinematics.LEG_NAMES):
+        pivot = kinematics.PIVOTS[i]
         body.add_geom(
             name=f"{leg}_tower",
             type=_CYL,
@@ -161,7 +165,7 @@ def build_spec() -> mujoco.MjSpec:
             **VISUAL,
         )
         hip = body.add_body(
-            name=f"{leg}_hip", pos=pivot.tolist(), quat=_yaw_quat(K.YAW0[i])
+            name=f"{leg}_hip", pos=pivot.tolist(), quat=_yaw_quat(kinematics.YAW0[i])
         )
         _joint(hip, f"{leg}_yaw", [0, 0, 1], 0)
         hip.add_geom(
@@ -178,27 +182,27 @@ def build_spec() -> mujoco.MjSpec:
             name=f"{leg}_thigh",
             type=_CAPSULE,
             size=[THIGH_RADIUS, 0, 0],
-            fromto=[0, 0, 0, K.L1, 0, 0],
+            fromto=[0, 0, 0, kinematics.L1, 0, 0],
             mass=THIGH_MASS,
             rgba=YELLOW,
             **COLLIDE,
         )
-        shank = thigh.add_body(name=f"{leg}_shank", pos=[K.L1, 0, 0])
+        shank = thigh.add_body(name=f"{leg}_shank", pos=[kinematics.L1, 0, 0])
         _joint(shank, f"{leg}_knee", [0, 1, 0], 2)
         shank.add_geom(
             name=f"{leg}_shank",
             type=_CAPSULE,
             size=[SHANK_RADIUS, 0, 0],
-            fromto=[0, 0, 0, K.L2 - SHANK_END_GAP, 0, 0],
+            fromto=[0, 0, 0, kinematics.L2 - SHANK_END_GAP, 0, 0],
             mass=SHANK_MASS,
             rgba=YELLOW,
             **COLLIDE,
         )
-        foot = shank.add_body(name=f"{leg}_foot", pos=[K.L2, 0, 0])
+        foot = shank.add_body(name=f"{leg}_foot", pos=[kinematics.L2, 0, 0])
         foot.add_geom(
             name=f"{leg}_foot",
             type=_SPHERE,
-            size=[K.FOOT_RADIUS, 0, 0],
+            size=[kinematics.FOOT_RADIUS, 0, 0],
             mass=FOOT_MASS,
             rgba=DARK,
             **COLLIDE,
@@ -206,12 +210,12 @@ def build_spec() -> mujoco.MjSpec:
         foot.add_site(name=f"{leg}_foot", size=[0.03, 0, 0])
         foot.add_site(
             name=f"{leg}_touch",
-            size=[K.FOOT_RADIUS + TOUCH_MARGIN, 0, 0],
+            size=[kinematics.FOOT_RADIUS + TOUCH_MARGIN, 0, 0],
             rgba=[1, 0, 0, 0],
         )
 
-    for leg in K.LEG_NAMES:
-        for j, joint in enumerate(K.JOINT_NAMES):
+    for leg in kinematics.LEG_NAMES:
+        for j, joint in enumerate(kinematics.JOINT_NAMES):
             name = f"{leg}_{joint}"
             act = spec.add_actuator(
                 name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT
@@ -230,7 +234,7 @@ def build_spec() -> mujoco.MjSpec:
         mjcf.set_actuator_limits(act, (-TETHER_MAX, TETHER_MAX), TETHER_MAX)
 
     sens, obj = mujoco.mjtSensor, mujoco.mjtObj
-    joints = [f"{leg}_{j}" for leg in K.LEG_NAMES for j in K.JOINT_NAMES]
+    joints = [f"{leg}_{j}" for leg in kinematics.LEG_NAMES for j in kinematics.JOINT_NAMES]
     for name in joints:
         spec.add_sensor(
             name=f"{name}_pos",
@@ -245,7 +249,7 @@ def build_spec() -> mujoco.MjSpec:
             objtype=obj.mjOBJ_ACTUATOR,
             objname=name,
         )
-    for leg in K.LEG_NAMES:
+    for leg in kinematics.LEG_NAMES:
         spec.add_sensor(
             name=f"{leg}_touch",
             type=sens.mjSENS_TOUCH,
@@ -260,7 +264,7 @@ def build_spec() -> mujoco.MjSpec:
         spec.add_sensor(name=name, type=stype, objtype=obj.mjOBJ_SITE, objname="imu")
 
     model = spec.compile()
-    qpos, ctrl = pose_qpos_ctrl(model, K.home_joint_angles())
+    qpos, ctrl = pose_qpos_ctrl(model, kinematics.home_joint_angles())
     spec.add_key(name="home", qpos=qpos.tolist(), ctrl=ctrl.tolist())
     return spec
 
@@ -277,11 +281,11 @@ def pose_qpos_ctrl(
     force `tether` (3,) [N], default 0)."""
     q = np.asarray(q, float).reshape(4, 3)
     qpos = model.qpos0.copy()
-    qpos[:3] = [0.0, 0.0, K.HOME_HEIGHT] if body_pos is None else body_pos
+    qpos[:3] = [0.0, 0.0, kinematics.HOME_HEIGHT] if body_pos is None else body_pos
     qpos[3:7] = [1.0, 0.0, 0.0, 0.0] if body_quat is None else body_quat
     ctrl = np.zeros(model.nu)
-    for i, leg in enumerate(K.LEG_NAMES):
-        for j, joint in enumerate(K.JOINT_NAMES):
+    for i, leg in enumerate(kinematics.LEG_NAMES):
+        for j, joint in enumerate(kinematics.JOINT_NAMES):
             qpos[model.joint(f"{leg}_{joint}").qposadr[0]] = q[i, j]
             ctrl[model.actuator(f"{leg}_{joint}").id] = q[i, j]
     if tether is not None:

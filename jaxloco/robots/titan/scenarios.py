@@ -74,10 +74,9 @@ import mujoco
 import numpy as np
 
 from jaxloco import stability
-from jaxloco.robots.titan import control
-from jaxloco.robots.titan import kinematics as K
+from jaxloco.robots.titan import control, kinematics
 from jaxloco.robots.titan import model as titan_model
-from jaxloco.robots.titan import params as P
+from jaxloco.robots.titan import params as titan_params
 from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.data import SimData, sensor_slice
@@ -103,14 +102,14 @@ PARAM_DEFAULTS: dict[str, float] = {
     "heading": 0.0,  # [rad] body yaw about the plane normal
     "step_time": 3.0,  # [s] per step (swing or body shift)
     "settle_time": 1.0,  # [s] standing before the first step
-    "swing_height": P.SWING_HEIGHT,  # [m] lift above the higher of start and target
+    "swing_height": titan_params.SWING_HEIGHT,  # [m] lift above the higher of start and target
     "contact_force": 0.05,  # touch above this fraction of M g = contact
     "body_gain": 3.0,  # [1/s] integral gain of the body position correction
     "anchor_feet": 1.0,  # 1: foot targets re-referenced to the measured feet at each step (control.anchor_to_feet)
     "support_relative": 1.0,  # 1: the COG target follows the supporting feet's slip (control.support_shift)
     "load_feedforward": 1.0,  # 1: the servos pre-deflected by the static foot loads (control.load_feedforward)
     "mass_feedforward": 1.0,  # 1: the body moves against the legs' mass (control.body_for_com); 0: integral only
-    "s_ne_c": float(P.S_NE_C),  # [m] critical NE stability margin
+    "s_ne_c": float(titan_params.S_NE_C),  # [m] critical NE stability margin
     "nesm_tol": 0.0,  # [m] success: min_nesm >= s_ne_c - nesm_tol (0: the paper's criterion as it stands)
     "touchdown_tol": 0.1,  # [m] success: largest touchdown error
     "path_tol": 0.1,  # [m] success: largest path deviation at cycle ends
@@ -185,9 +184,9 @@ class Plan:
         )
 
 
-def hold_plan(n_steps: int, height: float = K.HOME_HEIGHT) -> Plan:
+def hold_plan(n_steps: int, height: float = kinematics.HOME_HEIGHT) -> Plan:
     """Standing still in the home pose at the origin for n_steps body "shifts" of length 0."""
-    feet0 = np.asarray(P.NEUTRAL_FEET, float).copy()
+    feet0 = np.asarray(titan_params.NEUTRAL_FEET, float).copy()
     feet0[:, 2] = 0.0
     body0 = np.array([0.0, 0.0, height])
     return Plan(
@@ -204,9 +203,9 @@ def hold_plan(n_steps: int, height: float = K.HOME_HEIGHT) -> Plan:
 
 def demo_crawl_plan(
     n_cycles: int = 1,
-    l_std: float = float(P.L_STD),
-    w_std: float = float(P.W_STD),
-    height: float = K.HOME_HEIGHT,
+    l_std: float = float(titan_params.L_STD),
+    w_std: float = float(titan_params.W_STD),
+    height: float = kinematics.HOME_HEIGHT,
     start: tuple[float, float] = (0.0, 0.0),
 ) -> Plan:
     """TEST / DEMO plan, not the paper's planner: the standard intermittent crawl gait
@@ -217,7 +216,7 @@ def demo_crawl_plan(
     on the right (away from the first swing legs), the left feet are l_std behind
     their neutral position and the right feet at it (the phase of the standard gait)."""
     x0, y0 = start
-    neutral = np.asarray(P.NEUTRAL_FEET, float).copy()
+    neutral = np.asarray(titan_params.NEUTRAL_FEET, float).copy()
     neutral[:, 2] = 0.0
     offset = np.array([x0, y0, 0.0])
     body = np.array([x0, y0 - 0.5 * w_std, height])
@@ -270,7 +269,7 @@ class FrameField(NamedTuple):
 
 
 def build_model(
-    beam_width: float = float(P.FRAME_SMALL), field: FrameField = FrameField()
+    beam_width: float = float(titan_params.FRAME_SMALL), field: FrameField = FrameField()
 ) -> tuple[mujoco.MjModel, tr.Terrain]:
     """The robot (`models/titan_xi.xml`) on the frames-on-a-plane terrain `field`."""
     spec = titan_model.load_spec()
@@ -318,14 +317,14 @@ def model_layout(m: mujoco.MjModel, terrain: tr.Terrain, n_steps: int) -> Layout
     return Layout(
         terrain=terrain,
         body_id=body_id,
-        foot_sites=np.array([m.site(f"{leg}_foot").id for leg in K.LEG_NAMES]),
-        hips=np.array([m.body(f"{leg}_hip").id for leg in K.LEG_NAMES]),
-        knees=np.array([m.body(f"{leg}_shank").id for leg in K.LEG_NAMES]),
-        touch=tuple(sensor_slice(m, f"{leg}_touch") for leg in K.LEG_NAMES),
+        foot_sites=np.array([m.site(f"{leg}_foot").id for leg in kinematics.LEG_NAMES]),
+        hips=np.array([m.body(f"{leg}_hip").id for leg in kinematics.LEG_NAMES]),
+        knees=np.array([m.body(f"{leg}_shank").id for leg in kinematics.LEG_NAMES]),
+        touch=tuple(sensor_slice(m, f"{leg}_touch") for leg in kinematics.LEG_NAMES),
         quat=sensor_slice(m, "imu_quat"),
         frame_rows=tr.mocap_ids(m, terrain)[1:],
         frame_halves=np.asarray([piece.half_size for piece in terrain.pieces[1:]]),
-        weight=float(m.body_subtreemass[body_id]) * float(P.G),
+        weight=float(m.body_subtreemass[body_id]) * float(titan_params.G),
         n_steps=n_steps,
     )
 
@@ -338,7 +337,7 @@ def initial_state(lay: Layout, nv: int, p, key) -> InitialState:
     """Standing on the plan's start footholds, the terrain placed from params p."""
     pos, quat = lay.terrain.place(_terrain_values(p), key)
     n, _ = control.frames(p)
-    feet = p["plan_feet0"] + K.FOOT_RADIUS * n
+    feet = p["plan_feet0"] + kinematics.FOOT_RADIUS * n
     body = control.body_for_com(p, feet, p["plan_body0"])
     q = control.leg_targets(p, feet, body)
     quat_b = control.body_quat(p["theta"], p["direction"], p["heading"])
@@ -370,8 +369,13 @@ def leg_frame_clearance(lay: Layout, p, data: SimData, feet: jax.Array) -> jax.A
     pts = jnp.concatenate([thigh, shank, feet[:, None]], axis=1)  # (4, 2S+1, 3)
     rots = tr.quat_to_matrix(data.mocap_quat[lay.frame_rows])
     dist = _box_distance(pts.reshape(-1, 3), data.mocap_pos[lay.frame_rows], rots, jnp.asarray(lay.frame_halves))
-    radii = jnp.concatenate([jnp.full(N_SAMPLES, titan_model.THIGH_RADIUS),
-                             jnp.full(N_SAMPLES, titan_model.SHANK_RADIUS), jnp.full(1, float(P.FOOT_RADIUS))])
+    radii = jnp.concatenate(
+        [
+            jnp.full(N_SAMPLES, titan_model.THIGH_RADIUS),
+            jnp.full(N_SAMPLES, titan_model.SHANK_RADIUS),
+            jnp.full(1, float(titan_params.FOOT_RADIUS)),
+        ]
+    )
     dist = jnp.min(dist, axis=1).reshape(4, -1) - radii[None]
     return jnp.where(p["beam_height"] > 1e-6, dist, jnp.inf)  # flush beams: no frames
 
@@ -386,7 +390,9 @@ def record(lay: Layout, p, data: SimData, obs, c: control.ExecutorState, e) -> d
     # the support: every leg but the one swinging (a foot resting on the ground is a
     # support point even while touchdown transients briefly unload it)
     support = jnp.arange(4) != now.swing
-    nesm = stability.ne_stability_margin(cog, feet - K.FOOT_RADIUS * n, support, up=-g_eff / jnp.linalg.norm(g_eff))
+    nesm = stability.ne_stability_margin(
+        cog, feet - kinematics.FOOT_RADIUS * n, support, up=-g_eff / jnp.linalg.norm(g_eff)
+    )
     dist = leg_frame_clearance(lay, p, data, feet)
     return {
         "body_pos": obs["body"],
@@ -437,7 +443,7 @@ def summarize(lay: Layout, p, r, final) -> dict:
     lastc = jnp.maximum(last, 0)
     sw = p["plan_swing"]
     swc = jnp.maximum(sw, 0)
-    goal = p["plan_feet"][steps, swc] + K.FOOT_RADIUS * n
+    goal = p["plan_feet"][steps, swc] + kinematics.FOOT_RADIUS * n
     miss = r["feet"][lastc, swc] - goal
     td_err = jnp.linalg.norm(miss - (miss @ n)[:, None] * n, axis=-1)  # in the plane
     max_td = sm.masked_max(td_err, reached & (sw >= 0), 0.0)
@@ -486,7 +492,7 @@ def summarize(lay: Layout, p, r, final) -> dict:
 def make_scenario(
     n_steps: int,
     horizon_s: float | None = None,
-    beam_width: float = float(P.FRAME_SMALL),
+    beam_width: float = float(titan_params.FRAME_SMALL),
     record_every: int = 1,
     step_time: float = PARAM_DEFAULTS["step_time"],
     settle_time: float = PARAM_DEFAULTS["settle_time"],

@@ -42,9 +42,8 @@ import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary, mean_worst
 from jaxloco.errors import SpecError
-from jaxloco.robots.titan import params as P
-from jaxloco.robots.titan import scenarios as S
-from jaxloco.robots.titan import walk as W
+from jaxloco.robots.titan import params as titan_params
+from jaxloco.robots.titan import scenarios, walk
 from jaxloco.sim.scenario import seed_jitter
 
 FIELDS = ("grid", "long")
@@ -55,28 +54,75 @@ ROBOT_REACH = 3.0  # [m] the feet's farthest reach from the COG, with room to sp
 JITTER_SALT = 0x717A  # the start jitter's draws differ from the survey noise's
 
 PARAMS = (
-    Param("field", "grid", "terrain: 'grid' (Sec. 7 / 8.4 frame grids, frame_size / frame_interval / slope) or "
-          "'long' (the Sec. 8.3 dummy-frame field walk.LONG_FIELD, 0.2 m beams every 1.5 m, walked along +x)",
-          kind="str", choices=FIELDS),
-    Param("map", "survey", "planning map: 'survey' (a total-station survey with survey_noise, Sec. 8.2.1) or "
-          "'exact' (the true beams; grid field only)", kind="str", choices=MAP_SOURCES),
-    Param("survey_noise", 0.005, "std of each surveyed coordinate (Sec. 8.2.1; issue: +-5 mm), from the row's "
-          "seed", "m", lo=0.0, hi=0.05),
-    Param("frame_size", P.FRAME_SMALL, "beam section (width = height); 0 = flat ground", "m", lo=0.0, hi=0.3),
-    Param("frame_interval", P.GRID_SMALL, "grid field: beam spacing (long field: 1.5 m)", "m", lo=1.0, hi=3.0),
-    Param("slope", 0.0, "slope of the terrain plane (Sec. 8.4: 30 deg, 0.2 m frames every 1.5 m)", "rad",
-          lo=0.0, hi=0.6),
-    Param("direction", 0.0, "grid field: map-frame walking direction (0 = +x, up the fall line on a slope)", "rad",
-          lo=-2 * math.pi, hi=2 * math.pi),
-    Param("tether", 1.0, "fraction of the slope-parallel gravity the tethers cancel (Sec. 8.1)", "", lo=0.0,
-          hi=1.0),
-    Param("mu", S.PARAM_DEFAULTS["mu"], "friction coefficient of the terrain", "", lo=0.05, hi=2.0),
-    Param("start_jitter", 0.5, "perturbed trials: the start COG moves by U(-1, 1) x this in x and y, from the "
-          "row's seed", "m", lo=0.0, hi=2.0),
-    Param("nesm_tol", S.PARAM_DEFAULTS["nesm_tol"], "success allowance of the simulated min NESM below S_NE^c "
-          "(0: the paper's criterion as it stands)", "m", lo=0.0, hi=0.05),
-    Param("n_cycles", 4, "gait cycles per walk (6 steps, 18 s each); the long field needs ~52 to cross it", "",
-          kind="int", lo=1, hi=80, sweepable=False),
+    Param(
+        "field",
+        "grid",
+        "terrain: 'grid' (Sec. 7 / 8.4 frame grids, frame_size / frame_interval / slope) or "
+        "'long' (the Sec. 8.3 dummy-frame field walk.LONG_FIELD, 0.2 m beams every 1.5 m, walked along +x)",
+        kind="str",
+        choices=FIELDS,
+    ),
+    Param(
+        "map",
+        "survey",
+        "planning map: 'survey' (a total-station survey with survey_noise, Sec. 8.2.1) or "
+        "'exact' (the true beams; grid field only)",
+        kind="str",
+        choices=MAP_SOURCES,
+    ),
+    Param(
+        "survey_noise",
+        0.005,
+        "std of each surveyed coordinate (Sec. 8.2.1; issue: +-5 mm), from the row's seed",
+        "m",
+        lo=0.0,
+        hi=0.05,
+    ),
+    Param(
+        "frame_size", titan_params.FRAME_SMALL, "beam section (width = height); 0 = flat ground", "m", lo=0.0, hi=0.3
+    ),
+    Param(
+        "frame_interval", titan_params.GRID_SMALL, "grid field: beam spacing (long field: 1.5 m)", "m", lo=1.0, hi=3.0
+    ),
+    Param(
+        "slope", 0.0, "slope of the terrain plane (Sec. 8.4: 30 deg, 0.2 m frames every 1.5 m)", "rad", lo=0.0, hi=0.6
+    ),
+    Param(
+        "direction",
+        0.0,
+        "grid field: map-frame walking direction (0 = +x, up the fall line on a slope)",
+        "rad",
+        lo=-2 * math.pi,
+        hi=2 * math.pi,
+    ),
+    Param("tether", 1.0, "fraction of the slope-parallel gravity the tethers cancel (Sec. 8.1)", "", lo=0.0, hi=1.0),
+    Param("mu", scenarios.PARAM_DEFAULTS["mu"], "friction coefficient of the terrain", "", lo=0.05, hi=2.0),
+    Param(
+        "start_jitter",
+        0.5,
+        "perturbed trials: the start COG moves by U(-1, 1) x this in x and y, from the row's seed",
+        "m",
+        lo=0.0,
+        hi=2.0,
+    ),
+    Param(
+        "nesm_tol",
+        scenarios.PARAM_DEFAULTS["nesm_tol"],
+        "success allowance of the simulated min NESM below S_NE^c (0: the paper's criterion as it stands)",
+        "m",
+        lo=0.0,
+        hi=0.05,
+    ),
+    Param(
+        "n_cycles",
+        4,
+        "gait cycles per walk (6 steps, 18 s each); the long field needs ~52 to cross it",
+        "",
+        kind="int",
+        lo=1,
+        hi=80,
+        sweepable=False,
+    ),
     Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
 )
 
@@ -123,32 +169,34 @@ _SIM_METRICS = {  # titan.walk metric -> scenarios.summarize metric
 }
 
 
-def grid_field(spacing: float) -> S.FrameField:
+def grid_field(spacing: float) -> scenarios.FrameField:
     """The grid field's beams: an even count each way (so that the beam centres are at
     +-spacing/2, +-3 spacing/2, ..., as `walk.sim_map`'s lines) covering +-GRID_HALF,
     their length the crossings' extent (the survey sees every beam)."""
     n = 2 * math.ceil(GRID_HALF / spacing + 0.5)
     half = 0.5 * (n - 1) * spacing + 3.0
-    return S.FrameField(n_along=n, n_across=n, max_spacing=float(spacing), half_length=half, half_width=half)
+    return scenarios.FrameField(n_along=n, n_across=n, max_spacing=float(spacing), half_length=half, half_width=half)
 
 
 def grid_shape(n_cycles: int) -> tuple[int, int]:
     """Planning map cells for a grid-field walk of n_cycles centred on the origin."""
     half = 0.5 * n_cycles * WALK_PER_CYCLE + ROBOT_REACH + 1.0
-    n = max(2 * math.ceil(half / float(P.CELL)), W.SIM_SHAPE[0])  # short walks share walk.SIM_SHAPE's compile
+    n = max(
+        2 * math.ceil(half / float(titan_params.CELL)), walk.SIM_SHAPE[0]
+    )  # short walks share walk.SIM_SHAPE's compile
     return n, n
 
 
 @lru_cache(maxsize=8)
-def _scenario(n_steps: int, beam_width: float, field: S.FrameField):
-    return S.make_scenario(n_steps, beam_width=beam_width, field=field, record_every=5)
+def _scenario(n_steps: int, beam_width: float, field: scenarios.FrameField):
+    return scenarios.make_scenario(n_steps, beam_width=beam_width, field=field, record_every=5)
 
 
-def row_terrain(v: Mapping[str, Any]) -> tuple[S.FrameField, float, float]:
+def row_terrain(v: Mapping[str, Any]) -> tuple[scenarios.FrameField, float, float]:
     """(field, spacing, beam width) of a row: what the simulated terrain is built from."""
-    width = float(v["frame_size"]) if float(v["frame_size"]) > 0.0 else float(P.FRAME_SMALL)
+    width = float(v["frame_size"]) if float(v["frame_size"]) > 0.0 else float(titan_params.FRAME_SMALL)
     if v["field"] == "long":
-        return W.LONG_FIELD, W.LONG_SPACING, width
+        return walk.LONG_FIELD, walk.LONG_SPACING, width
     return grid_field(float(v["frame_interval"])), float(v["frame_interval"]), width
 
 
@@ -156,22 +204,22 @@ def plan_row(v: Mapping[str, Any], key: np.ndarray, n_cycles: int):
     """The executor plan, planner output and executor scalars of one row (module
     docstring, steps 2-3); `walk.NoClearStart` when no start pose is clear of the frames."""
     field, spacing, _ = row_terrain(v)
-    params = dataclasses.replace(P.default_params(), tether=jnp.asarray(float(v["tether"])))
+    params = dataclasses.replace(titan_params.default_params(), tether=jnp.asarray(float(v["tether"])))
     size, slope = float(v["frame_size"]), float(v["slope"])
     long = v["field"] == "long"
-    shape = W.LONG_SHAPE if long else grid_shape(n_cycles)
+    shape = walk.LONG_SHAPE if long else grid_shape(n_cycles)
     if v["map"] == "exact":
-        gmap = W.sim_map(size, spacing, slope, shape)
+        gmap = walk.sim_map(size, spacing, slope, shape)
     else:
-        gmap = W.surveyed_map(field, spacing, size, float(v["survey_noise"]), jnp.asarray(key, jnp.uint32),
+        gmap = walk.surveyed_map(field, spacing, size, float(v["survey_noise"]), jnp.asarray(key, jnp.uint32),
                               shape=shape, slope=slope)
     direction = 0.0 if long else float(v["direction"])
     jitter = seed_jitter(np.asarray(key, np.uint32)[None] ^ np.uint32(JITTER_SALT), 2)[0] * float(v["start_jitter"])
     if long:
-        near = np.asarray(W.LONG_START) + jitter
+        near = np.asarray(walk.LONG_START) + jitter
     else:
         near = -0.5 * n_cycles * WALK_PER_CYCLE * 0.9 * np.array([math.cos(direction), math.sin(direction)]) + jitter
-    return W.plan_on_map(params, gmap, near, n_cycles, direction, spacing, size, slope)
+    return walk.plan_on_map(params, gmap, near, n_cycles, direction, spacing, size, slope)
 
 
 def _status(m: Mapping[str, Any], planned: bool, diverged: bool) -> int:
@@ -211,7 +259,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
         for i, v in enumerate(rows):
             try:
                 planned = plan_row(v, keys[i], n_cycles)
-            except W.NoClearStart:
+            except walk.NoClearStart:
                 continue  # status 7, metrics nan
             groups.setdefault(row_terrain(v), []).append((i, v, planned))
         for (field, _spacing, width), group in groups.items():
@@ -221,7 +269,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
             over = {k: np.array([s[k] for s in scal]) for k in scal[0]}
             for k in ("mu", "nesm_tol"):
                 over[k] = np.array([float(g[1][k]) for g in group])
-            res = rollout(sc, S.params_batch(plans, **over), nthread=nthread)
+            res = rollout(sc, scenarios.params_batch(plans, **over), nthread=nthread)
             for j, (i, _v, (_plan, gait, _s)) in enumerate(group):
                 m = res.row(j)
                 ok_plan = int(gait.n_failures) == 0
@@ -231,7 +279,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
                 out["plan_failures"][i] = int(gait.n_failures)
                 out["plan_modifications"][i] = int(gait.n_modifications)
                 out["planned"][i] = ok_plan
-                out["converged"][i] = W.converged(gait, P.default_params())
+                out["converged"][i] = walk.converged(gait, titan_params.default_params())
                 out["t_diverged"][i] = res.t_diverged[j]
                 out["status"][i] = _status(m, ok_plan, bool(res.diverged[j]))
                 out["success"][i] = out["status"][i] == 0

@@ -97,40 +97,39 @@ import jax.numpy as jnp
 
 from jaxloco.analysis import Param
 from jaxloco.errors import SpecError
-from jaxloco.robots.titan import analysis as A
-from jaxloco.robots.titan import gait as G
-from jaxloco.robots.titan import params as P
+from jaxloco.robots.titan import analysis, gait
+from jaxloco.robots.titan import params as titan_params
 from jaxloco.tune.objective import Objective, Tunable
 
-D_REF = 2.0 * P.L_STD  # [m] progress per cycle of the default standard gait on flat ground
+D_REF = 2.0 * titan_params.L_STD  # [m] progress per cycle of the default standard gait on flat ground
 PHI = 0.5 * (math.sqrt(5.0) - 1.0)  # y phase step of the frame-grid offsets
 L_LO, L_HI = 0.1, 1.0  # [m] bounds of l_std (hi: the sweep's upper bound, ~ the fans' reach)
 W_LO, W_HI = 0.4, 1.8  # [m] bounds of w_std (flat ground: at 0.4 the standard gait keeps only
 # 4 mm above S_NE^c = 0.03 m, at 0.3 its start fails; above ~1.5 the reach shortens |L|)
 # [m] farthest a foot pad reaches from the COG along a body axis: pivot + R_out + pad
-FOOT_REACH = max(P.PIVOT_X, P.PIVOT_Y) + P.R_OUT + P.FOOT_RADIUS
+FOOT_REACH = max(titan_params.PIVOT_X, titan_params.PIVOT_Y) + titan_params.R_OUT + titan_params.FOOT_RADIUS
 MAX_DIRECTION = math.pi / 4  # [rad] beyond it the rear pair changes (`gait.leg_roles`)
 
 TUNABLES = (
-    Tunable("l_std", P.L_STD, "L_std: standard COG longitudinal shift per half cycle (stroke 2 L_std)", "m",
+    Tunable("l_std", titan_params.L_STD, "L_std: standard COG longitudinal shift per half cycle (stroke 2 L_std)", "m",
             lo=L_LO, hi=L_HI),
-    Tunable("w_std", P.W_STD, "W_std: standard COG lateral shift per half cycle (zigzag +-W_std / 2)", "m",
+    Tunable("w_std", titan_params.W_STD, "W_std: standard COG lateral shift per half cycle (zigzag +-W_std / 2)", "m",
             lo=W_LO, hi=W_HI),
 )
-DEFAULT_STRIDE = {"l_std": P.L_STD, "w_std": P.W_STD}  # default (ours): not in the paper
+DEFAULT_STRIDE = {"l_std": titan_params.L_STD, "w_std": titan_params.W_STD}  # default (ours): not in the paper
 
 # default case (module doc): the Sec. 8.4 slope angle, 75 % tether, no frames (frame_interval:
 # the Sec. 8.4 grid, used when frame_size > 0)
 _DEFAULTS = {
     "frame_size": 0.0,
-    "frame_interval": P.SLOPE_GRID,
-    "slope": P.SLOPE_ANGLE,
+    "frame_interval": titan_params.SLOPE_GRID,
+    "slope": titan_params.SLOPE_ANGLE,
     "tether": 0.75,
     "n_cycles": 4,
 }
 _TUNED = {t.name for t in TUNABLES}
 SETTINGS = tuple(
-    dataclasses.replace(p, default=_DEFAULTS.get(p.name, p.default)) for p in A.PARAMS if p.name not in _TUNED
+    dataclasses.replace(p, default=_DEFAULTS.get(p.name, p.default)) for p in analysis.PARAMS if p.name not in _TUNED
 ) + (
     Param("w_margin", 1.0, "weight of the margin term: reference distances (1 m/cycle) per softmin_tau of "
           "soft-min NESM below S_NE^c", "", lo=0.0, hi=1e3),
@@ -159,7 +158,7 @@ def check_settings(settings: Mapping[str, Any]) -> None:
     n, cell = int(settings["n_cycles"]), float(settings["cell"])
     box = max(abs(math.cos(direction)), abs(math.sin(direction)))
     # [m] longest walk: n cycles at the upper bound of l_std, lengthened off a body axis
-    travel = n * 2.0 * L_HI / box**P.STRIDE_EXPONENT
+    travel = n * 2.0 * L_HI / box**titan_params.STRIDE_EXPONENT
     need_x = float(settings["start_x"]) + travel * math.cos(direction) + FOOT_REACH
     need_y = 2.0 * (travel * abs(math.sin(direction)) + FOOT_REACH + 0.5 * W_HI)
     if settings["map_nx"] * cell < need_x or settings["map_ny"] * cell < need_y:
@@ -171,7 +170,7 @@ def check_settings(settings: Mapping[str, Any]) -> None:
         )
 
 
-def plan(params: P.TitanParams, s: Mapping[str, Any], phase: jax.Array) -> G.GaitPlan:
+def plan(params: titan_params.TitanParams, s: Mapping[str, Any], phase: jax.Array) -> gait.GaitPlan:
     """`gait.sweep_plan` for the settings `s` with the frame grid shifted by `phase` (2,)
     intervals in map x, y; phase (0, 0) is `sweep_plan` itself (frame centre lines at
     (k + 1/2) interval)."""
@@ -179,9 +178,9 @@ def plan(params: P.TitanParams, s: Mapping[str, Any], phase: jax.Array) -> G.Gai
     shape, cell = (int(s["map_nx"]), int(s["map_ny"])), float(s["cell"])
     v = {n: jnp.asarray(s[n], dtype) for n in ("frame_size", "frame_interval", "slope", "direction", "start_x",
                                                "frame_size_b", "frame_interval_b", "mix_block")}
-    gmap, start = G.sweep_setup(params, v["frame_size"], v["frame_interval"], v["slope"], v["direction"], shape,
-                                cell, phase=jnp.asarray(phase, dtype), **A.field_values(v))
-    return G.plan_cycles(params, gmap, start, int(s["n_cycles"]), v["direction"])
+    gmap, start = gait.sweep_setup(params, v["frame_size"], v["frame_interval"], v["slope"], v["direction"], shape,
+                                cell, phase=jnp.asarray(phase, dtype), **analysis.field_values(v))
+    return gait.plan_cycles(params, gmap, start, int(s["n_cycles"]), v["direction"])
 
 
 def plan_loss_fn(settings: Mapping[str, Any]):
@@ -199,18 +198,18 @@ def plan_loss_fn(settings: Mapping[str, Any]):
         dtype = jnp.result_type(values["l_std"], values["w_std"], float)
         v = {n: jnp.asarray(values[n], dtype) for n in ("l_std", "w_std")}
         v.update({n: jnp.asarray(s[n], dtype) for n in ("s_ne_c", "tether")})
-        params = A.row_params(v, dtype)
+        params = analysis.row_params(v, dtype)
         tau = jnp.asarray(s["softmin_tau"], dtype)
         phase = jnp.asarray(phases, dtype)  # (K, 2), one plan per row, vmapped
 
         def one(ph):
             p = plan(params, s, ph)
-            m = A.plan_metrics(p, params.s_ne_c, tau)
+            m = analysis.plan_metrics(p, params.s_ne_c, tau)
             # a held cycle (no feasible trial) counts as six steps at S_NE^c, not as the
             # large margin of standing still: failing must not relieve the margin term
-            m["loss_margin"] = A.softmin(jnp.where(p.failed, jnp.minimum(p.nesm, params.s_ne_c), p.nesm), tau)
+            m["loss_margin"] = analysis.softmin(jnp.where(p.failed, jnp.minimum(p.nesm, params.s_ne_c), p.nesm), tau)
             m["margin_penalty"] = s["w_margin"] * jax.nn.softplus((params.s_ne_c - m["loss_margin"]) / tau)
-            m["steps_below"] = jnp.sum(p.nesm < params.s_ne_c - A.NESM_TOL)
+            m["steps_below"] = jnp.sum(p.nesm < params.s_ne_c - analysis.NESM_TOL)
             m["loss"] = -m["distance_per_cycle"] / D_REF + m["margin_penalty"]
             return {k: jnp.asarray(x, dtype) for k, x in m.items()}
 

@@ -24,10 +24,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.robots.titan import gait as G
-from jaxloco.robots.titan import maps as M
-from jaxloco.robots.titan import params as P
-from jaxloco.robots.titan import scenarios as S
+from jaxloco.robots.titan import gait as titan_gait
+from jaxloco.robots.titan import maps, scenarios
+from jaxloco.robots.titan import params as titan_params
 
 SIM_SHAPE = (120, 120)  # cells of the planning map (12 x 12 m at 0.1 m)
 STEPS_PER_CYCLE = 6
@@ -37,7 +36,7 @@ STEPS_PER_CYCLE = 6
 PLACEMENT_MARGIN = 0.05
 
 # one compilation per (map shape, n_cycles): every walk on the same grid reuses it
-_plan_cycles = jax.jit(G.plan_cycles, static_argnames="n_cycles")
+_plan_cycles = jax.jit(titan_gait.plan_cycles, static_argnames="n_cycles")
 
 
 def sim_map(
@@ -45,16 +44,16 @@ def sim_map(
     spacing: float,
     slope: float = 0.0,
     shape: tuple[int, int] = SIM_SHAPE,
-    cell: float = float(P.CELL),
+    cell: float = float(titan_params.CELL),
     margin: float = PLACEMENT_MARGIN,
-) -> M.GridMap:
+) -> maps.GridMap:
     """Unevenness and forbidden-foothold maps of the simulated frames (`scenarios`
     terrain: beams `frame_size` wide and high every `spacing` m, centred on the origin),
     on a grid centred on the origin. frame_size 0: flat ground. The forbidden cells keep
     the pad plus `margin` off the frames (the executor's placement error)."""
     origin = -0.5 * np.asarray(shape, float) * cell
     half = 0.5 * spacing
-    return M.frame_grid_map(
+    return maps.frame_grid_map(
         shape,
         jnp.asarray(origin),
         jnp.asarray(cell),
@@ -62,13 +61,13 @@ def sim_map(
         spacing,
         jnp.array([half, half]),
         slope,
-        foot_radius=float(P.FOOT_RADIUS) + margin,
+        foot_radius=float(titan_params.FOOT_RADIUS) + margin,
     )
 
 
 def executor_plan(
-    gait: G.GaitPlan, start: G.GaitState, gmap: M.GridMap, direction
-) -> S.Plan:
+    gait: titan_gait.GaitPlan, start: titan_gait.GaitState, gmap: maps.GridMap, direction
+) -> scenarios.Plan:
     """The executor's `scenarios.Plan` (world frame) of a planned walk: feet and body
     after each step, swings, cycle ends, the path L_G of each cycle (through the COG at
     the cycle's start, along that cycle's `direction`, map-frame angle, scalar or one
@@ -77,11 +76,11 @@ def executor_plan(
     n_steps = feet.shape[0]
     n_cycles = n_steps // STEPS_PER_CYCLE
     body = np.asarray(gait.cog_world, float)
-    body0 = np.asarray(M.map_to_world(gmap, start.cog), float)
-    feet0 = np.asarray(M.map_to_world(gmap, start.feet), float)
+    body0 = np.asarray(maps.map_to_world(gmap, start.cog), float)
+    feet0 = np.asarray(maps.map_to_world(gmap, start.feet), float)
     dirs = np.broadcast_to(np.asarray(direction, float), (n_cycles,))
     d_map = np.stack([np.cos(dirs), np.sin(dirs), np.zeros_like(dirs)], axis=1)
-    d_world = np.asarray(M.map_to_world(gmap, jnp.asarray(d_map)), float)
+    d_world = np.asarray(maps.map_to_world(gmap, jnp.asarray(d_map)), float)
     cycle_start = np.concatenate(
         [body0[None], body[STEPS_PER_CYCLE - 1 :: STEPS_PER_CYCLE][:-1]]
     )
@@ -93,7 +92,7 @@ def executor_plan(
         still[:, None], body[STEPS_PER_CYCLE - 1 :: STEPS_PER_CYCLE], cycle_start
     )
     top = np.where(swing >= 0, np.asarray(gait.swing_path, float)[:, 1, 2], -np.inf)
-    return S.Plan(
+    return scenarios.Plan(
         feet0=feet0,
         body0=body0,
         feet=feet,
@@ -111,14 +110,14 @@ class NoClearStart(ValueError):
 
 
 def clear_start(
-    params: P.TitanParams,
-    gmap: M.GridMap,
+    params: titan_params.TitanParams,
+    gmap: maps.GridMap,
     near_xy,
     direction: float = 0.0,
     search: float = 3.0,
     step: float = 0.1,
     snap: float = 0.6,
-) -> G.GaitState:
+) -> titan_gait.GaitState:
     """A start pose near `near_xy` (map xy of the COG) with its four feet on free cells
     of the forbidden-foothold map: the standard start (`gait.standard_start`) nearest
     `near_xy` on a grid of `step` within +-search / 2 whose feet are all free; if there
@@ -130,21 +129,21 @@ def clear_start(
     ticks = np.arange(-0.5 * search, 0.5 * search + 1e-9, step)
     cand = near + np.stack(np.meshgrid(ticks, ticks, indexing="ij"), -1).reshape(-1, 2)
     cand = cand[np.argsort(np.linalg.norm(cand - near, axis=1), kind="stable")]
-    feet = jax.vmap(lambda xy: G.standard_start(params, gmap, xy, direction).feet)(
+    feet = jax.vmap(lambda xy: titan_gait.standard_start(params, gmap, xy, direction).feet)(
         jnp.asarray(cand)
     )
-    free = ~np.asarray(M.sample_forbidden(gmap, feet[..., :2])).any(axis=1)
+    free = ~np.asarray(maps.sample_forbidden(gmap, feet[..., :2])).any(axis=1)
     if free.any():
         xy = jnp.asarray(cand[int(np.argmax(free))])
-        return G.standard_start(params, gmap, xy, direction)
-    start = G.standard_start(params, gmap, jnp.asarray(near), direction)
+        return titan_gait.standard_start(params, gmap, xy, direction)
+    start = titan_gait.standard_start(params, gmap, jnp.asarray(near), direction)
     centres = np.asarray(
-        M.cell_centres(gmap.forbidden.shape, gmap.origin, gmap.cell)
+        maps.cell_centres(gmap.forbidden.shape, gmap.origin, gmap.cell)
     ).reshape(-1, 2)
     ok = ~np.asarray(gmap.forbidden).reshape(-1)
     xy = np.asarray(start.feet[:, :2], float).copy()
     for leg in range(4):
-        if bool(M.sample_forbidden(gmap, jnp.asarray(xy[leg]))):
+        if bool(maps.sample_forbidden(gmap, jnp.asarray(xy[leg]))):
             dist = np.where(ok, np.linalg.norm(centres - xy[leg], axis=1), np.inf)
             best = int(np.argmin(dist))
             if dist[best] > snap:
@@ -154,22 +153,22 @@ def clear_start(
                 )
             xy[leg] = centres[best]
     xy = jnp.asarray(xy)
-    feet = jnp.concatenate([xy, M.sample_height(gmap, xy)[:, None]], axis=1)
-    nrm, off = G.virtual_plane(feet)
-    cog_z = G.plane_height(nrm, off, start.cog[:2]) + params.h_g
-    return G.GaitState(feet, start.cog.at[2].set(cog_z), start.yaw, start.rear)
+    feet = jnp.concatenate([xy, maps.sample_height(gmap, xy)[:, None]], axis=1)
+    nrm, off = titan_gait.virtual_plane(feet)
+    cog_z = titan_gait.plane_height(nrm, off, start.cog[:2]) + params.h_g
+    return titan_gait.GaitState(feet, start.cog.at[2].set(cog_z), start.yaw, start.rear)
 
 
 def plan_on_map(
-    params: P.TitanParams,
-    gmap: M.GridMap,
+    params: titan_params.TitanParams,
+    gmap: maps.GridMap,
     near_xy,
     n_cycles: int,
     direction=0.0,
-    spacing: float = float(P.GRID_SMALL),
-    frame_size: float = float(P.FRAME_SMALL),
+    spacing: float = float(titan_params.GRID_SMALL),
+    frame_size: float = float(titan_params.FRAME_SMALL),
     slope: float = 0.0,
-) -> tuple[S.Plan, G.GaitPlan, dict[str, float]]:
+) -> tuple[scenarios.Plan, titan_gait.GaitPlan, dict[str, float]]:
     """Plan `n_cycles` on the planning map `gmap` from the standard start with the COG near
     `near_xy` (map frame; `clear_start` moves it by up to 1.5 m so that no foot starts on
     a frame) along `direction` (map-frame angle [rad], scalar or one per cycle; the first
@@ -195,14 +194,14 @@ def plan_walk(
     start_xy,
     n_cycles: int,
     direction=0.0,
-    frame_size: float = float(P.FRAME_SMALL),
-    spacing: float = float(P.GRID_SMALL),
+    frame_size: float = float(titan_params.FRAME_SMALL),
+    spacing: float = float(titan_params.GRID_SMALL),
     slope: float = 0.0,
-    params: P.TitanParams | None = None,
+    params: titan_params.TitanParams | None = None,
     shape: tuple[int, int] = SIM_SHAPE,
-) -> tuple[S.Plan, G.GaitPlan, dict[str, float]]:
+) -> tuple[scenarios.Plan, titan_gait.GaitPlan, dict[str, float]]:
     """`plan_on_map` on the exact map of the simulated frames (`sim_map`)."""
-    params = P.default_params() if params is None else params
+    params = titan_params.default_params() if params is None else params
     gmap = sim_map(frame_size, spacing, slope, shape)
     return plan_on_map(params, gmap, start_xy, n_cycles, direction, spacing, frame_size, slope)
 
@@ -212,36 +211,45 @@ def plan_walk(
 # 1.5 m (the Sec. 8.4 test slope's grid, which the dummy frames stand for), 21 across and
 # 4 along: a field of 30.2 x 4.7 m centred on the origin, flat ground around it (80 m
 # long: 60 cycles from LONG_START leave the field and return to the standard gait).
-LONG_FIELD = S.FrameField(n_along=4, n_across=21, max_spacing=1.5, half_length=40.0, half_width=8.0)
+LONG_FIELD = scenarios.FrameField(n_along=4, n_across=21, max_spacing=1.5, half_length=40.0, half_width=8.0)
 LONG_SPACING = 1.5  # [m]
 LONG_SHAPE = (800, 120)  # planning map cells: x in [-40, 40], y in [-6, 6] m
 LONG_START = (-20.0, 0.0)  # [m] start COG, 5 m before the field
 
 
-def field_survey(field: S.FrameField, spacing: float, frame_size: float, noise: float = 0.0,
+def field_survey(field: scenarios.FrameField, spacing: float, frame_size: float, noise: float = 0.0,
                  key: jax.Array | None = None) -> tuple[jax.Array, jax.Array]:
     """A synthetic total-station survey (Sec. 8.2.1 step 1, `maps.survey_points`) of the
     simulated beams `field` every `spacing` m: the beam crossings measured on top and the
     area centres on the ground, each coordinate with Gaussian noise of std `noise` [m]."""
     n_nodes = (field.n_across, field.n_along)
     origin = -0.5 * spacing * (np.asarray(n_nodes, float) - 1.0)
-    return M.survey_points(n_nodes, jnp.asarray(spacing), jnp.asarray(origin), frame_size, noise=noise, key=key)
+    return maps.survey_points(n_nodes, jnp.asarray(spacing), jnp.asarray(origin), frame_size, noise=noise, key=key)
 
 
-def surveyed_map(field: S.FrameField, spacing: float, frame_size: float, noise: float = 0.0,
+def surveyed_map(field: scenarios.FrameField, spacing: float, frame_size: float, noise: float = 0.0,
                  key: jax.Array | None = None, shape: tuple[int, int] = LONG_SHAPE,
-                 margin: float = PLACEMENT_MARGIN, slope: float = 0.0) -> M.GridMap:
+                 margin: float = PLACEMENT_MARGIN, slope: float = 0.0) -> maps.GridMap:
     """The planning maps made from `field_survey` by our map generation
     (`maps.map_from_survey`, Sec. 8.2.1 steps 2-4), on a grid centred on the origin;
     forbidden cells keep the pad plus `margin` off the surveyed frames. The survey is in
     the plane's own frame (on a slope: x up the fall line), the map's `slope` places it."""
     nodes, centres = field_survey(field, spacing, frame_size, noise, key)
-    origin = -0.5 * np.asarray(shape, float) * float(P.CELL)
-    return M.map_from_survey(nodes, centres, frame_size, frame_size, shape, jnp.asarray(origin),
-                             jnp.asarray(float(P.CELL)), foot_radius=float(P.FOOT_RADIUS) + margin, slope=slope)
+    origin = -0.5 * np.asarray(shape, float) * float(titan_params.CELL)
+    return maps.map_from_survey(
+        nodes,
+        centres,
+        frame_size,
+        frame_size,
+        shape,
+        jnp.asarray(origin),
+        jnp.asarray(float(titan_params.CELL)),
+        foot_radius=float(titan_params.FOOT_RADIUS) + margin,
+        slope=slope,
+    )
 
 
-def converged(gait: G.GaitPlan, params: P.TitanParams, last: int = 2) -> bool:
+def converged(gait: titan_gait.GaitPlan, params: titan_params.TitanParams, last: int = 2) -> bool:
     """Back to the standard gait (Fig. 5): the last `last` cycles with |L| = |L-bar| =
     L_std (along +x, a body axis), |W| = W_std and no modification."""
     ls = np.asarray(gait.cycle_l, float)[-last:]
