@@ -2,7 +2,7 @@
 --peers, beside qpax, daqp, moreau, proxsuite and clarabel on the same problems.
 
     python benchmarks/bench_qp.py [--iterations 25] [--float32] [--problems file.npz]
-    python benchmarks/bench_qp.py --set contact --peers --batches 2000   # the issue-21 table
+    python benchmarks/bench_qp.py --set contact --peers --batches 2000   # the peers table of the README
 
 Without --problems it uses random QPs: `--set random` (default) quadruped-force-
 distribution-sized ones (n=16 with 12 forces of O(70 N), a zero-curvature margin

@@ -4,6 +4,7 @@ no import cycles, and no module using another package's private names."""
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "jaxloco"
@@ -131,3 +132,13 @@ def test_robot_packages_list_their_modules():
             if module.stem != "__init__" and f"`{module.stem}`" not in doc:
                 missing.append(f"{package.parent.name}.{module.stem}")
     assert missing == []
+
+
+def test_no_issue_numbers_in_code():
+    """Code and specs say what and why, not which work item asked for it."""
+    pattern = re.compile(r"\bissues?[ -]#?\d+", re.IGNORECASE)
+    roots = [PACKAGE, PACKAGE.parent / "tests", PACKAGE.parent / "benchmarks"]
+    found = [f"{path.relative_to(PACKAGE.parent)}:{n}"
+             for root in roots for path in sorted(root.rglob("*")) if path.suffix in (".py", ".toml")
+             for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1) if pattern.search(line)]
+    assert found == []

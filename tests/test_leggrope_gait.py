@@ -155,7 +155,7 @@ def test_irregular_slope_keeps_inclination():
     np.testing.assert_allclose(same.normals[..., 2], np.cos(0.3))
 
 
-# ------------------------------------------------------- the mirrored numbering (issue 18)
+# ------------------------------------------------------- the mirrored numbering ---------
 MIRRORED = gait.DESIGNS["mirrored"]
 
 
@@ -199,7 +199,7 @@ def _max_grope_share(feet_uv: np.ndarray, g: int, c: np.ndarray, h_ref: float) -
 
 
 def test_collapse_safe_design_gropes_to_r_ref_inside_the_other_three_legs(mirrored_plans):
-    """Issue 18, the designer: at every grope of the mirrored design the groping leg can
+    """The designer: at every grope of the mirrored design the groping leg can
     take R_ref (checked by an LP, not by the planner's regions) while the COG stays at
     least 10 mm inside the triangle of the other three legs (so a collapse leaves the
     robot standing); the literal design with the same rule reaches under 5 mm."""

@@ -81,7 +81,7 @@ def test_first_collapse_names_the_groping_leg_and_the_tilt_after_it(walk):
 
 
 def test_grope_breaks_a_foothold_just_under_r_ref_and_the_walk_stops(walk):
-    """Issue 18, the method's premise: the grope ends over R_ref (1.01 R_ref, the design's
+    """The method's premise: the grope ends over R_ref (1.01 R_ref, the design's
     overshoot), so a foothold only 0.1-0.3 % weaker than R_ref breaks in its grope, not
     later under an unprobed load; no walk accepts a weak foothold; with regrope = 0 the
     walk stops there (paper: "the robot stops walking after the detection of the foothold
@@ -116,7 +116,7 @@ def test_load_over_probe_compares_later_loads_with_the_probed_force(walk):
     assert r.metrics["max_load_over_probe"][0] == pytest.approx(max(ratios), rel=1e-12)
     # no collapse in this walk: the steady version is the same figure
     assert r.metrics["max_load_over_probe_steady"][0] == r.metrics["max_load_over_probe"][0]
-    # a probed foothold carries no more than it was probed with (issue 18): the grope
+    # a probed foothold carries no more than it was probed with: the grope
     # ends at 1.01 R_ref and the walk's other steps stay below R_ref
     assert 0.5 < r.metrics["max_load_over_probe"][0] <= 1.0
 

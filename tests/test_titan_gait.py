@@ -391,7 +391,7 @@ def test_vmap_over_maps_equals_loop(scenarios):
 
 
 def test_sweep_point_vmaps_over_parameters_and_maps():
-    """`sweep_metrics` (issue 5 sweeps): vmap over L_std, W_std and the frame size ==
+    """`sweep_metrics`: vmap over L_std, W_std and the frame size ==
     a loop of single calls; flat ground gives 2 L_std per cycle."""
 
     def run(l_std, w_std, size):

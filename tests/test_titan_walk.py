@@ -1,4 +1,4 @@
-"""The TITAN XI planner's footsteps executed in MuJoCo (issue 5, Sec. 3 Scenarios): two gait
+"""The TITAN XI planner's footsteps executed in MuJoCo: two gait
 cycles over the Section 7 frames (0.2 m frames on a 2.0 m grid) and two on the Section
 8.4 slope (30 deg, 0.2 m frames every 1.5 m, tethers on), one batch of two simulations;
 plus the planner -> executor plan conversion and the start-pose search."""

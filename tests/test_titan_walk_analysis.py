@@ -1,4 +1,4 @@
-"""`titan.walk` (issue 19 Sec. 3): planned walks on exact and surveyed maps executed in
+"""`titan.walk`: planned walks on exact and surveyed maps executed in
 MuJoCo, as a sweep analysis. One batch of short walks on the Sec. 7 grid (0.2 m frames
 on 2.0 m), planned on the exact map and on a survey with 5 mm noise."""
 

@@ -18,7 +18,7 @@ worst case over slopes.
   (objective "plan": the worst region margin over `DESIGN_SLOPES`, |theta| <= 0.5 and
   four walking directions): -1.7 mm.
 * The mirrored numbering's experimental walk (`gait.DESIGNS["mirrored"]`) is designed for
-  surviving a collapse (issue 18), objective "collapse": the worst-case triangle margin of
+  surviving a collapse, objective "collapse": the worst-case triangle margin of
   the cycle (the grope's COG inside the other three legs' triangle) subject to every grope
   reaching R_ref (the groped foothold inside its step-D region), both at least the score,
   with the planner's "collapse_safe" COG rule. Step B's COG is then the walk's A'

@@ -131,7 +131,7 @@ class GaitDesign:
       order a walk along x_R is impossible (module docstring), so it walks along +y_R.
     * "mirrored": L1..L4 clockwise in a figure drawn from below (L1 left front, L2 left
       rear, L3 right rear, L4 right front seen from above): the same order is the
-      classical crawl along +x_R, the paper's forward direction (issue 18). Its
+      classical crawl along +x_R, the paper's forward direction. Its
       footsteps and COG targets are designed for surviving a collapse (`design.py`)."""
 
     name: str

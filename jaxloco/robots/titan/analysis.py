@@ -1,6 +1,6 @@
 """`titan.stride`: the TITAN XI grid step over intermittent crawl gait (Hodoshima et al.
 2007, Sec. 5-6; `gait.py`) on frame grid maps, against its stride (L_std, W_std) and the
-critical NE stability margin S_NE^c, as a sweep analysis (issue 5, Sec. 4 "Sweeps").
+critical NE stability margin S_NE^c, as a sweep analysis.
 
 The question it answers: for the Sec. 7 frame fields (0.2 m frames on a 2.0 m grid,
 0.3 m on 3.0 m) and the Sec. 8.4 test slope (30 deg, 0.2 m frames every 1.5 m), which
