@@ -189,24 +189,7 @@ def _tolerance(points: Array, mask: Array) -> Array:
 
 
 def unique_mask(points: Array, mask: Array) -> Array:
-    """`mask` with repeated points (within tolerance) dropped, keeping the first copy.
-
-    Same test as a dense (N, N) comparison (max-norm distance <= tolerance to an earlier
-    masked row), written as a loop over the static N so that under vmap every step is
-    an elementwise op over (batch, N) that XLA fuses."""
-    tol = _tolerance(points, mask)
-    n = points.shape[0]
-    x, y = points[:, 0], points[:, 1]
-    idx = jnp.arange(n)
-    dup = jnp.zeros(n, bool)
-    for k in range(n - 1):  # k is an earlier row of every i > k
-        close = jnp.maximum(jnp.abs(x - x[k]), jnp.abs(y - y[k])) <= tol
-        dup = dup | ((idx > k) & close & mask[k])
-    return mask & ~dup
-
-
-def _unique_mask_all_pairs(points: Array, mask: Array) -> Array:
-    """Reference dense (N, N) form of `unique_mask` (same result)."""
+    """`mask` with repeated points (within tolerance) dropped, keeping the first copy."""
     tol = _tolerance(points, mask)
     n = points.shape[0]
     d = jnp.max(jnp.abs(points[:, None, :] - points[None, :, :]), axis=-1)
@@ -215,11 +198,16 @@ def _unique_mask_all_pairs(points: Array, mask: Array) -> Array:
     return mask & ~dup
 
 
-def _hull_edges_all_pairs(points: Array, mask: Array) -> Array:
-    """Reference O(N^3) form of `hull_edges` (every directed pair i -> j tested against
-    every point k), the implementation before `hull_successors`. Kept as the oracle of
-    the tests and the baseline of benchmarks/bench_margins.py."""
-    mask = _unique_mask_all_pairs(points, mask)
+def hull_edges(points: Array, mask: Array) -> Array:
+    """Edges of the convex hull of the masked 2D points, as an (N, N) boolean matrix:
+    E[i, j] is true when the directed segment p_i -> p_j is a maximal edge of the hull
+    traversed counter-clockwise (every masked point lies left of or on its line, and the
+    collinear ones lie between p_i and p_j). Order of the points does not matter.
+
+    Degenerate sets: all points collinear -> both directions of the extreme segment;
+    one point (or none) -> no edges. Gradients flow through the point coordinates of
+    the selected edges; the selection itself is piecewise constant."""
+    mask = unique_mask(points, mask)
     tol = jax.lax.stop_gradient(_tolerance(points, mask))
     p = jax.lax.stop_gradient(points)
     e = p[None, :, :] - p[:, None, :]  # e[i, j] = p_j - p_i
@@ -237,147 +225,8 @@ def _hull_edges_all_pairs(points: Array, mask: Array) -> Array:
     return pair & jnp.all(ok_k, axis=-1)
 
 
-def _hull_successor_code(points: Array, mask: Array) -> tuple[Array, Array]:
-    """(code (N,) int32, m (N,) bool): code[i] = index of the counter-clockwise hull
-    successor of p_i when p_i -> p_code[i] is a hull edge (`hull_edges`), else -1 (one
-    output array, so that XLA computes it in one fused kernel); m = `unique_mask`.
-
-    Method (gift wrapping, one step per point): seen from p_i, the successor is the
-    most clockwise masked point; of two points of which the nearer is within tolerance
-    of the line to the farther, the farther wins. For a hull vertex all other points lie in a
-    cone of at most pi, where the sign of a cross product orders directions, so one
-    linear scan over k finds it. The candidate is then checked with exactly the test of
-    the all-pairs form (every masked point left of or on the line, the collinear ones
-    within the segment; same floating-point expressions), so every edge found is an edge
-    of the all-pairs form, and for a hull vertex the farthest most-clockwise point is the
-    one edge the all-pairs form has. Only points within the distance tolerance of an
-    edge's line (near-degenerate sets, differences of ~1e-13 of the extent in float64)
-    can make the two forms differ. Loops run over the static N: under vmap each step is
-    an elementwise op over (batch, N) that XLA fuses. Selection is piecewise constant
-    (computed on stop_gradient'ed points)."""
-    n = points.shape[0]
-    m = unique_mask(points, mask)
-    tol = jax.lax.stop_gradient(_tolerance(points, m))
-    p = jax.lax.stop_gradient(points)
-    x, y = p[:, 0], p[:, 1]
-    idx = jnp.arange(n)
-    tol2 = tol * tol
-    # scan: best direction (bx, by) = p_succ - p_i, its index, whether one was found
-    bx = jnp.zeros_like(x)
-    by = jnp.zeros_like(y)
-    succ = jnp.zeros(n, jnp.int32)
-    have = jnp.zeros(n, bool)
-    for k in range(n):
-        vx = x[k] - x  # p_k - p_i for every i
-        vy = y[k] - y
-        c = bx * vy - by * vx  # < 0: p_k clockwise of the current best
-        dot = bx * vx + by * vy
-        bb = bx * bx + by * by
-        # collinear: the nearer of p_k and the best within tol of the line to the farther
-        coll = c * c <= tol2 * jnp.maximum(bb, vx * vx + vy * vy)
-        better = ((c < 0) & ~coll) | (coll & (dot > bb))
-        take = m[k] & (idx != k) & (~have | better)
-        bx = jnp.where(take, vx, bx)
-        by = jnp.where(take, vy, by)
-        succ = jnp.where(take, k, succ)
-        have = have | take
-    # check i -> succ[i] against every masked k: the all-pairs test of one pair, with the
-    # same floating-point expressions; written so that no divide has two users (XLA CPU
-    # would then store it for every k instead of fusing the whole check into one kernel):
-    #   left & (~on_line | inside)  ==  dist >= (-tol if inside else next float above tol)
-    #   lo <= t <= hi               ==  the same order on the integer keys of the floats
-    elen = jnp.sqrt(bx * bx + by * by)
-    safe_len = jnp.where(elen > 0, elen, 1.0)
-    slack = tol / safe_len
-    sl2 = safe_len**2
-    ok = m & have & (elen > tol)
-    tol_up = jnp.nextafter(tol, jnp.asarray(jnp.inf, tol.dtype))
-    key_lo, key_hi = _order_key(-slack), _order_key(1.0 + slack)
-    for k in range(n):
-        rx = x[k] - x
-        ry = y[k] - y
-        dist = (bx * ry - by * rx) / safe_len
-        key_t = _order_key((bx * rx + by * ry) / sl2)
-        inside_segment = (key_t >= key_lo) & (key_t <= key_hi)
-        ok = ok & (~m[k] | (dist >= jnp.where(inside_segment, -tol, tol_up)))
-    return _materialize(jnp.where(ok, succ, -1)), m
-
-
-def _materialize(code: Array) -> Array:
-    """`code` (>= -1) unchanged, as the max of itself and -1 computed by a reduction:
-    XLA CPU does not fuse a reduction into the kernels that use its result, so the scan
-    and check above run once, in one fused kernel, however many kernels use the result
-    (optimization barriers are dropped before fusion on CPU)."""
-    return jnp.max(jnp.stack([code, jnp.full_like(code, -1)]), axis=0)
-
-
-def _order_key(v: Array) -> Array:
-    """Signed integer with the order of the (non-NaN) floats v (-0.0 just below +0.0)."""
-    it = jnp.int64 if v.dtype == jnp.float64 else jnp.int32
-    b = jax.lax.bitcast_convert_type(v, it)
-    return jnp.where(b >= 0, b, b ^ jnp.iinfo(it).max)
-
-
-def hull_successors(points: Array, mask: Array) -> tuple[Array, Array, Array]:
-    """Counter-clockwise hull successor of every point, in O(N^2): (succ (N,) int32,
-    ok (N,) bool, m (N,) bool). When ok[i], the directed segment p_i -> p_succ[i] is a
-    hull edge in the sense of `hull_edges` (hull_edges(...)[i, j] == ok[i] & (j ==
-    succ[i])); m is `unique_mask(points, mask)`. Points (N, 2) in any 2D frame, any unit.
-    See `_hull_successor_code` for the method."""
-    code, m = _hull_successor_code(points, mask)
-    return jnp.maximum(code, 0), code >= 0, m
-
-
-def _select_rows(values: Array, index: Array) -> Array:
-    """values[index] for a small static number of rows, as a chain of selects (no
-    gather; NaN in unselected rows does not leak into values or gradients)."""
-    out = values[0][None]
-    out = jnp.broadcast_to(out, index.shape + values.shape[1:])
-    for k in range(1, values.shape[0]):
-        out = jnp.where((index == k).reshape(index.shape + (1,) * (values.ndim - 1)), values[k], out)
-    return out
-
-
-def hull_edges(points: Array, mask: Array) -> Array:
-    """Edges of the convex hull of the masked 2D points, as an (N, N) boolean matrix:
-    E[i, j] is true when the directed segment p_i -> p_j is a maximal edge of the hull
-    traversed counter-clockwise (every masked point lies left of or on its line, and the
-    collinear ones lie between p_i and p_j). Order of the points does not matter.
-
-    Degenerate sets: all points collinear -> both directions of the extreme segment;
-    one point (or none) -> no edges. Gradients flow through the point coordinates of
-    the selected edges; the selection itself is piecewise constant. Computed in O(N^2)
-    from `hull_successors` (at most one edge leaves each point)."""
-    code, _ = _hull_successor_code(points, mask)
-    return jnp.arange(points.shape[0])[None, :] == code[:, None]  # code -1: no edge
-
-
-def _successor_signed_distance(q: Array, points: Array, succ: Array, ok: Array, m: Array) -> Array:
-    """Signed distance of q to the hull boundary given by the successor edges
-    p_i -> p_succ[i] where ok[i] (see `_edges_signed_distance`; same values)."""
-    a = jnp.where(ok[:, None], points, 0.0)  # masked rows may hold NaN
-    b = jnp.where(ok[:, None], _select_rows(points, succ), 0.0)
-    ex, ey = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
-    wx, wy = q[0] - a[:, 0], q[1] - a[:, 1]
-    ee = ex * ex + ey * ey
-    t = jnp.clip((wx * ex + wy * ey) / jnp.where(ee > 0, ee, 1.0), 0.0, 1.0)
-    dx, dy = wx - t * ex, wy - t * ey
-    sq = dx * dx + dy * dy
-    pos = sq > 0
-    seg = jnp.where(pos, jnp.sqrt(jnp.where(pos, sq, 1.0)), 0.0)
-    big = jnp.asarray(jnp.finfo(points.dtype).max, points.dtype)
-    d = jnp.min(jnp.where(ok, seg, big))
-    side = ex * wy - ey * wx
-    inside = jnp.all(jnp.where(ok, side >= 0, True)) & (jnp.sum(ok) >= 3)
-    single = jnp.sum(m) == 1
-    d_point = _safe_norm(q - points[jnp.argmax(m)])
-    return jnp.where(jnp.any(ok), jnp.where(inside, d, -d), jnp.where(single, -d_point, -jnp.inf))
-
-
 def _edges_signed_distance(q: Array, points: Array, mask: Array, E: Array) -> Array:
-    """Signed distance of q to the boundary of the hull given by edge matrix E: the
-    reference (N x N segments) form of `hull_signed_distance` before the successor fast
-    path, kept for the tests and the benchmark."""
+    """Signed distance of q to the boundary of the hull given by edge matrix E."""
     a = points[:, None, :]
     b = points[None, :, :]
     seg = jax.vmap(jax.vmap(point_segment_distance, (None, 0, 0)), (None, 0, 0))(
@@ -390,7 +239,7 @@ def _edges_signed_distance(q: Array, points: Array, mask: Array, E: Array) -> Ar
     inside = jnp.all(jnp.where(E, side >= 0, True)) & (jnp.sum(jnp.any(E, axis=1)) >= 3)
     has_edges = jnp.any(E)
     # a single point: distance to it, never inside
-    m = _unique_mask_all_pairs(points, mask)
+    m = unique_mask(points, mask)
     single = jnp.sum(m) == 1
     d_point = _safe_norm(q - points[jnp.argmax(m)])
     return jnp.where(
@@ -401,10 +250,8 @@ def _edges_signed_distance(q: Array, points: Array, mask: Array, E: Array) -> Ar
 def hull_signed_distance(q: Array, points: Array, mask: Array) -> Array:
     """Signed distance from 2D point q to the boundary of the convex hull of the masked
     points: positive inside, negative outside (minus the distance to the hull). A
-    segment or a single point gives <= 0; no points gives -inf. Evaluates only the N
-    successor edges of `hull_successors` (O(N^2) in all)."""
-    succ, ok, m = hull_successors(points, mask)
-    return _successor_signed_distance(q, points, succ, ok, m)
+    segment or a single point gives <= 0; no points gives -inf."""
+    return _edges_signed_distance(q, points, mask, hull_edges(points, mask))
 
 
 def convex_hull(points: Array, mask: Array) -> tuple[Array, Array]:

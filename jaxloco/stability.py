@@ -128,19 +128,9 @@ def ne_stability_margin(cog: Array, contacts: Array, mask: Array, up: Array | No
     the weight. It is signed: negative when the COG's projection is outside the edge
     (already past the top). NESM = min over edges; -inf with fewer than two contacts.
     """
-    B = vertical_frame(up, contacts.dtype)
-    c = B @ cog
-    p = contacts @ B.T
-    # only the N hull edges p_i -> p_succ[i] (O(N^2) in all, see geometry.hull_successors)
-    succ, ok, _ = geo.hull_successors(p[:, :2], mask)
-    a = jnp.where(ok[:, None], p, 0.0)  # masked rows may hold NaN
-    b = jnp.where(ok[:, None], geo._select_rows(p, succ), 0.0)
-    rise = jax.vmap(axis_energy_rise, (None, 0, 0))(c, a, b)
-    e = b[:, :2] - a[:, :2]
-    elen = geo._safe_norm(e)
-    side = geo.cross2(e, c[None, :2] - a[:, :2]) / jnp.where(elen > 0, elen, 1.0)
-    S = jnp.where(side >= 0, rise, -rise)
-    return jnp.where(jnp.any(ok), jnp.min(jnp.where(ok, S, jnp.inf)), -jnp.inf)
+    S, p2 = _ne_edge_margins(cog, contacts, up)
+    E = geo.hull_edges(p2, mask)
+    return jnp.where(jnp.any(E), jnp.min(jnp.where(E, S, jnp.inf)), -jnp.inf)
 
 
 def ne_stability_margin_smooth(
