@@ -6,10 +6,13 @@ import math
 import numpy as np
 import pyarrow as pa
 import pytest
+from compile_count import lowerings_per_chunk
 
 from jaxloco import analysis
 from jaxloco.robots.leggrope.analysis import SLOPE_CYCLE, summarize
 from jaxloco.sweep import SpecError, run, spec_from_dict
+
+COMPILES = {}
 
 
 @pytest.fixture(scope="module")
@@ -18,11 +21,16 @@ def small_sweep(tmp_path_factory):
     slip-capacity QP, through the real sweep engine."""
     out = tmp_path_factory.mktemp("sweep") / "leggrope"
     spec = {
-        "sweep": {"analysis": "leggrope.slope_cycle", "name": "t", "chunk_size": 4},
+        "sweep": {"analysis": "leggrope.slope_cycle", "name": "t", "chunk_size": 2},
         "fixed": {"psi": 0.4, "capacity": True},
         "params": {"theta": [0.0, 0.3, 0.46, -0.3]},
     }
-    return run(spec_from_dict(spec), output=out, progress=False).table
+    with lowerings_per_chunk() as COMPILES["small_sweep"]:
+        return run(spec_from_dict(spec), output=out, progress=False, on_chunk=COMPILES["small_sweep"].on_chunk).table
+
+
+def test_a_two_chunk_sweep_compiles_once(small_sweep):
+    COMPILES["small_sweep"].assert_compiled_once()
 
 
 def test_statuses_follow_the_friction_limit(small_sweep):

@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
+from compile_count import run_counting
 
 from jaxloco.errors import SweepInterrupted
 from jaxloco.robots.leggrope import control, gait, model, scenarios
@@ -192,7 +193,8 @@ def _spec(tmp_path):
 
 
 def test_interrupted_simulation_sweep_resumes(tmp_path):
-    full = run_sweep(_spec(tmp_path), progress=False, output=tmp_path / "full")
+    full, compiles = run_counting(run_sweep, _spec(tmp_path), progress=False, output=tmp_path / "full")
+    compiles.assert_compiled_once()  # two chunks of two simulations, the controller compiled once
 
     def stop(index, n):
         raise KeyboardInterrupt

@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from compile_count import run_counting
 
 from jaxloco import analysis
 from jaxloco.robots.octopus import analysis as oa
@@ -188,7 +189,8 @@ def test_small_sweep_and_summary(tmp_path):
         "fixed": {"samples": 16, "terrain": oa.STEP_UP, "noise": 0.0},
         "params": {"sigma2": [0.3, 0.45], "height": [0.2, 0.4]},
     }
-    res = run(spec_from_dict(spec), output=tmp_path / "octo", progress=False)
+    res, compiles = run_counting(run, spec_from_dict(spec), output=tmp_path / "octo", progress=False)
+    compiles.assert_compiled_once()  # two chunks, one compiled program
     t = res.table.to_pydict()
     assert t["sigma2"] == [0.3, 0.3, 0.45, 0.45] and t["height"] == [0.2, 0.4, 0.2, 0.4]
     assert t["status"] == ["ok"] * 4

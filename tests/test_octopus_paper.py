@@ -8,10 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from compile_count import run_counting
 
 from jaxloco import specs
 from jaxloco.robots.octopus import paper_analysis as pa
 from jaxloco.sweep import load_spec, run
+
+COMPILES = {}
 
 
 def test_bundled_spec_is_the_papers_five_tasks_times_20_on_the_papers_method():
@@ -32,7 +35,13 @@ def tiny(tmp_path_factory):
     doc = {"sweep": {"analysis": "octopus.paper", "name": "tiny", "chunk_size": 3, "seeds": [0, 1],
                      "output": str(out), "formats": ["parquet"]},
            "fixed": {"horizon": 1.0}, "params": {"task": ["block", "step1_ccm"]}}
-    return run(doc, progress=False)
+    table, compiles = run_counting(run, doc, progress=False)
+    COMPILES["tiny"] = compiles
+    return table
+
+
+def test_a_two_chunk_sweep_compiles_once(tiny):
+    COMPILES["tiny"].assert_compiled_once()  # chunk 2 runs step1_ccm again, compiled in chunk 1
 
 
 def test_mixed_tasks_run_on_their_own_terrain_and_controller(tiny):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from compile_count import run_counting
 
 from jaxloco import analysis
 from jaxloco.errors import SpecError, SweepInterrupted
@@ -82,7 +83,8 @@ def _spec(tmp_path):
 
 
 def test_tiny_sweep_runs_and_resumes(tmp_path):
-    full = run_sweep(_spec(tmp_path), progress=False, output=tmp_path / "full")
+    full, compiles = run_counting(run_sweep, _spec(tmp_path), progress=False, output=tmp_path / "full")
+    compiles.assert_compiled_once()  # two chunks of two simulations, the controller compiled once
     t = full.table
     assert t.num_rows == 4
     col = {n: t.column(n).to_numpy(zero_copy_only=False) for n in t.column_names}

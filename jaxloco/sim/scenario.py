@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import Any
 
 import jax
@@ -262,5 +263,11 @@ def seed_jitter(keys: Any, n: int) -> np.ndarray:
     """(B, n) numbers uniform in [-1, 1) drawn from the rows' PRNG keys (B, 2): the
     perturbations of a "perturbed trial" (start pose, friction, ...), one draw per key.
     Pure: the same keys give the same numbers."""
-    keys = jnp.asarray(np.asarray(keys, np.uint32))
-    return np.asarray(jax.vmap(lambda k: jax.random.uniform(k, (n,), minval=-1.0, maxval=1.0))(keys))
+    return np.asarray(_uniform_per_key(jnp.asarray(np.asarray(keys, np.uint32)), n))
+
+
+@partial(jax.jit, static_argnums=1)
+def _uniform_per_key(keys: jax.Array, n: int) -> jax.Array:
+    """One jitted program per (batch, n): run eagerly, the vmapped draw lowered again on
+    every call (every chunk of a sweep)."""
+    return jax.vmap(lambda k: jax.random.uniform(k, (n,), minval=-1.0, maxval=1.0))(keys)

@@ -119,6 +119,14 @@ STATUSES = trials.STATUSES
 
 
 # ------------------------------------------------------------------------- postures
+@jax.jit
+def _posture_start(phi0: Array) -> tuple[kinsim.SnakeState, Array]:
+    """The kinematic state at phi0 and its controlled variable (head pose, SCP), jitted:
+    run op by op, the chain's scan was lowered again on every call."""
+    x0 = kinsim.initial_state(phi0)
+    return x0, control.controlled_variable(kinsim.point_pose(x0, point="head"), x0.phi)
+
+
 @functools.lru_cache(maxsize=32)
 def head_posture(z_h: float, y_h: float, base: str) -> tuple[np.ndarray, np.ndarray]:
     """(phi (12,) [rad], base (3,) = [x, y, heading] of link 7 [m, rad]) of a
@@ -135,8 +143,7 @@ def head_posture(z_h: float, y_h: float, base: str) -> tuple[np.ndarray, np.ndar
             [snake_params.INITIAL_PHI[: snake_params.N_H], L_SHAPE if base == "L" else np.zeros(snake_params.N_B)]
         )
         phi0[snake_params.SCP_INDEX] = snake_params.SCP_TARGET
-        x0 = kinsim.initial_state(jnp.asarray(phi0))
-        w0 = control.controlled_variable(kinsim.point_pose(x0, point="head"), x0.phi)
+        x0, w0 = _posture_start(jnp.asarray(phi0))
         delta = jnp.zeros(7).at[1].set(y_h).at[2].set(z_h - w0[2])
         rec = _posture_rollout(x0, kinsim.Target(w0, delta, jnp.float64(0.0), jnp.float64(POSTURE_RAMP)))
         phi, base_pose, err = (np.asarray(rec[k][-1]) for k in ("phi", "base", "error"))
@@ -152,13 +159,17 @@ def _posture_rollout(x0, target):
     return kinsim.rollout(x0, target, control.ControlParams(enter_ratio=2.0, k_eta=0.0), config)
 
 
+# jitted: run op by op, its scan over the chain was lowered again on every call
+_base_frame_pose = jax.jit(kinematics.base_frame_pose)
+
+
 def plate_pose(phi: np.ndarray, base: np.ndarray, direction: int) -> tuple[np.ndarray, np.ndarray]:
     """The plate's centre (3,) [m] and quaternion (4,) in the world for the posture phi
     on the base pose `base` (link 7's x, y, heading) and the push `direction` (0 x, 1 y,
     2 -z): PLATE_GAP beyond the gripper's surface (the head taken as level and facing
     +x, as the posture holds it), its thin side along the push."""
     with jax.enable_x64(True):
-        w = np.asarray(kinematics.base_frame_pose(jnp.asarray(base, jnp.float64), jnp.asarray(phi)))
+        w = np.asarray(_base_frame_pose(jnp.asarray(base, jnp.float64), jnp.asarray(phi)))
     head = w[:3]
     grip = head + np.array([GRIPPER_MID, 0.0, 0.0])  # the head is level and faces +x
     t = PLATE_HALF[0]

@@ -1,0 +1,31 @@
+"""A sweep compiles each analysis' programs for its first chunk and reuses them for the
+next chunk of the same shape (no tracing or lowering after chunk 0). The analyses whose
+own test modules already run a two-chunk sweep check it there (leggrope.slope_cycle,
+leggrope.fragile_walk, octopus.terrain_classification, octopus.step_climb,
+octopus.paper); the others run here on tiny settings: two rows, one per chunk."""
+
+from __future__ import annotations
+
+import pytest
+from compile_count import run_counting
+
+from jaxloco.sweep import run
+
+TINY = {
+    "titan.stride": ({"n_cycles": 1, "map_nx": 60, "map_ny": 60}, {"l_std": [0.5, 0.6]}),
+    "titan.walk": ({"n_cycles": 1, "nthread": 1}, {"direction": [0.0, 0.1]}),
+    "snake.kv": ({"horizon": 0.2, "dt": 0.02}, {"k_eta": [0.1, 0.2]}),
+    "snake.reach": ({"horizon": 0.3, "ramp": 0.1, "settle": 0.1, "nthread": 1}, {"gain_k": [1.0, 0.9]}),
+    "snake.table3": ({"ramp": 0.5, "settle": 0.1, "nthread": 1}, {"target": ["z", "beta"]}),
+    "snake.contact": ({"ramp": 0.5, "hold": 0.1, "settle": 0.1, "nthread": 1}, {"posture": ["ii", "v"]}),
+}
+
+
+@pytest.mark.parametrize("name", sorted(TINY))
+def test_the_second_chunk_compiles_nothing(name, tmp_path):
+    fixed, params = TINY[name]
+    spec = {"sweep": {"analysis": name, "name": "once", "chunk_size": 1, "formats": ["parquet"]},
+            "fixed": fixed, "params": params}
+    result, compiles = run_counting(run, spec, output=tmp_path / "out", progress=False)
+    assert result.table.num_rows == 2
+    compiles.assert_compiled_once()
