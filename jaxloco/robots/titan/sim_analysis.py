@@ -73,7 +73,7 @@ PARAMS = (
     Param(
         "survey_noise",
         0.005,
-        "std of each surveyed coordinate (Sec. 8.2.1; issue: +-5 mm), from the row's seed",
+        "std of each surveyed coordinate (Sec. 8.2.1: +-5 mm), from the row's seed",
         "m",
         lo=0.0,
         hi=0.05,
