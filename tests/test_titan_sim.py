@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxloco.robots.titan import control, params, scenarios
+from jaxloco.robots.titan import control, kinematics, params, scenarios
 from jaxloco.sim.rollout import rollout
 
 THETA = float(params.SLOPE_ANGLE)
@@ -133,7 +133,7 @@ def test_support_shift_follows_the_feet_slip_in_the_plane():
     p = {k: jnp.asarray(v[0]) for k, v in scenarios.params_batch([walk]).items()}
     n_steps = walk.n_steps
     slip = jnp.array([0.02, -0.01, 0.0])
-    planned = p["plan_feet"][3] + control.K.FOOT_RADIUS * jnp.array([0.0, 0.0, 1.0])
+    planned = p["plan_feet"][3] + kinematics.FOOT_RADIUS * jnp.array([0.0, 0.0, 1.0])
     now = control.StepTargets(jnp.asarray(3), jnp.asarray(int(walk.swing[3])), planned, p["plan_body"][3],
                               jnp.asarray(False), jnp.asarray(0.5))
     swing_off = jnp.zeros((4, 3)).at[int(walk.swing[3])].set(jnp.array([0.3, 0.0, 0.4]))

@@ -119,7 +119,7 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
     from jaxloco.robots.titan import analysis, kinematics
     from jaxloco.robots.titan import control as titan_control
     from jaxloco.robots.titan import model as titan_model
-    from jaxloco.robots.titan import params as snake_params
+    from jaxloco.robots.titan import params as titan_params
     from jaxloco.sim import terrain as tr
 
     values = row.values
@@ -158,7 +158,7 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
     mocap_pos[rows], mocap_quat[rows] = pos, quat
 
     bodies, feet_t, captions, times = [], [], [], []
-    names = snake_params.LEG_NAMES
+    names = titan_params.LEG_NAMES
     for k in range(-1, n_steps):
         subs = [1.0] if k < 0 else [(j + 1) / per for j in range(per)]
         for u in subs:

@@ -48,9 +48,8 @@ import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
 from jaxloco.errors import SpecError
-from jaxloco.robots.snake import control, experiments, kinematics, kinsim, scenarios, trials
+from jaxloco.robots.snake import control, experiments, kinematics, kinsim, scenarios, sim_control, trials
 from jaxloco.robots.snake import params as snake_params
-from jaxloco.robots.snake import sim_control as SCt
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.scenario import Scenario
 
@@ -210,7 +209,7 @@ def contact_scenario(ramp: float, hold: float, settle: float) -> Scenario:
     """The flat-ground snake scenario with the force plate, the head driven by the
     paper's feedforward task-space control (`sim_control.task_space_controller`)."""
     horizon = settle + experiments.T_START + ramp + hold
-    return scenarios.snake_scenario(horizon, CONTROL_DT, SCt.task_space_controller(CONTROL_DT, "head", False),
+    return scenarios.snake_scenario(horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "head", False),
                              fixture=PLATE)
 
 
@@ -240,9 +239,18 @@ def push_params(postures: np.ndarray, mu: np.ndarray, heading: np.ndarray, press
     b3 = np.repeat(bases, 3, axis=0)
     start = _rotate_z(np.concatenate([b3[:, :2], np.zeros((3 * n, 1))], -1), h3)
     push = _rotate_z(np.tile(PUSH, (n, 1)), h3) * np.repeat(press, 3)[:, None]
-    params = SCt.params_batch(3 * n, mu=np.repeat(mu, 3), x0=start[:, 0], y0=start[:, 1], heading0=h3 + b3[:, 2],
-                              t0=settle + experiments.T_START, duration=ramp,
-                              d_x=push[:, 0], d_y=push[:, 1], d_z=push[:, 2])
+    params = sim_control.params_batch(
+        3 * n,
+        mu=np.repeat(mu, 3),
+        x0=start[:, 0],
+        y0=start[:, 1],
+        heading0=h3 + b3[:, 2],
+        t0=settle + experiments.T_START,
+        duration=ramp,
+        d_x=push[:, 0],
+        d_y=push[:, 1],
+        d_z=push[:, 2],
+    )
     params["phi0"] = np.repeat(phis, 3, axis=0)
     params["plate_pos"] = _rotate_z(pos.reshape(-1, 3), h3)
     params["plate_quat"] = _quat_z_times(h3, quat.reshape(-1, 4))

@@ -52,9 +52,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.robots.snake import kinematics, predictive, scenarios
+from jaxloco.robots.snake import kinematics, predictive, scenarios, sim_control
 from jaxloco.robots.snake import params as snake_params
-from jaxloco.robots.snake import sim_control as SCt
 from jaxloco.sim.rollout import RolloutResult, rollout
 from jaxloco.sim.scenario import Scenario
 
@@ -216,13 +215,13 @@ def operation_scenario(
     tip under the paper's feedforward task-space control (`prediction`: the switching
     state's modes chosen by look-ahead, `predictive`, instead of the fixed order)."""
     return scenarios.snake_scenario(
-        horizon, CONTROL_DT, SCt.task_space_controller(CONTROL_DT, "tip", False, prediction), fixture=fixture
+        horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "tip", False, prediction), fixture=fixture
     )
 
 
 def script_params(script=PICK_SCRIPT, grip_at: float = PICK_GRIP_AT, n: int = 1, **overrides) -> dict[str, Any]:
     """Simulation params of n runs of an operator's script (module docstring)."""
-    params = SCt.params_batch(n, **overrides)
+    params = sim_control.params_batch(n, **overrides)
     params["script_t0"] = np.tile([s[0] for s in script], (n, 1))
     params["script_duration"] = np.tile([s[1] for s in script], (n, 1))
     params["script_delta"] = np.tile(np.array([s[2] for s in script], float), (n, 1, 1))

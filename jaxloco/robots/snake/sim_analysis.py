@@ -53,10 +53,9 @@ import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
 from jaxloco.errors import SpecError
-from jaxloco.robots.snake import kinsim, scenarios, trials
+from jaxloco.robots.snake import kinsim, scenarios, sim_control, trials
 from jaxloco.robots.snake import model as snake_model
 from jaxloco.robots.snake import params as snake_params
-from jaxloco.robots.snake import sim_control as SCt
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.scenario import Controller, InitialState, Scenario
 
@@ -160,7 +159,7 @@ def reach_controller(control_dt: float = CONTROL_DT) -> Controller:
     from a settled robot: its joint targets start at the held posture INITIAL_PHI (the
     settling's servo targets) instead of the measured, sagged joints, so that the loop
     starts at rest."""
-    inner = SCt.task_space_controller(control_dt, "tip", feedback=True)
+    inner = sim_control.task_space_controller(control_dt, "tip", feedback=True)
 
     def init(p, obs):
         s = inner.init(p, obs)
@@ -195,7 +194,7 @@ def reach_params(n: int = 1, *, gain_k: Any = 1.0, k_eta: Any = 0.1, d_x: Any = 
     """The simulation params (batch of n, `sim_control.params_batch`) of a reach: K =
     gain_k [1/s], k_eta, the tip displacement (d_x, d_y, d_z) [m] from t_start [s]
     over ramp [s]; everything else at the controller's and scenario's defaults."""
-    return SCt.params_batch(n, gain=gain_k, k_eta=k_eta, d_x=d_x, d_y=d_y, d_z=d_z, t0=t_start, duration=ramp)
+    return sim_control.params_batch(n, gain=gain_k, k_eta=k_eta, d_x=d_x, d_y=d_y, d_z=d_z, t0=t_start, duration=ramp)
 
 
 # ---------------------------------------------------------------------------- metrics

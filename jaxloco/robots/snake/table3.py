@@ -33,9 +33,8 @@ from typing import Any
 import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
-from jaxloco.robots.snake import experiments, scenarios, trials
+from jaxloco.robots.snake import experiments, scenarios, sim_control, trials
 from jaxloco.robots.snake import model as snake_model
-from jaxloco.robots.snake import sim_control as SCt
 from jaxloco.sim.scenario import Scenario
 
 TARGETS = experiments.ACCURACY_NAMES  # ("x", "y", "z", "alpha", "beta", "gamma")
@@ -73,14 +72,16 @@ def table3_scenario(ramp: float, settle: float, feedback: bool) -> Scenario:
     """The flat-ground snake scenario driven by the task-space controller on the head
     (`sim_control.task_space_controller`), long enough for t_e + 5 after `settle`."""
     horizon = settle + experiments.T_START + ramp + 5.0 + 0.1
-    return scenarios.snake_scenario(horizon, CONTROL_DT, SCt.task_space_controller(CONTROL_DT, "head", feedback))
+    return scenarios.snake_scenario(
+        horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "head", feedback)
+    )
 
 
 def target_deltas(targets: np.ndarray) -> dict[str, np.ndarray]:
     """The controller's target displacements d_x .. d_yaw (n,) of each row's Table III target."""
     index = np.array([TARGETS.index(str(t)) for t in targets])
-    out = {k: np.zeros(len(index)) for k in SCt.DELTA_KEYS}
-    for j, key in enumerate(SCt.DELTA_KEYS[:6]):
+    out = {k: np.zeros(len(index)) for k in sim_control.DELTA_KEYS}
+    for j, key in enumerate(sim_control.DELTA_KEYS[:6]):
         out[key] = np.where(index == j, experiments.ACCURACY_DELTAS[j], 0.0)
     return out
 
@@ -98,7 +99,7 @@ def make_batch_fn(fixed: Mapping[str, Any]):
         n = keys.shape[0]
         v = {k: np.asarray(swept[k]) if k in swept else np.full(n, fixed[k]) for k in swept_names}
         mu, heading = trials.perturbed(v, keys)
-        params = SCt.params_batch(n, mu=mu, heading0=heading, t0=t0, duration=ramp,
+        params = sim_control.params_batch(n, mu=mu, heading0=heading, t0=t0, duration=ramp,
                                   head_kp=v["head_kp"].astype(float), head_kv=v["head_kv"].astype(float),
                                   **target_deltas(v["target"]))
         params["key"] = np.asarray(keys, np.uint32)

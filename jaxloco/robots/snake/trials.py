@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from jaxloco.analysis import Metric, Param
-from jaxloco.robots.snake import sim_control as SCt
+from jaxloco.robots.snake import sim_control
 from jaxloco.sim.scenario import seed_jitter
 
 STATUSES = ("ok", "fell", "diverged")
@@ -29,7 +29,7 @@ def trial_params(mu: float) -> tuple[Param, ...]:
 
 
 RUN_PARAMS = (
-    Param("settle", SCt.SETTLE, "settling on the servos before the paper's clock starts", "s", lo=0.0, hi=20.0,
+    Param("settle", sim_control.SETTLE, "settling on the servos before the paper's clock starts", "s", lo=0.0, hi=20.0,
           sweepable=False),
     Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
 )
