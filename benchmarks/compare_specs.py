@@ -74,7 +74,8 @@ def compare(a_path: Path, b_path: Path, rtol: float) -> tuple[bool, str]:
             nan = np.isnan(x) & np.isnan(y)
             close = np.isclose(x, y, rtol=rtol, atol=0.0) if rtol else (x == y)
             if not (close | nan).all():
-                diff = float(np.nanmax(np.abs(x - y)))
+                with np.errstate(invalid="ignore"):  # inf - inf
+                    diff = float(np.nanmax(np.abs(x - y)))
                 if not np.isfinite(diff) or diff >= worst:
                     worst, where = diff, name
         elif not (x == y).all():
