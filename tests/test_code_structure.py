@@ -123,14 +123,15 @@ def test_no_module_uses_another_packages_private_names():
     assert offenders == []
 
 
-def test_robot_packages_list_their_modules():
-    """Each robot package's docstring names every module in it (`name` in backquotes)."""
+def test_packages_list_their_modules():
+    """Each package's docstring names every module and subpackage in it (`name` in
+    backquotes)."""
     missing = []
-    for package in sorted((PACKAGE / "robots").glob("*/__init__.py")):
+    for package in sorted(PACKAGE.rglob("__init__.py")):
         doc = ast.get_docstring(ast.parse(package.read_text(encoding="utf-8"))) or ""
-        for module in sorted(package.parent.glob("*.py")):
-            if module.stem != "__init__" and f"`{module.stem}`" not in doc:
-                missing.append(f"{package.parent.name}.{module.stem}")
+        members = [m.stem for m in package.parent.glob("*.py") if m.stem != "__init__"]
+        members += [d.name for d in package.parent.iterdir() if (d / "__init__.py").exists()]
+        missing += [f"{package.parent.name}.{m}" for m in sorted(members) if f"`{m}`" not in doc]
     assert missing == []
 
 

@@ -4,7 +4,8 @@
     grid = expand(spec)                    # rows, in a fixed order
     result = run(spec)                     # result.table, result.path, result.summary
 
-Modules: `spec` (format and validation), `grid` (row order), `runner` (the driver), `chunks`
+Modules: `spec` (format and validation), `spec_model` (its pydantic structure), `ranges`
+(numeric ranges in [params]), `grid` (row order), `runner` (the driver), `chunks`
 (computing one chunk: what every executor runs), `executors` (local, Ray),
 `store` (output directory, atomic files, resume), `schema` (table columns),
 `summary` and `display` (what is printed); its exceptions are in `jaxloco.errors`.

@@ -5,8 +5,9 @@ the tuned values, compared with the initial values and the objective's reference
     result = run(spec)                     # result.curve, result.comparison, result.values()
 
 Modules: `objective` (the registry: `Objective`, `Tunable`, `register`, `get`), `spec`
-(format and validation), `transform` (bounds and log scales), `runner` (the loop), `result` (what it returns),
-`output` (files) and `display` (what is printed). Importing this package does not import JAX.
+(format and validation), `transform` (bounds and log scales), `runner` (the loop),
+`result` (what it returns), `output` (files), `display` (what is printed) and `handoff`
+(validating tuned values with a sweep). Importing this package does not import JAX.
 """
 
 from typing import TYPE_CHECKING
