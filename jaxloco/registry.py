@@ -14,7 +14,7 @@ a built-in entry of the same name.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, Generic, TypeVar
 
 from jaxloco.errors import SpecError
@@ -68,10 +68,6 @@ class Registry(Generic[T]):
         self._registered[name] = entry
         return entry
 
-    def unregister(self, name: str) -> None:
-        """Drop an entry added with `register` (tests clean up with it)."""
-        self._registered.pop(name, None)
-
     def is_live(self, name: str) -> bool:
         """Whether `name` was registered at run time or its built-in module is loaded
         already (what a catalog of the built-ins cannot stand in for)."""
@@ -82,9 +78,6 @@ class Registry(Generic[T]):
 
     def __contains__(self, name: object) -> bool:
         return name in self._registered or name in self.builtin
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self.names())
 
     def get(self, name: str) -> T:
         """The entry called `name`; SpecError (one line) naming the known ones if there is

@@ -13,6 +13,7 @@ import re
 import jax
 import numpy as np
 import pytest
+from compile_count import compile_events
 from test_cli import invoke, workdir  # noqa: F401  (workdir: a fixture, a temporary working directory)
 from test_sweep_run import TASKS, TOY  # noqa: F401  (registers the analyses "test.toy", "test.tasks")
 from test_tune import TOY as TOY_TUNE  # noqa: F401  (registers the objective "test.toy_tune")
@@ -220,15 +221,8 @@ def test_missing_spec(workdir):
 @pytest.fixture
 def compiles():
     """JAX's compile events (tracing, lowering, compiling; a persistent-cache hit included)."""
-    events: list[str] = []
-
-    def listener(event, duration, **kwargs):
-        if event.startswith("/jax/core/compile/"):
-            events.append(event)
-
-    jax.monitoring.register_event_duration_secs_listener(listener)
-    yield events
-    jax.monitoring.unregister_event_duration_listener(listener)
+    with compile_events() as events:
+        yield events
 
 
 def test_no_compilation_without_probe(workdir, compiles):

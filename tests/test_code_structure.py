@@ -4,6 +4,7 @@ no import cycles, and no module using another package's private names."""
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from pathlib import Path
 
@@ -22,6 +23,11 @@ def _modules() -> dict[str, Path]:
 MODULES = _modules()
 
 
+@functools.cache
+def _tree(path: Path) -> ast.Module:
+    return ast.parse(path.read_text(encoding="utf-8"))
+
+
 def _package(name: str, path: Path) -> str:
     return name if path.name == "__init__.py" else name.rpartition(".")[0]
 
@@ -31,7 +37,7 @@ def _imports(name: str, path: Path) -> list[tuple[str, str | None, int]]:
     those inside functions and `if TYPE_CHECKING:` blocks."""
     package = _package(name, path)
     found = []
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    for node in ast.walk(_tree(path)):
         if isinstance(node, ast.Import):
             found += [(a.name, None, node.lineno) for a in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -108,14 +114,14 @@ def test_no_module_uses_another_packages_private_names():
             other = _package(module, MODULES[module])
             if imported is not None and _is_private(imported) and other != package:
                 offenders.append(f"{name}:{line} imports {module}.{imported}")
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in ast.walk(_tree(path)):
             if isinstance(node, ast.ImportFrom | ast.Import):
                 for a in node.names:
                     base = node.module if isinstance(node, ast.ImportFrom) else None
                     full = f"{base}.{a.name}" if base else a.name
                     if full in MODULES:
                         aliases[a.asname or a.name.split(".")[-1]] = full
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in ast.walk(_tree(path)):
             if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases:
                 module = aliases[node.value.id]
                 if _is_private(node.attr) and _package(module, MODULES[module]) != package:

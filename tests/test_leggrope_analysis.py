@@ -6,31 +6,33 @@ import math
 import numpy as np
 import pyarrow as pa
 import pytest
-from compile_count import lowerings_per_chunk
+from compile_count import run_counting
 
 from jaxloco import analysis
 from jaxloco.robots.leggrope.analysis import SLOPE_CYCLE, summarize
 from jaxloco.sweep import SpecError, run, spec_from_dict
 
-COMPILES = {}
-
 
 @pytest.fixture(scope="module")
-def small_sweep(tmp_path_factory):
+def small_run(tmp_path_factory):
     """theta 0 (flat), 0.3 and 0.46 (> atan 0.45) at one direction, with the optional
-    slip-capacity QP, through the real sweep engine."""
+    slip-capacity QP, through the real sweep engine (two chunks): (result, lowerings)."""
     out = tmp_path_factory.mktemp("sweep") / "leggrope"
     spec = {
         "sweep": {"analysis": "leggrope.slope_cycle", "name": "t", "chunk_size": 2},
         "fixed": {"psi": 0.4, "capacity": True},
         "params": {"theta": [0.0, 0.3, 0.46, -0.3]},
     }
-    with lowerings_per_chunk() as COMPILES["small_sweep"]:
-        return run(spec_from_dict(spec), output=out, progress=False, on_chunk=COMPILES["small_sweep"].on_chunk).table
+    return run_counting(run, spec_from_dict(spec), output=out, progress=False)
 
 
-def test_a_two_chunk_sweep_compiles_once(small_sweep):
-    COMPILES["small_sweep"].assert_compiled_once()
+@pytest.fixture(scope="module")
+def small_sweep(small_run):
+    return small_run[0].table
+
+
+def test_a_two_chunk_sweep_compiles_once(small_run):
+    small_run[1].assert_compiled_once()
 
 
 def test_statuses_follow_the_friction_limit(small_sweep):

@@ -14,8 +14,6 @@ from jaxloco import specs
 from jaxloco.robots.octopus import paper_analysis as pa
 from jaxloco.sweep import load_spec, run
 
-COMPILES = {}
-
 
 def test_bundled_spec_is_the_papers_five_tasks_times_20_on_the_papers_method():
     spec = load_spec(specs.path("octopus_paper"))
@@ -30,18 +28,22 @@ def test_bundled_spec_is_the_papers_five_tasks_times_20_on_the_papers_method():
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
+def tiny_run(tmp_path_factory):
+    """Two tasks x two seeds in chunks of 3 and 1 rows: (result, lowerings)."""
     out = tmp_path_factory.mktemp("paper")
     doc = {"sweep": {"analysis": "octopus.paper", "name": "tiny", "chunk_size": 3, "seeds": [0, 1],
                      "output": str(out), "formats": ["parquet"]},
            "fixed": {"horizon": 1.0}, "params": {"task": ["block", "step1_ccm"]}}
-    table, compiles = run_counting(run, doc, progress=False)
-    COMPILES["tiny"] = compiles
-    return table
+    return run_counting(run, doc, progress=False)
 
 
-def test_a_two_chunk_sweep_compiles_once(tiny):
-    COMPILES["tiny"].assert_compiled_once()  # chunk 2 runs step1_ccm again, compiled in chunk 1
+@pytest.fixture(scope="module")
+def tiny(tiny_run):
+    return tiny_run[0]
+
+
+def test_a_two_chunk_sweep_compiles_once(tiny_run):
+    tiny_run[1].assert_compiled_once()  # chunk 2 runs step1_ccm again, compiled in chunk 1
 
 
 def test_mixed_tasks_run_on_their_own_terrain_and_controller(tiny):
