@@ -1,4 +1,5 @@
-"""A thin, batched, differentiable QP layer over qpax.
+"""A batched, differentiable QP layer over the unrolled interior-point method of
+`jaxloco.qp_ipm`.
 
 Problem (one instance; batch with `jax.vmap` or `solve_batch`)::
 
@@ -16,14 +17,17 @@ c = max(max|D Q D|, |D q|_inf, 1e-12). Multipliers are mapped back
 `complementarity` are measured on that scaled problem, so `tol` is a relative,
 unit-free tolerance. A row with h_i = +inf is treated as disabled.
 
-Fixed iterations. qpax's `solve_qp` stops when its KKT residual is below
-`solver_tol`; the layer passes a negative `solver_tol`, which can never be met, so
-every instance runs exactly `iterations` predictor-corrector iterations (qpax's
-while-loop then has a data-independent trip count, and no batch member's result
-depends on the others). qpax's own `converged` flag is not used.
+Fixed iterations. Every instance runs exactly `iterations` Mehrotra predictor-corrector
+iterations, so no batch member's result depends on the others. The iteration is qpax's
+(CVXOPT's start, s and z floored at sqrt(eps) in every step, steps of 0.99 of the way to
+the boundary) and gives qpax's iterates to about 1e-12, but removes the equalities by a
+null-space basis and is unrolled over the tiny fixed sizes, so under `vmap` an iteration
+is a few fused loops over the batch instead of dozens of small kernels, and no LAPACK
+custom call is emitted. A step that breaks down (non-finite, as on an infeasible problem)
+ends the iteration.
 
 The ok flag. `ok` is True iff everything is finite and all three scaled residuals
-are <= `tol`. Infeasible problems (qpax then yields NaN or a diverging iterate),
+are <= `tol`. Infeasible problems (the iterate then diverges or breaks down),
 unbounded ones, non-finite inputs and ones that simply did not converge in
 `iterations` get ``ok=False``; their `x`, `y`, `z` and `objective` are zeros and
 their residual fields hold the residuals of the last iterate (the largest finite
@@ -32,20 +36,20 @@ No output is ever NaN. Non-finite inputs are swapped for a harmless dummy proble
 before the solve, with `jnp.where` on both sides, so no NaN enters the computation.
 
 Precision: tol=1e-6 suits float64 (25 iterations reach ~1e-9 on the quadruped QP).
-In float32 pass tol ~1e-4: qpax floors s and z at sqrt(eps) ~ 3e-4 in every
+In float32 pass tol ~1e-4: s and z are floored at sqrt(eps) ~ 3e-4 in every
 iteration, so float32 residuals stall near 2e-5.
 
-Requirements inherited from qpax (violations give ok=False, not a wrong answer):
-A must have full row rank, and Q + G^T G must be positive definite, i.e. every
+Requirements (violations give ok=False, not a wrong answer): A must have full row
+rank, and Q + G^T G must be positive definite on the null space of A, i.e. every
 direction without curvature (such as a margin variable) must appear in some
-inequality row; qpax factorizes both with Cholesky.
+inequality row; the method factorizes that matrix with Cholesky.
 
 Gradients (``differentiable=True``): reverse mode only (`jax.grad`, `jax.vjp`; not
 `jax.jvp`). `x`, `y`, `z` and `objective` are differentiable with respect to all of
 Q, q, A, b, G, h by implicit differentiation of the KKT conditions at the returned
-point (OptNet's formulas; the adjoint system is solved unreduced with an LU, which
-is ~1e-7 accurate against finite differences, and is our own because qpax's
-`solve_qp_primal` differentiates a relaxed point and gets dL/dG wrong). This is the
+point (OptNet's formulas; the adjoint system is reduced to the null space of A like
+the forward solve and refined three times on the unreduced residual, ~1e-7 accurate
+against finite differences). This is the
 exact derivative when the solution is strictly complementary (every active row has
 z_i > 0) and the active rows together with A are linearly independent (LICQ). At
 degenerate points (duplicated active rows, weakly active rows) the adjoint system
@@ -68,7 +72,8 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import qpax
+
+from jaxloco import qp_ipm
 
 __all__ = ["QPSolution", "solve", "solve_batch"]
 
@@ -94,16 +99,17 @@ def _residuals(Q, q, A, b, G, h, x, y, z):
 
 
 def _forward(data, iterations, tol):
-    """Run qpax for exactly `iterations` steps; return sanitized iterate, residuals, ok."""
+    """Run the interior-point method for exactly `iterations` steps; return the
+    sanitized iterate, residuals and ok."""
     Q, q, A, b, G, h = data
-    x, s, z, y, _, iters = qpax.solve_qp(Q, q, A, b, G, h, solver_tol=-1.0, max_iter=iterations)
+    x, y, z, s, iters = qp_ipm.solve_ipm(Q, q, A, b, G, h, iterations=iterations)
     res = _residuals(Q, q, A, b, G, h, x, y, z)
     ok = (jnp.max(jnp.stack(res)) <= tol) & jnp.all(jnp.isfinite(s)) & jnp.all(z >= 0)
     big = jnp.finfo(x.dtype).max
     res = tuple(jnp.where(jnp.isfinite(r), r, big) for r in res)
     x, y, z = (jnp.where(ok, v, 0.0) for v in (x, y, z))
     s = jnp.where(ok, s, 1.0)  # safe slack for the adjoint solve of a bad instance
-    return (x, y, z, s, *res, ok, jnp.asarray(iters, jnp.int32))
+    return (x, y, z, s, *res, ok, iters)
 
 
 @functools.partial(jax.custom_vjp, nondiff_argnums=(6, 7))
@@ -117,27 +123,52 @@ def _solve_diff_fwd(Q, q, A, b, G, h, iterations, tol):
     return out, (Q, A, G, x, y, z, s, ok)
 
 
+def _adjoint_solve(Q, A, G, D, a, b, gz, refinements):
+    """Solve the adjoint KKT system at the returned point for (dx, dy, w = Z dz):
+
+        Q dx + A^T dy + G^T w = a,   A dx = b,   G dx - S dz = gz   (D = Z / S),
+
+    i.e. w = D (G dx - gz). The equalities are removed with the null space of A (as in
+    the forward solve); the reduced matrix Z^T (Q + G^T D G) Z is ill-conditioned at
+    the solution (D spans ~1e-8..1e8), so the solve is refined `refinements` times on
+    the residual of the unreduced system, in plain XLA operations (no LU call)."""
+    m = b.shape[0]
+    null = qp_ipm.null_space(A) if m else None
+    H = Q + (G.T * D) @ G
+    L = qp_ipm.cholesky(H if not m else null.Z.T @ H @ null.Z)
+
+    def solve(a, b, c):  # Q dx + A^T dy + G^T w = a, A dx = b, D G dx - w = c
+        rhs = a + G.T @ c
+        if not m:
+            dx = qp_ipm.cho_solve(L, rhs)
+            return dx, jnp.zeros((0,), a.dtype), D * (G @ dx) - c
+        dx0 = null.Y @ qp_ipm.solve_rt(null.R, b)
+        dx = dx0 + null.Z @ qp_ipm.cho_solve(L, null.Z.T @ (rhs - H @ dx0))
+        dy = qp_ipm.solve_r(null.R, null.Y.T @ (rhs - H @ dx))
+        return dx, dy, D * (G @ dx) - c
+
+    c = D * gz
+    dx, dy, w = solve(a, b, c)
+    for _ in range(refinements):
+        r1 = a - (Q @ dx + A.T @ dy + G.T @ w)
+        r2 = b - A @ dx
+        r3 = c - (D * (G @ dx) - w)
+        ex, ey, ew = solve(r1, r2, r3)
+        dx, dy, w = dx + ex, dy + ey, w + ew
+    return dx, dy, w
+
+
 def _solve_diff_bwd(iterations, tol, saved, cts):
     del iterations, tol
     Q, A, G, x, y, z, s, ok = saved
-    n, m, p = x.shape[0], y.shape[0], z.shape[0]
+    n, m = x.shape[0], y.shape[0]
     gx, gy, gz = (jnp.where(ok, g, 0.0) for g in cts[:3])
     # A bad instance gets a well-posed dummy system (and zero right-hand side).
     Qb = jnp.where(ok, Q, jnp.eye(n, dtype=Q.dtype))
     Ab = jnp.where(ok, A, jnp.eye(m, n, dtype=A.dtype))
     Gb = jnp.where(ok, G, 0.0)
     zb = jnp.where(ok, z, 1.0)
-    # Adjoint of the KKT system at the returned point, K^T (dx, dy, dz) = -(gx, gy, gz):
-    # K^T = [[Q, A^T, G^T Z], [A, 0, 0], [G, 0, -S]]. Solved unreduced (LU): the reduced
-    # form with Q + G^T (Z/S) G has condition ~1e10 at the solution and loses ~5 digits.
-    zeros = functools.partial(jnp.zeros, dtype=x.dtype)
-    K = jnp.block([
-        [Qb, Ab.T, Gb.T * zb[None, :]],
-        [Ab, zeros((m, m)), zeros((m, p))],
-        [Gb, zeros((p, m)), -jnp.diag(s)],
-    ])
-    sol = jnp.linalg.solve(K, -jnp.concatenate([gx, gy, gz]))
-    dx, dy, w = sol[:n], sol[n:n + m], zb * sol[n + m:]  # w = Z dz
+    dx, dy, w = _adjoint_solve(Qb, Ab, Gb, zb / s, -gx, -gy, -gz, refinements=3)
     grads = (
         0.5 * (jnp.outer(dx, x) + jnp.outer(x, dx)),
         dx,
@@ -219,9 +250,9 @@ def solve_batch(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: fl
 
     Each of Q, q, A, b, G, h, x_scale may carry the batch axis (shape (B, ...)) or not
     (shared by all members; at least one must carry it). Returns a batched QPSolution.
-    `sequential=True` solves one instance at a time, so every LAPACK call has batch 1:
-    with jaxlib 0.10.x on CPU, batched LAPACK kernels (Cholesky/triangular solves, used
-    by qpax) can deadlock XLA's CPU thread pool; the sequential form avoids them.
+    `sequential=True` solves one instance at a time (less memory, same results; the
+    solver emits no LAPACK call, so the vmapped form cannot hit jaxlib 0.10's batched-
+    LAPACK deadlock on the CPU either).
     """
     fn = functools.partial(solve, iterations=iterations, tol=tol, differentiable=differentiable)
     args = [jnp.asarray(v) for v in (Q, q, A, b, G, h, 1.0 if x_scale is None else x_scale)]

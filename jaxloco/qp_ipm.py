@@ -1,0 +1,249 @@
+"""A primal-dual interior-point method for one tiny dense QP, in plain XLA operations.
+
+    minimize 0.5 x^T Q x + q^T x   subject to   A x = b,  G x <= h
+
+Written for thousands of tiny problems (n <= ~20) solved at once under `jax.vmap` on
+a CPU: every matrix product is one batched `dot_general`, and the sequential parts
+(the Cholesky factorization and the triangular solves of the k x k reduced system) are
+unrolled scalar by scalar, so `vmap` turns each of their scalar operations into one
+elementwise operation over the batch, which XLA fuses into a few loops. No LAPACK
+custom call is emitted (batched LAPACK calls can deadlock XLA's CPU thread pool).
+
+Method (in the caller's units; the caller, `jaxloco.qp`, scales the problem first):
+1. The equalities are removed once: a Householder QR of A^T (n x m) gives A^T = Y R
+   and an orthonormal null-space basis Z (n x k, k = n - m), so x = x0 + Z u with
+   x0 = Y R^-T b.
+2. Mehrotra's predictor-corrector method on the reduced problem in u (k unknowns, p
+   inequalities, slacks s and multipliers z), each iteration factorizing
+   H = Z^T Q Z + G_r^T diag(z / s) G_r once, started from CVXOPT's least-squares point.
+3. Every member runs `iterations` iterations (a step that breaks down, with a non-
+   finite iterate, ends that member's iteration; under `vmap` it is frozen), so no
+   member's result depends on the others. There is no early
+   stop on a residual: s and z are floored at sqrt(eps) in every step, as in qpax, which
+   keeps the factorization well-conditioned but also keeps the complementarity of
+   inactive rows near 1e-8, so a stopping test would need to know the problem's scale.
+4. The equality multipliers come from stationarity by least squares,
+   y = -R^-1 Y^T (Q x + q + G^T z).
+
+Requirements: A has full row rank and Z^T (Q + G^T G) Z is positive definite (every
+direction without curvature appears in some inequality). Violations give non-finite or
+non-converged iterates, which `jaxloco.qp` reports as ``ok=False``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+Array = jax.Array
+
+__all__ = ["IPMResult", "NullSpace", "cholesky", "cho_solve", "null_space", "solve_ipm",
+           "solve_r", "solve_rt"]
+
+
+# ------------------------------------------------------ unrolled small factorizations
+def cholesky(M: Array) -> list:
+    """Lower-triangular L (rows as lists of scalars, L[i][j] for j <= i), L L^T = M.
+
+    M is a symmetric positive definite (k, k) array; a non-positive pivot gives NaN."""
+    k = M.shape[0]
+    L = [[None] * (i + 1) for i in range(k)]
+    for j in range(k):
+        acc = M[j, j]
+        for c in range(j):
+            acc = acc - L[j][c] * L[j][c]
+        d = jnp.sqrt(acc)
+        L[j][j] = d
+        inv = 1.0 / d
+        for i in range(j + 1, k):
+            acc = M[i, j]
+            for c in range(j):
+                acc = acc - L[i][c] * L[j][c]
+            L[i][j] = acc * inv
+    return L
+
+
+def cho_solve(L: list, r: Array) -> Array:
+    """Solve L L^T x = r for x (r: (k,))."""
+    k = len(L)
+    y = [None] * k
+    for i in range(k):
+        acc = r[i]
+        for c in range(i):
+            acc = acc - L[i][c] * y[c]
+        y[i] = acc / L[i][i]
+    x = [None] * k
+    for i in reversed(range(k)):
+        acc = y[i]
+        for c in range(i + 1, k):
+            acc = acc - L[c][i] * x[c]
+        x[i] = acc / L[i][i]
+    return jnp.stack(x)
+
+
+def solve_rt(R: Array, b: Array) -> Array:
+    """Solve R^T w = b for upper-triangular R (m, m)."""
+    w = []
+    for i in range(b.shape[0]):
+        acc = b[i]
+        for c in range(i):
+            acc = acc - R[c, i] * w[c]
+        w.append(acc / R[i, i])
+    return jnp.stack(w)
+
+
+def solve_r(R: Array, c: Array) -> Array:
+    """Solve R y = c for upper-triangular R (m, m)."""
+    m = c.shape[0]
+    y = [None] * m
+    for i in reversed(range(m)):
+        acc = c[i]
+        for j in range(i + 1, m):
+            acc = acc - R[i, j] * y[j]
+        y[i] = acc / R[i, i]
+    return jnp.stack(y)
+
+
+class NullSpace(NamedTuple):
+    """A^T = Y R with [Y Z] orthogonal (n, n) and R upper triangular (m, m)."""
+
+    Y: Array  # (n, m)
+    Z: Array  # (n, k)
+    R: Array  # (m, m)
+
+
+def null_space(A: Array) -> NullSpace:
+    """Householder QR of A^T for A (m, n), m <= n, unrolled over the m reflectors.
+
+    Rank deficiency shows as a (near) zero diagonal entry of R."""
+    m, n = A.shape
+    W = A.T
+    rows = jnp.arange(n)
+    reflectors = []
+    for j in range(m):
+        x = jnp.where(rows >= j, W[:, j], 0.0)
+        norm = jnp.sqrt(x @ x)
+        alpha = jnp.where(W[j, j] >= 0, -norm, norm)
+        v = x - jnp.where(rows == j, alpha, 0.0)
+        vv = v @ v
+        beta = jnp.where(vv > 0, 2.0 / jnp.where(vv > 0, vv, 1.0), 0.0)
+        W = W - jnp.outer(beta * v, v @ W)
+        reflectors.append((v, beta))
+    R = jnp.triu(W[:m, :])
+    E = jnp.eye(n, dtype=A.dtype)
+    for v, beta in reversed(reflectors):
+        E = E - jnp.outer(beta * v, v @ E)
+    return NullSpace(E[:, :m], E[:, m:], R)
+
+
+# ------------------------------------------------------------------- interior point
+class IPMResult(NamedTuple):
+    x: Array  # (n,)
+    y: Array  # (m,)
+    z: Array  # (p,) >= 0
+    s: Array  # (p,) slacks h - G x, >= 0
+    iterations: Array  # () int32
+
+
+class _Iterate(NamedTuple):
+    u: Array  # (k,) reduced primal variables
+    s: Array  # (p,) slacks
+    z: Array  # (p,) multipliers
+    it: Array  # () int32
+    done: Array  # () bool
+
+
+class _Reduced(NamedTuple):
+    """The problem in u, x = x0 + Z u: min 0.5 u^T Q u + q^T u s.t. G u <= h."""
+
+    Q: Array  # (k, k)
+    q: Array  # (k,)
+    G: Array  # (p, k)
+    h: Array  # (p,)
+
+
+def _reduce(Q, q, G, h, x0, Z) -> _Reduced:
+    QZ = Q @ Z
+    Qr = Z.T @ QZ
+    return _Reduced(0.5 * (Qr + Qr.T), Z.T @ (Q @ x0 + q), G @ Z, h - G @ x0)
+
+
+def _direction(L, red: _Reduced, D, r_d, r_p, r_c, s):
+    """Newton step of Q du + G^T dz = -r_d, G du + ds = -r_p, Z ds + S dz = -r_c."""
+    rc_s = r_c / s
+    du = cho_solve(L, red.G.T @ (rc_s - D * r_p) - r_d)
+    Gdu = red.G @ du
+    return du, -r_p - Gdu, -rc_s + D * (r_p + Gdu)
+
+
+def _max_step(v, dv):
+    """Largest alpha in [0, 1] with v + alpha dv >= 0 (v > 0)."""
+    neg = dv < 0
+    return jnp.minimum(1.0, jnp.min(jnp.where(neg, -v / jnp.where(neg, dv, -1.0), 1.0)))
+
+
+def _residuals(red: _Reduced, u, s, z):
+    return red.Q @ u + red.q + red.G.T @ z, red.G @ u + s - red.h
+
+
+def _start(red: _Reduced):
+    """CVXOPT's initial point: the least-squares solution with s = z = 1, then s and z
+    shifted into the positive orthant."""
+    H = red.Q + red.G.T @ red.G
+    u = cho_solve(cholesky(H), red.G.T @ red.h - red.q)
+    r = red.G @ u - red.h  # = -s
+    worst_s, worst_z = jnp.max(r), -jnp.min(r)
+    s = jnp.where(worst_s < 0, -r, -r + 1.0 + worst_s)
+    z = jnp.where(worst_z < 0, r, r + 1.0 + worst_z)
+    return u, s, z
+
+
+def _mehrotra_step(red: _Reduced, state: _Iterate) -> _Iterate:
+    # qpax's safeguard: slacks and multipliers never fall below sqrt(machine epsilon),
+    # which bounds the condition of H (z / s stays below ~1e8 z).
+    floor = jnp.sqrt(jnp.finfo(state.s.dtype).eps)
+    u, s, z = state.u, jnp.maximum(state.s, floor), jnp.maximum(state.z, floor)
+    p = s.shape[0]
+    r_d, r_p = _residuals(red, u, s, z)
+    D = z / s
+    L = cholesky(red.Q + (red.G.T * D) @ red.G)
+    sz = s * z
+    mu = jnp.sum(sz) / p
+    _, ds_a, dz_a = _direction(L, red, D, r_d, r_p, sz, s)
+    alpha = jnp.minimum(_max_step(s, ds_a), _max_step(z, dz_a))
+    mu_aff = jnp.sum((s + alpha * ds_a) * (z + alpha * dz_a)) / p
+    sigma = jnp.clip(mu_aff / mu, 0.0, 1.0) ** 3
+    du, ds, dz = _direction(L, red, D, r_d, r_p, sz + ds_a * dz_a - sigma * mu, s)
+    alpha = jnp.minimum(1.0, 0.99 * jnp.minimum(_max_step(s, ds), _max_step(z, dz)))
+    u, s, z = u + alpha * du, s + alpha * ds, z + alpha * dz
+    worst = jnp.max(jnp.abs(jnp.concatenate([*_residuals(red, u, s, z), s * z])))
+    # A step that breaks down (non-finite, as on an infeasible problem) ends the
+    # iteration; its iterate is returned, so the caller sees the failure.
+    return _Iterate(u, s, z, state.it + 1, ~jnp.isfinite(worst))
+
+
+def solve_ipm(Q: Array, q: Array, A: Array, b: Array, G: Array, h: Array, *,
+              iterations: int) -> IPMResult:
+    """Solve one QP: Q (n, n) symmetric, q (n,), A (m, n), b (m,), G (p, n), h (p,).
+
+    `iterations`: Mehrotra iterations (fewer only where a step breaks down)."""
+    n, m = q.shape[0], b.shape[0]
+    if m:
+        ns = null_space(A)
+        x0 = ns.Y @ solve_rt(ns.R, b)
+        Z = ns.Z
+    else:
+        x0, Z = jnp.zeros_like(q), jnp.eye(n, dtype=q.dtype)
+    red = _reduce(Q, q, G, h, x0, Z)
+    u, s, z = _start(red)
+    start = _Iterate(u, s, z, jnp.zeros((), jnp.int32), jnp.zeros((), bool))
+    final = jax.lax.while_loop(lambda st: (st.it < iterations) & ~st.done,
+                               lambda st: _mehrotra_step(red, st), start)
+    x = x0 + Z @ final.u
+    if m:
+        y = solve_r(ns.R, -(ns.Y.T @ (Q @ x + q + G.T @ final.z)))
+    else:
+        y = jnp.zeros((0,), q.dtype)
+    return IPMResult(x, y, final.z, final.s, final.it)

@@ -1,0 +1,83 @@
+"""jaxloco.qp_ipm: the unrolled factorizations against NumPy, the interior-point method
+against clarabel, and the batched program against the properties the
+QP layer relies on (one call for a batch of 4,096, no custom calls)."""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from test_qp import KEYS, X_SCALE, clarabel_solve, make_problem
+
+from jaxloco import qp, qp_ipm
+
+
+def test_cholesky_and_solve_match_numpy():
+    rng = np.random.default_rng(1)
+    B = rng.normal(size=(7, 7))
+    M = B @ B.T + 0.1 * np.eye(7)
+    r = rng.normal(size=7)
+    L = qp_ipm.cholesky(jnp.asarray(M))
+    dense = np.array([[float(L[i][j]) if j <= i else 0.0 for j in range(7)] for i in range(7)])
+    np.testing.assert_allclose(dense, np.linalg.cholesky(M), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(qp_ipm.cho_solve(L, jnp.asarray(r)), np.linalg.solve(M, r), rtol=1e-10)
+
+
+def test_null_space_is_an_orthonormal_complement():
+    rng = np.random.default_rng(2)
+    A = rng.normal(size=(5, 9)) * 10 ** rng.uniform(-1, 1, (5, 1))
+    Y, Z, R = (np.asarray(v) for v in qp_ipm.null_space(jnp.asarray(A)))
+    basis = np.hstack([Y, Z])
+    np.testing.assert_allclose(basis.T @ basis, np.eye(9), atol=1e-12)
+    np.testing.assert_allclose(A @ Z, 0.0, atol=1e-12)
+    np.testing.assert_allclose(Y @ R, A.T, atol=1e-12)
+    np.testing.assert_allclose(np.tril(R, -1), 0.0)
+    b = rng.normal(size=5)
+    np.testing.assert_allclose(A @ (Y @ np.asarray(qp_ipm.solve_rt(jnp.asarray(R), jnp.asarray(b)))), b, atol=1e-10)
+
+
+@pytest.fixture(scope="module")
+def problems():
+    rng = np.random.default_rng(7)
+    probs = [make_problem(rng) for _ in range(64)]
+    return probs, tuple(np.stack([p[k] for p in probs]) for k in KEYS)
+
+
+def _scaled(prob):
+    """The problem in units where the forces are O(1) (the layer does the same)."""
+    d = X_SCALE
+    return (prob["Q"] * np.outer(d, d), prob["q"] * d, prob["A"] * d, prob["b"], prob["G"] * d, prob["h"])
+
+
+def test_matches_clarabel(problems):
+    probs, _ = problems
+    data = [np.stack(a) for a in zip(*(_scaled(p) for p in probs))]
+    solve = jax.jit(jax.vmap(functools.partial(qp_ipm.solve_ipm, iterations=30)))
+    out = solve(*data)
+    for i, prob in enumerate(probs):
+        x_ref, _, _ = clarabel_solve(*(a[i] for a in data))
+        np.testing.assert_allclose(out.x[i], x_ref, atol=1e-5)  # raw rows: scaled by 10^+-1
+        np.testing.assert_array_less(-1e-12, out.s[i])
+    np.testing.assert_array_equal(out.iterations, 30)
+
+
+def test_batch_of_4096_in_one_call_without_custom_calls(problems):
+    _, stacked = problems
+    big = tuple(np.concatenate([a] * 64) for a in stacked)  # 4,096 members
+    fn = jax.jit(lambda *a: qp.solve_batch(*a, x_scale=X_SCALE))
+    assert "custom_call" not in fn.lower(*big).as_text()
+    sol = fn(*big)
+    assert bool(np.all(sol.ok))
+    np.testing.assert_array_equal(np.asarray(sol.x[:64]), np.asarray(sol.x[-64:]))
+
+
+def test_gradient_program_has_no_custom_calls(problems):
+    _, stacked = problems
+
+    def loss(*a):
+        return jnp.sum(qp.solve_batch(*a, x_scale=X_SCALE).x)
+
+    assert "custom_call" not in jax.jit(jax.grad(loss, argnums=(1, 5))).lower(*stacked).as_text()
