@@ -23,8 +23,7 @@ iterations, so no batch member's result depends on the others. The iteration is 
 the boundary) and gives qpax's iterates to about 1e-12, but removes the equalities by a
 null-space basis and is unrolled over the tiny fixed sizes, so under `vmap` an iteration
 is a few fused loops over the batch instead of dozens of small kernels, and no LAPACK
-custom call is emitted. A step that breaks down (non-finite, as on an infeasible problem)
-ends the iteration.
+custom call is emitted. An infeasible problem ends with a diverging or non-finite iterate.
 
 The ok flag. `ok` is True iff everything is finite and all three scaled residuals
 are <= `tol`. Infeasible problems (the iterate then diverges or breaks down),

@@ -16,9 +16,9 @@ Method (in the caller's units; the caller, `jaxloco.qp`, scales the problem firs
 2. Mehrotra's predictor-corrector method on the reduced problem in u (k unknowns, p
    inequalities, slacks s and multipliers z), each iteration factorizing
    H = Z^T Q Z + G_r^T diag(z / s) G_r once, started from CVXOPT's least-squares point.
-3. Every member runs `iterations` iterations (a step that breaks down, with a non-
-   finite iterate, ends that member's iteration; under `vmap` it is frozen), so no
-   member's result depends on the others. There is no early
+3. Every member runs exactly `iterations` iterations (a fixed-length loop: under `vmap`
+   no member waits on, or depends on, another; a problem that breaks down, such as an
+   infeasible one, ends with a non-finite iterate). There is no early
    stop on a residual: s and z are floored at sqrt(eps) in every step, as in qpax, which
    keeps the factorization well-conditioned but also keeps the complementarity of
    inactive rows near 1e-8, so a stopping test would need to know the problem's scale.
@@ -151,8 +151,6 @@ class _Iterate(NamedTuple):
     u: Array  # (k,) reduced primal variables
     s: Array  # (p,) slacks
     z: Array  # (p,) multipliers
-    it: Array  # () int32
-    done: Array  # () bool
 
 
 class _Reduced(NamedTuple):
@@ -217,18 +215,14 @@ def _mehrotra_step(red: _Reduced, state: _Iterate) -> _Iterate:
     sigma = jnp.clip(mu_aff / mu, 0.0, 1.0) ** 3
     du, ds, dz = _direction(L, red, D, r_d, r_p, sz + ds_a * dz_a - sigma * mu, s)
     alpha = jnp.minimum(1.0, 0.99 * jnp.minimum(_max_step(s, ds), _max_step(z, dz)))
-    u, s, z = u + alpha * du, s + alpha * ds, z + alpha * dz
-    worst = jnp.max(jnp.abs(jnp.concatenate([*_residuals(red, u, s, z), s * z])))
-    # A step that breaks down (non-finite, as on an infeasible problem) ends the
-    # iteration; its iterate is returned, so the caller sees the failure.
-    return _Iterate(u, s, z, state.it + 1, ~jnp.isfinite(worst))
+    return _Iterate(u + alpha * du, s + alpha * ds, z + alpha * dz)
 
 
 def solve_ipm(Q: Array, q: Array, A: Array, b: Array, G: Array, h: Array, *,
               iterations: int) -> IPMResult:
     """Solve one QP: Q (n, n) symmetric, q (n,), A (m, n), b (m,), G (p, n), h (p,).
 
-    `iterations`: Mehrotra iterations (fewer only where a step breaks down)."""
+    `iterations`: the number of Mehrotra iterations (static)."""
     n, m = q.shape[0], b.shape[0]
     if m:
         ns = null_space(A)
@@ -238,12 +232,10 @@ def solve_ipm(Q: Array, q: Array, A: Array, b: Array, G: Array, h: Array, *,
         x0, Z = jnp.zeros_like(q), jnp.eye(n, dtype=q.dtype)
     red = _reduce(Q, q, G, h, x0, Z)
     u, s, z = _start(red)
-    start = _Iterate(u, s, z, jnp.zeros((), jnp.int32), jnp.zeros((), bool))
-    final = jax.lax.while_loop(lambda st: (st.it < iterations) & ~st.done,
-                               lambda st: _mehrotra_step(red, st), start)
+    final = jax.lax.fori_loop(0, iterations, lambda _, st: _mehrotra_step(red, st), _Iterate(u, s, z))
     x = x0 + Z @ final.u
     if m:
         y = solve_r(ns.R, -(ns.Y.T @ (Q @ x + q + G.T @ final.z)))
     else:
         y = jnp.zeros((0,), q.dtype)
-    return IPMResult(x, y, final.z, final.s, final.it)
+    return IPMResult(x, y, final.z, final.s, jnp.asarray(iterations, jnp.int32))
