@@ -7,7 +7,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from jaxloco.robots.leggrope import kinematics as kin
+from jaxloco.robots.leggrope import kinematics
 from jaxloco.robots.leggrope.params import default_params
 
 P = default_params()
@@ -29,21 +29,23 @@ def test_table1_masses_and_hips():
 def test_closed_form_equals_dh_chain(leg):
     for q in Q_SAMPLES:
         q = jnp.asarray(q)
-        np.testing.assert_allclose(kin.foot_position(P, leg, q), kin.foot_position_dh(P, leg, q), atol=1e-12)
+        np.testing.assert_allclose(kinematics.foot_position(P, leg, q), kinematics.foot_position_dh(P, leg, q),
+                                   atol=1e-12)
 
 
 @pytest.mark.parametrize("leg", range(4))
 def test_jacobian_closed_form_equals_autodiff(leg):
     for q in Q_SAMPLES:
         q = jnp.asarray(q)
-        np.testing.assert_allclose(kin.foot_jacobian(P, leg, q), kin.foot_jacobian_autodiff(P, leg, q), atol=1e-12)
+        np.testing.assert_allclose(kinematics.foot_jacobian(P, leg, q), kinematics.foot_jacobian_autodiff(P, leg, q),
+                                   atol=1e-12)
 
 
 def test_jacobian_singular_at_straight_knee():
     q = jnp.array([0.3, 0.4, 0.0])  # theta_i3 = 0: the paper's singular configuration
-    assert abs(float(jnp.linalg.det(kin.foot_jacobian(P, 0, q)))) < 1e-12
+    assert abs(float(jnp.linalg.det(kinematics.foot_jacobian(P, 0, q)))) < 1e-12
     q = jnp.array([0.3, 0.4, -1.5])
-    assert abs(float(jnp.linalg.det(kin.foot_jacobian(P, 0, q)))) > 1e-4
+    assert abs(float(jnp.linalg.det(kinematics.foot_jacobian(P, 0, q)))) > 1e-4
 
 
 def _mujoco_leg(leg: int) -> tuple[mujoco.MjModel, mujoco.MjData]:
@@ -79,38 +81,38 @@ def test_against_mujoco_kinematics(leg):
         mujoco.mj_kinematics(model, data)
         toe = data.site("toe").xpos
         mids = np.stack([data.site(n).xpos for n in ("m1", "m2", "m3")])
-        np.testing.assert_allclose(kin.foot_position(P, leg, jnp.asarray(q)), toe, atol=1e-12)
-        np.testing.assert_allclose(kin.link_com_positions(P, leg, jnp.asarray(q)), mids, atol=1e-12)
+        np.testing.assert_allclose(kinematics.foot_position(P, leg, jnp.asarray(q)), toe, atol=1e-12)
+        np.testing.assert_allclose(kinematics.link_com_positions(P, leg, jnp.asarray(q)), mids, atol=1e-12)
         # translational Jacobian of the toe site
         jacp = np.zeros((3, model.nv))
         mujoco.mj_comPos(model, data)
         mujoco.mj_jacSite(model, data, jacp, None, model.site("toe").id)
-        np.testing.assert_allclose(kin.foot_jacobian(P, leg, jnp.asarray(q)), jacp, atol=1e-12)
+        np.testing.assert_allclose(kinematics.foot_jacobian(P, leg, jnp.asarray(q)), jacp, atol=1e-12)
 
 
 @pytest.mark.parametrize("leg", range(4))
 def test_inverse_kinematics_round_trip(leg):
     for q in Q_SAMPLES:
-        toe = kin.foot_position(P, leg, jnp.asarray(q))
-        q_ik, reach = kin.inverse_kinematics(P, leg, toe)
+        toe = kinematics.foot_position(P, leg, jnp.asarray(q))
+        q_ik, reach = kinematics.inverse_kinematics(P, leg, toe)
         assert float(reach) > -1e-12
-        np.testing.assert_allclose(kin.foot_position(P, leg, q_ik), toe, atol=1e-9)
+        np.testing.assert_allclose(kinematics.foot_position(P, leg, q_ik), toe, atol=1e-9)
         assert float(q_ik[2]) < 0  # knee-up branch
 
 
 def test_inverse_kinematics_flags_unreachable_targets():
     hip = P.hips()[0]
     far = hip + jnp.array([0.5, 0.2, -0.1])
-    q, reach = kin.inverse_kinematics(P, 0, far)
+    q, reach = kinematics.inverse_kinematics(P, 0, far)
     assert float(reach) < 0 and bool(jnp.all(jnp.isfinite(q)))
 
 
 def test_float32_and_vmap():
     qs = jnp.asarray(Q_SAMPLES)
-    batched = jax.vmap(lambda q: kin.foot_position(P, 2, q))(qs)
-    looped = jnp.stack([kin.foot_position(P, 2, q) for q in qs])
+    batched = jax.vmap(lambda q: kinematics.foot_position(P, 2, q))(qs)
+    looped = jnp.stack([kinematics.foot_position(P, 2, q) for q in qs])
     np.testing.assert_allclose(batched, looped, atol=1e-14)
     P32 = P.astype(jnp.float32)
-    f32 = jax.vmap(lambda q: kin.foot_position(P32, 2, q))(qs.astype(jnp.float32))
+    f32 = jax.vmap(lambda q: kinematics.foot_position(P32, 2, q))(qs.astype(jnp.float32))
     assert f32.dtype == jnp.float32
     np.testing.assert_allclose(f32, batched, atol=1e-5)

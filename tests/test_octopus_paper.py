@@ -11,20 +11,20 @@ import pytest
 from compile_count import run_counting
 
 from jaxloco import specs
-from jaxloco.robots.octopus import paper_analysis as pa
+from jaxloco.robots.octopus import paper_analysis
 from jaxloco.sweep import load_spec, run
 
 
 def test_bundled_spec_is_the_papers_five_tasks_times_20_on_the_papers_method():
     spec = load_spec(specs.path("octopus_paper"))
-    assert spec.analysis is pa.PAPER_EXPERIMENTS
-    assert tuple(spec.swept["task"]) == pa.TASK_NAMES and len(spec.seeds) == 20
+    assert spec.analysis is paper_analysis.PAPER_EXPERIMENTS
+    assert tuple(spec.swept["task"]) == paper_analysis.TASK_NAMES and len(spec.seeds) == 20
     assert spec.n_rows == 100
     # the paper's method: Eqs. 28-29, never CRAWL, no operator; the paper's perturbations
     assert spec.fixed["climb_paper"] == 1.0 and spec.fixed["crawl_max_h"] == 0.0
     assert spec.fixed["operator_gain"] == 0.0
     assert (spec.fixed["distance_jitter"], spec.fixed["yaw_jitter"], spec.fixed["mu_jitter"]) == (0.1, 0.05, 0.2)
-    assert set(pa.PAPER) == set(pa.TASK_NAMES)
+    assert set(paper_analysis.PAPER) == set(paper_analysis.TASK_NAMES)
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +71,7 @@ def test_summary_puts_the_papers_numbers_beside_ours(tiny):
 
 
 def test_task_values_and_perturbations():
-    assert pa.task_values("step2_side") == {"kind": "step2_side", "controller": "clm", "height": 0.4,
+    assert paper_analysis.task_values("step2_side") == {"kind": "step2_side", "controller": "clm", "height": 0.4,
                                             "side_ratio": 0.5}
-    p = pa.perturbations(50, seed=3)
+    p = paper_analysis.perturbations(50, seed=3)
     assert (p["distance"] >= 0.6).all() and (p["distance"] <= 0.8).all() and np.ptp(p["mu"]) > 0.2

@@ -56,8 +56,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco import geometry as geo
-from jaxloco.robots.leggrope import gait, regions
-from jaxloco.robots.leggrope import kinematics as kin
+from jaxloco.robots.leggrope import gait, kinematics, regions
 from jaxloco.robots.leggrope.model import TOE_RADIUS
 from jaxloco.robots.leggrope.params import G, LegGropeParams, default_params
 
@@ -273,7 +272,7 @@ def terrain_of(p: dict, key: Array) -> gait.SlopeTerrain:
 def joint_targets(robot: LegGropeParams, R_GR: Array, body: Array, toes: Array) -> Array:
     """Joint angles (12,) (legs L1..L4, yaw/pitch/knee) putting the toe centres `toes`
     (4, 3, world) at their places for the body origin `body` with attitude R_GR."""
-    q, _ = jax.vmap(lambda leg, t: kin.inverse_kinematics(robot, leg, t))(jnp.arange(4), (toes - body) @ R_GR)
+    q, _ = jax.vmap(lambda leg, t: kinematics.inverse_kinematics(robot, leg, t))(jnp.arange(4), (toes - body) @ R_GR)
     return q.reshape(12)
 
 

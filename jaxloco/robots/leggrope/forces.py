@@ -50,8 +50,7 @@ import numpy as np
 
 from jaxloco import geometry as geo
 from jaxloco import qp, stability
-from jaxloco.robots.leggrope import gait
-from jaxloco.robots.leggrope import kinematics as kin
+from jaxloco.robots.leggrope import gait, kinematics
 from jaxloco.robots.leggrope.params import G, LegGropeParams
 
 Array = jax.Array
@@ -112,10 +111,10 @@ def step_dynamics(params: LegGropeParams, walk: gait.WalkParams, plan: gait.Cycl
     moment = jnp.sum(jnp.cross(r - body, load), axis=0)
 
     legs = jnp.arange(4)
-    J_links = jax.vmap(lambda n, qq: jax.jacfwd(lambda x: kin.link_com_positions(params, n, x))(qq))(legs, q)
+    J_links = jax.vmap(lambda n, qq: jax.jacfwd(lambda x: kinematics.link_com_positions(params, n, x))(qq))(legs, q)
     J_links = jnp.einsum("ij,nkjq->nkiq", R_GR, J_links)  # (4 legs, 3 links, 3, 3) world
     tau_o = jnp.einsum("nkiq,nki->nq", J_links, load[1:].reshape(4, 3, 3)).reshape(12)
-    J_foot = jnp.einsum("ij,njq->niq", R_GR, jax.vmap(lambda n, qq: kin.foot_jacobian(params, n, qq))(legs, q))
+    J_foot = jnp.einsum("ij,njq->niq", R_GR, jax.vmap(lambda n, qq: kinematics.foot_jacobian(params, n, qq))(legs, q))
 
     # contact frame of each foot: the facet it stands on (before or after its step)
     order = jnp.asarray(np.array(config.order))

@@ -56,8 +56,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco import geometry as geo
-from jaxloco.robots.leggrope import kinematics as kin
-from jaxloco.robots.leggrope import regions
+from jaxloco.robots.leggrope import kinematics, regions
 from jaxloco.robots.leggrope.params import G, LegGropeParams
 
 Array = jax.Array
@@ -434,13 +433,13 @@ def masses(params: LegGropeParams) -> Array:
 def leg_angles(params: LegGropeParams, R_GR: Array, body: Array, feet: Array) -> tuple[Array, Array]:
     """Joint angles (4, 3) and IK reach margins (4,) for world toe positions."""
     toes_R = (feet - body) @ R_GR
-    return jax.vmap(lambda leg, t: kin.inverse_kinematics(params, leg, t))(jnp.arange(4), toes_R)
+    return jax.vmap(lambda leg, t: kinematics.inverse_kinematics(params, leg, t))(jnp.arange(4), toes_R)
 
 
 def mass_positions(params: LegGropeParams, R_GR: Array, body: Array, feet: Array) -> Array:
     """World positions (13, 3) of the body COM and the 12 link midpoints."""
     q, _ = leg_angles(params, R_GR, body, feet)
-    links_R = jax.vmap(lambda leg, qq: kin.link_com_positions(params, leg, qq))(jnp.arange(4), q)
+    links_R = jax.vmap(lambda leg, qq: kinematics.link_com_positions(params, leg, qq))(jnp.arange(4), q)
     links_W = body + links_R.reshape(12, 3) @ R_GR.T
     return jnp.concatenate([body[None], links_W], axis=0)
 

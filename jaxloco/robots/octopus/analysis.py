@@ -74,7 +74,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
-from jaxloco.robots.octopus import kinematics as kin
+from jaxloco.robots.octopus import kinematics
 from jaxloco.robots.octopus.params import (
     BASE_HEIGHT,
     ROLLER_RADIUS,
@@ -193,18 +193,18 @@ def run_sample(v: Mapping[str, jax.Array], key: jax.Array) -> dict[str, jax.Arra
     params = default_params().astype(dt).with_(sigma=jnp.stack([v["sigma1"], v["sigma2"], v["sigma3"]]))
     tips, a_p = terrain_tips(v, k_terrain)
     zero = jnp.zeros((), dt)
-    true_c = kin.to_level_frame(tips, a_p, zero)
+    true_c = kinematics.to_level_frame(tips, a_p, zero)
     z = true_c[:, 2]
     diffs = jnp.stack([z[0] - z[3], z[1] - z[2]])
     h_true = 0.5 * (z[0] + z[1] - z[2] - z[3])
     is_slope = (v["terrain"] == SLOPE_UP) | (v["terrain"] == SLOPE_DOWN)
     truth = ground_truth(diffs, a_p, is_slope, v)
 
-    qs, margins = kin.inverse_kinematics_all(params, tips)
-    sensed = kin.arm_tips(params, qs) + v["noise"] * jax.random.normal(k_tips, (4, 3), dt)
+    qs, margins = kinematics.inverse_kinematics_all(params, tips)
+    sensed = kinematics.arm_tips(params, qs) + v["noise"] * jax.random.normal(k_tips, (4, 3), dt)
     imu = a_p * jnp.asarray([1.0, 0.0], dt) + v["imu_noise"] * jax.random.normal(k_imu, (2,), dt)
-    est = kin.explore_terrain(params, sensed, imu[0], imu[1])
-    exact = kin.explore_terrain(params, tips, a_p, zero)  # T_P of the true contact plane
+    est = kinematics.explore_terrain(params, sensed, imu[0], imu[1])
+    exact = kinematics.explore_terrain(params, tips, a_p, zero)  # T_P of the true contact plane
     return {
         "case": est.case,
         "diffs": est.diffs,  # sensed (z1 - z4, z2 - z3) [m] in {C}: what the thresholds see

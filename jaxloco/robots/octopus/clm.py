@@ -149,10 +149,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.robots.octopus import clm_rules as cr
-from jaxloco.robots.octopus import kinematics as kin
-from jaxloco.robots.octopus import model as octo_model
-from jaxloco.robots.octopus import params
+from jaxloco.robots.octopus import clm_rules, kinematics, model, params
 from jaxloco.sim.scenario import Controller
 
 Array = jax.Array
@@ -162,8 +159,8 @@ PHASE_NAMES = ("walk", "prepare", "climb", "release", "done", "crawl")
 # CRAWL sub-phases: front flippers up (arms to the carrying pose), front flippers down
 # onto the edge while driving, rear flippers push, level on the top
 RAISE, LOWER_F, PUSH, LEVEL = 0, 1, 2, 3
-IDLE = 5  # arm phase after cr.PLACED (4): holding, waiting for a transfer
-ARM_PHASE_NAMES = (*cr.TRANSFER_PHASES, "idle")
+IDLE = 5  # arm phase after clm_rules.PLACED (4): holding, waiting for a transfer
+ARM_PHASE_NAMES = (*clm_rules.TRANSFER_PHASES, "idle")
 CONTROL_DT = 0.02  # [s] 50 Hz
 FRONT = np.array([True, True, False, False])  # arms 1..4 (LF, RF, LR, RR)
 LEFT = np.array([True, False, True, False])
@@ -173,7 +170,7 @@ TABLE2_Z = float(params.TABLE2_TARGET[0, 2])
 FRONT_AXLES = np.array(
     [[params.MAIN_AXLE_X, s * params.CRAWLER_Y, params.MAIN_WHEEL_RADIUS - params.BASE_HEIGHT] for s in (1.0, -1.0)]
 )
-CRAWL_ORDER = np.array(cr.CRAWL_ORDER)
+CRAWL_ORDER = np.array(clm_rules.CRAWL_ORDER)
 N_PREPARE = 2
 PREPARE_ORDER = np.array([3, 2])  # PREPARE transfers the rear arms only (RR, then LR)
 
@@ -263,27 +260,27 @@ PARAM_DEFAULTS: dict[str, float] = {
 }
 
 _KP = params.default_params()
-BOOM_MAX = octo_model.ARM_RANGE[1][1]
-ARM_LO = np.array([r[0] for r in octo_model.ARM_RANGE])
-ARM_HI = np.array([r[1] for r in octo_model.ARM_RANGE])
+BOOM_MAX = model.ARM_RANGE[1][1]
+ARM_LO = np.array([r[0] for r in model.ARM_RANGE])
+ARM_HI = np.array([r[1] for r in model.ARM_RANGE])
 FLIPPER_MAX = params.FLIPPER_LIMIT
-HOME_BOOM = octo_model.home_arm_angles()[:, 1]  # boom angles of the start pose (the authors' zero)
+HOME_BOOM = model.home_arm_angles()[:, 1]  # boom angles of the start pose (the authors' zero)
 
 
 def start_pose() -> tuple[np.ndarray, np.ndarray]:
     """The CLM start pose: arms (4, 3) in the Table 2 initial pose (rollers on the
     ground), flippers (4,) [rad] (front ones at `front_start`)."""
     flips = np.array([PARAM_DEFAULTS["front_start"]] * 2 + [0.0, 0.0])
-    return octo_model.home_arm_angles(), flips
+    return model.home_arm_angles(), flips
 
 
 def _tips_moved(q: Array, move: Array, dz_level: Array, a_p: Array, a_r: Array) -> Array:
     """Arm joints (4, 3) that move the EPRAs of the arms with `move` (4,) by dz_level [m]
     along the vertical of the level frame {C} (inverse kinematics from the current
     commands `q`); the others, and any out of reach, keep `q`."""
-    tips = kin.arm_tips(_KP, q)
-    d_r = kin.level_rotation(a_p, a_r).T @ jnp.stack([0.0 * dz_level, 0.0 * dz_level, dz_level])
-    q_new, reach = kin.inverse_kinematics_all(_KP, tips + d_r)
+    tips = kinematics.arm_tips(_KP, q)
+    d_r = kinematics.level_rotation(a_p, a_r).T @ jnp.stack([0.0 * dz_level, 0.0 * dz_level, dz_level])
+    q_new, reach = kinematics.inverse_kinematics_all(_KP, tips + d_r)
     ok = move & (reach > 0.005)
     return jnp.where(ok[:, None], q_new, q)
 
@@ -374,14 +371,14 @@ class ArmState(NamedTuple):
     """The four arms (rows LF, RF, LR, RR: `FRONT`, `LEFT`) and the crawl gait. Joint
     angles (swing, boom, elbow) [rad]; points in the robot frame {R} [m]."""
 
-    arm_phase: Array  # (4,) int32: cr.LIFT..cr.LOWER in transfer, cr.PLACED in support, IDLE
+    arm_phase: Array  # (4,) int32: clm_rules.LIFT..clm_rules.LOWER in transfer, clm_rules.PLACED in support, IDLE
     ptr: Array  # () int32: index into CRAWL_ORDER of the next transfer
     active: Array  # () int32: the transferring arm, -1 none
     pause: Array  # () [s] since the last transfer ended
     placed_n: Array  # () int32: transfers done in PREPARE (PREPARE_ORDER)
     contacts: Array  # (4, 3) [m] contact points in {R} (held on the ground by the support arms)
-    stop_case: Array  # (4,) int32: where each arm's last transfer stopped (`cr.arm_stop_case`)
-    on_step: Array  # (4,) bool: a front arm stopped on an obstacle (cr.STOP_ON_OBSTACLE)
+    stop_case: Array  # (4,) int32: where each arm's last transfer stopped (`clm_rules.arm_stop_case`)
+    on_step: Array  # (4,) bool: a front arm stopped on an obstacle (clm_rules.STOP_ON_OBSTACLE)
     q_cmd: Array  # (4, 3) [rad] the last arm commands (theta' of the rules)
     q_cmd2: Array  # (4, 3) [rad] the arm commands of the period before
     lift_to: Array  # (4,) [rad] the boom angle the current LIFT aims at (A_B)
@@ -430,7 +427,7 @@ class ClmState(NamedTuple):
     h_est: Array  # () [m]
     # crawlers and flippers
     flip: Array  # (4,) [rad] the last flipper commands (fl, fr, rl, rr)
-    flip_case: Array  # (2,) int32: the front flippers' torque rule case (`cr.flipper_rule`)
+    flip_case: Array  # (2,) int32: the front flippers' torque rule case (`clm_rules.flipper_rule`)
     stall: Array  # () [s] the crawlers below a third of clm_speed
     travel: Array  # () [m] crawler-encoder travel: S (Eq. 18) in CLIMB, the drive on the top in DONE
     climbed: Array  # () int32: climbs finished (RELEASE or CRAWL -> DONE)
@@ -516,12 +513,12 @@ def measure(obs) -> Sensed:
     quaternion without its yaw."""
     dt = jnp.result_type(float)
     q = obs["arm_q"].reshape(4, 3).astype(dt)
-    att = kin.attitude_from_quat(obs["quat"].astype(dt))
+    att = kinematics.attitude_from_quat(obs["quat"].astype(dt))
     return Sensed(
         time=obs["time"],
         q=q,
         tau=obs["arm_tau"].reshape(4, 3).astype(dt),
-        tips=kin.arm_tips(_KP, q),
+        tips=kinematics.arm_tips(_KP, q),
         pitch=att[0],
         roll=att[1],
         flip_q=obs["flipper_q"].astype(dt),
@@ -544,7 +541,7 @@ def clm_init(p, obs) -> ClmState:
     dt = q.dtype
     flips = jnp.stack([p["front_start"], p["front_start"], 0.0 * p["front_start"], 0.0 * p["front_start"]])
     arms = ArmState(
-        arm_phase=jnp.full((4,), cr.PLACED, jnp.int32),
+        arm_phase=jnp.full((4,), clm_rules.PLACED, jnp.int32),
         ptr=jnp.zeros((), jnp.int32),
         active=jnp.asarray(-1, jnp.int32),
         pause=jnp.zeros((), dt),
@@ -640,21 +637,21 @@ def terrain_pitch(contacts: Array, pitch: Array, roll: Array) -> Array:
     (Eq. 7) while the terrain reads flat (Case 1), else the robot's pitch (T_P - R_P = 0:
     across a step edge Eq. 7 gives the slope of the edge, not of the ground the crawlers
     run on)."""
-    est = kin.explore_terrain(_KP, contacts, pitch, roll)
-    return jnp.where(est.case == kin.CASE_FLAT, est.pitch, pitch)
+    est = kinematics.explore_terrain(_KP, contacts, pitch, roll)
+    return jnp.where(est.case == kinematics.CASE_FLAT, est.pitch, pitch)
 
 
 def support_arms(p, arms: ArmState, moved: Array, t_p: Array, pitch: Array) -> tuple[Array, Array]:
     """The support arms (PLACED) hold their ground contacts while the crawlers carry the
-    body `moved` [m] on (Eqs. 22-27, `cr.predict_contacts`: a ground-fixed point moves by
+    body `moved` [m] on (Eqs. 22-27, `clm_rules.predict_contacts`: a ground-fixed point moves by
     -moved (cos a, 0, sin a) in {R}, a = t_p - pitch), then inverse kinematics, aiming
     `press` [m] below the contacts. Returns the contact points (4, 3) in {R} (the other
     arms' unchanged) and the joint commands (4, 3) [rad] that hold them (out of reach:
     the last command)."""
-    support = arms.arm_phase == cr.PLACED
-    contacts = jnp.where(support[:, None], cr.predict_contacts(arms.contacts, moved, t_p, pitch), arms.contacts)
+    support = arms.arm_phase == clm_rules.PLACED
+    contacts = jnp.where(support[:, None], clm_rules.predict_contacts(arms.contacts, moved, t_p, pitch), arms.contacts)
     press = jnp.stack([jnp.zeros_like(p["press"]), jnp.zeros_like(p["press"]), p["press"]])
-    q_hold, reach = kin.inverse_kinematics_all(_KP, contacts - press)
+    q_hold, reach = kinematics.inverse_kinematics_all(_KP, contacts - press)
     q_hold = jnp.where((reach > 0.005)[:, None], q_hold, arms.q_cmd)  # out of reach: hold
     return contacts, q_hold
 
@@ -673,18 +670,18 @@ def transfer_targets(p, prepare: Array, h_est: Array, dt, backoff: Array) -> tup
     tgt = tgt.at[:, 0].add(-jnp.where(front, 1.0, -1.0) * backoff)
     tgt = tgt.at[:, 2].add(jnp.where(prepare & front, h_est, 0.0))
     clear = jnp.where(front, p["clearance_front"], p["clearance_rear"])
-    q_tgt, _ = kin.inverse_kinematics_all(_KP, tgt.at[:, 2].add(-p["transfer_press"]))
-    q_abv, _ = kin.inverse_kinematics_all(_KP, tgt.at[:, 2].add(clear))
+    q_tgt, _ = kinematics.inverse_kinematics_all(_KP, tgt.at[:, 2].add(-p["transfer_press"]))
+    q_abv, _ = kinematics.inverse_kinematics_all(_KP, tgt.at[:, 2].add(clear))
     q_tgt, q_abv = jnp.clip(q_tgt, ARM_LO, ARM_HI), jnp.clip(q_abv, ARM_LO, ARM_HI)
     return tgt, q_tgt, q_abv
 
 
 def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Array, h_est: Array) -> Transfer:
-    """One period of the active arm's transfer (Eqs. 19-21, `cr.transfer_step`: LIFT to
+    """One period of the active arm's transfer (Eqs. 19-21, `clm_rules.transfer_step`: LIFT to
     A_B, SWING to A_S, OVER the target, LOWER until contact) and its collision stop.
 
     LOWER ends on contact: a joint torque rising by more than collision_threshold in a
-    period (`cr.collision`), the boom or elbow held more than contact_lag [rad] short of
+    period (`clm_rules.collision`), the boom or elbow held more than contact_lag [rad] short of
     the command of two periods before (a blocked arm: the servo follows a free arm within
     a period), or the boom at its joint limit (deep pit); past the target's angles the
     boom creeps down by Delta_B per period until then. In LIFT, SWING and OVER a boom or
@@ -692,7 +689,7 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     torque of elbow joint would reach to the setting value"; free motion reaches 48 N m).
     A_B: lift_boom (rear) / lift_boom_front (front), or lift_min above the current boom if
     that is higher (`lift_to`). A placed arm's contact is its EPRA (encoders), its stop
-    case `cr.arm_stop_case` (delta_c, delta_d) against its target; a front arm stopped on
+    case `clm_rules.arm_stop_case` (delta_c, delta_d) against its target; a front arm stopped on
     an obstacle is on the step. `contacts`: the support arms' (`support_arms`)."""
     dt = sense.q.dtype
     q, tau, tips = sense.q, sense.tau, sense.tips
@@ -703,8 +700,8 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     # > 0: the boom is held up, short of the command of two periods ago (the servo
     # follows a free arm's command within a period; the last command may be a step)
     lag = jnp.max(arms.q_cmd2[:, 1:] - q[:, 1:], axis=-1)  # boom or elbow held up
-    hit = cr.collision(tau, arms.tau_prev, p["collision_threshold"])
-    lower = arm_phase == cr.LOWER
+    hit = clm_rules.collision(tau, arms.tau_prev, p["collision_threshold"])
+    lower = arm_phase == clm_rules.LOWER
     at_limit = arms.q_cmd[:, 1] >= BOOM_MAX - 1e-6
     contact = lower & (hit | (lag > p["contact_lag"]))
     # Case 3, a deep pit: the boom at its limit and still no contact ("a new target point
@@ -714,18 +711,18 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     # A_B: the boom turns up to lift_boom, or by lift_min if it is already higher (a
     # front arm on a high step stands with its boom near vertical: turning it "up" to
     # lift_boom would push the roller into the step)
-    lift = jnp.where(arm_phase == cr.LIFT,
+    lift = jnp.where(arm_phase == clm_rules.LIFT,
                      jnp.maximum(jnp.minimum(jnp.where(front, p["lift_boom_front"], p["lift_boom"]), arms.lift_to),
                                  ARM_LO[1]), arms.lift_to)
     tr_cmd, tr_next = jax.vmap(
-        lambda qq, ph, c, qt, qa, ab: cr.transfer_step(qq, ph, c, qt, qa, ab, p["K"], p["delta_a"], p["delta_b"])
+        lambda qq, ph, c, qt, qa, ab: clm_rules.transfer_step(qq, ph, c, qt, qa, ab, p["K"], p["delta_a"], p["delta_b"])
     )(arms.q_cmd, arm_phase, contact, q_tgt, q_abv, lift)
     # past the target's angles the descent goes on by Delta_B per period until contact
     # (transfer_step returns to the target angles once the command overshot them)
     creeping = lower & (jnp.abs(arms.q_cmd[:, 2] - q_tgt[:, 2]) < 1e-6) & (arms.q_cmd[:, 1] >= q_tgt[:, 1] - 1e-6)
     tr_cmd = jnp.where(creeping[:, None], arms.q_cmd.at[:, 1].add(p["delta_b"]), tr_cmd)
     tr_cmd = tr_cmd.at[:, 1].set(jnp.minimum(tr_cmd[:, 1], BOOM_MAX))
-    transferring = is_active & (arm_phase <= cr.LOWER)
+    transferring = is_active & (arm_phase <= clm_rules.LOWER)
     # a collision in any phase of the transfer stops the arm: "all of the joints in that
     # arm stopped in this sample period, and arm state moved to arm moving phase from
     # the next sample period" (Figs. 19-20). In LIFT, SWING and OVER the signal is
@@ -739,26 +736,26 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     # began: an arm starting on the ground first presses it (the elbow turns by Delta_B
     # while the loaded boom has barely moved), which is no obstacle; without this the
     # rear arm in PREPARE "collided" in its first 0.1 s and was never moved
-    grounded = (arm_phase == cr.LIFT) & (sense.q[:, 1] > arms.lift_from - p["collision_lift"])
-    over = transferring & (arm_phase < cr.LOWER) & ~grounded & jnp.any(
+    grounded = (arm_phase == clm_rules.LIFT) & (sense.q[:, 1] > arms.lift_from - p["collision_lift"])
+    over = transferring & (arm_phase < clm_rules.LOWER) & ~grounded & jnp.any(
         (jnp.abs(tau[:, 1:]) > p["collision_torque"]) & still, axis=-1)
     hit_n = jnp.where(over, arms.hit_n + 1, 0)
     collided = hit_n >= p["collision_periods"]
     tr_cmd = jnp.where(collided[:, None], arms.q_cmd, tr_cmd)
-    tr_next = jnp.where(collided, cr.PLACED, tr_next)
+    tr_next = jnp.where(collided, clm_rules.PLACED, tr_next)
     # Case 3 (a pit at the target) of a front arm: a deep one (above), or the roller
     # stopped more than delta_d below its target: hold this period, then LIFT again (A_B
     # lift_min above the boom) for a target pit_backoff nearer the body ("a new target
     # point will be selected"; the text says so for the deep pit, we do it for both: an
     # arm in a pit holds no support). `stop`: where the roller stands against its target
     # (Cases 1-3), for the pit and for a placed arm
-    stop = cr.arm_stop_case(tips, tgt, p["delta_c"], p["delta_d"])
-    in_pit = lower & contact & front & (stop == cr.STOP_IN_PIT) & (arms.backoff < p["pit_backoff_max"])
+    stop = clm_rules.arm_stop_case(tips, tgt, p["delta_c"], p["delta_d"])
+    in_pit = lower & contact & front & (stop == clm_rules.STOP_IN_PIT) & (arms.backoff < p["pit_backoff_max"])
     deep = transferring & (deep | in_pit)
     tr_cmd = jnp.where(deep[:, None], arms.q_cmd, tr_cmd)
-    tr_next = jnp.where(deep, cr.LIFT, tr_next)
+    tr_next = jnp.where(deep, clm_rules.LIFT, tr_next)
     lift = jnp.where(deep, arms.q_cmd[:, 1] - p["lift_min"], lift)
-    just_placed = transferring & (tr_next == cr.PLACED)
+    just_placed = transferring & (tr_next == clm_rules.PLACED)
     # a placed arm: its contact is where the encoders put the EPRA
     return Transfer(
         cmd=tr_cmd,
@@ -782,10 +779,10 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
 def detect_step(p, confirmed: Array, h_est: Array, on_step: Array, contacts: Array, pitch: Array, roll: Array,
                 walk: Array) -> tuple[Array, Array]:
     """Step detection (WALK): both front arms stopped on an obstacle and H_EST (Eq. 9,
-    `kin.explore_terrain` on the contact points (4, 3) in {R}) > sigma1 [m] -> the step
+    `kinematics.explore_terrain` on the contact points (4, 3) in {R}) > sigma1 [m] -> the step
     is confirmed, H_EST [m] kept (a rear arm in transfer counts with its stored contact).
     Returns (confirmed, h_est)."""
-    est = kin.explore_terrain(_KP, contacts, pitch, roll)
+    est = kinematics.explore_terrain(_KP, contacts, pitch, roll)
     confirm_now = walk & ~confirmed & jnp.all(on_step[:2]) & (est.step_height > p["sigma1"])
     return confirmed | confirm_now, jnp.where(confirm_now, est.step_height, h_est)
 
@@ -824,7 +821,7 @@ def gait_sequence(p, arms: ArmState, tr: Transfer, ph: Phases, confirmed: Array,
     active = jnp.where(start, nxt_arm, active)
     starting = start & (jnp.arange(4) == nxt_arm)
     return arms._replace(
-        arm_phase=jnp.where(starting, cr.LIFT, tr.arm_phase),
+        arm_phase=jnp.where(starting, clm_rules.LIFT, tr.arm_phase),
         ptr=ptr,
         active=active,
         pause=pause,
@@ -838,17 +835,17 @@ def gait_sequence(p, arms: ArmState, tr: Transfer, ph: Phases, confirmed: Array,
 
 
 def front_flipper_rule(p, flip: Array, flip_tau: Array) -> tuple[Array, Array, Array]:
-    """The front flippers' torque rule in WALK (`cr.flipper_rule`, Cases 1-3: T0,
+    """The front flippers' torque rule in WALK (`clm_rules.flipper_rule`, Cases 1-3: T0,
     flip_delta_a, A0, flip_delta_b) on the last commands (4,) [rad] and the flipper
     torques (4,) [N m]. Returns the front flipper commands (2,) [rad], the cases (2,) and
     whether the riser is met: Case 3 (A' > A0), or with stop_on_touch a front flipper
     yielded (Case 2) touch_rise above front_start (a single Case 2 period also comes from
     the arm transfers' jolts)."""
-    f_rule, f_case = cr.flipper_rule(flip[:2], flip_tau[:2], p["T0"], p["flip_delta_a"], p["A0"],
+    f_rule, f_case = clm_rules.flipper_rule(flip[:2], flip_tau[:2], p["T0"], p["flip_delta_a"], p["A0"],
                                      p["flip_delta_b"])
     f_rule = jnp.clip(f_rule, -FLIPPER_MAX, FLIPPER_MAX)
     touched_riser = jnp.any(f_rule > p["front_start"] + p["touch_rise"])
-    at_a0 = jnp.any(f_case == cr.FLIPPER_LIMIT) | ((p["stop_on_touch"] > 0) & touched_riser)
+    at_a0 = jnp.any(f_case == clm_rules.FLIPPER_LIMIT) | ((p["stop_on_touch"] > 0) & touched_riser)
     return f_rule, f_case, at_a0
 
 
@@ -869,7 +866,7 @@ def climb_step(p, s: ClmState, sense: Sensed, h: Array, travel: Array) -> Climb:
     arms lower their EPRAs by delta_e * l1 [m] per period along the world vertical
     (`_tips_moved`), front / rear and left / right arms taking turns to stay within
     level_band [rad] of level, while the front crawler ends are below the step top
-    (front_clearance [m], from the front EPRAs resting on it); Eq. 29 (`cr.climb_rule`):
+    (front_clearance [m], from the front EPRAs resting on it); Eq. 29 (`clm_rules.climb_rule`):
     the flippers turn down by delta_f once the front is lifted (front to flip_min, rear to
     rear_flip_min; with rear_flip_late = 0 the rear ones at once). Over when H - h0 >
     H_EST, S > L (S = `travel` [m] from the front flippers' touch-down) and the pitch below
@@ -881,8 +878,8 @@ def climb_step(p, s: ClmState, sense: Sensed, h: Array, travel: Array) -> Climb:
     rise = h - s.climb.h0
     # the release waits for the body to be back near level (see module docstring)
     s_eff = jnp.where((a_p < p["release_pitch"]) & s.climb.touched, travel, -1.0)
-    _, flip_c, on_top = cr.climb_rule(q_cmd[:, 1], flip, rise, s.h_est, s_eff, p["settle_distance"], p["delta_e"],
-                                      p["delta_f"])
+    _, flip_c, on_top = clm_rules.climb_rule(q_cmd[:, 1], flip, rise, s.h_est, s_eff, p["settle_distance"],
+                                             p["delta_e"], p["delta_f"])
     # the paper: S from the CLIMB start (Eq. 18), H the COG height above the rear EPRAs'
     # ground (Eqs. 10-17) against H_EST
     on_top_paper = (h > s.h_est) & (s.travel > p["settle_distance"])
@@ -891,8 +888,8 @@ def climb_step(p, s: ClmState, sense: Sensed, h: Array, travel: Array) -> Climb:
     # "H < H_EST"); front and rear (left and right) arms take turns so that the body
     # stays within level_band of level; once lifted they only keep it level. (Lifting
     # the nose alone rolls the robot backwards over its rear flipper tips.)
-    axles_c = kin.to_level_frame(jnp.asarray(FRONT_AXLES, dt), a_p, a_r)
-    front_c = kin.to_level_frame(sense.tips[:2], a_p, a_r)
+    axles_c = kinematics.to_level_frame(jnp.asarray(FRONT_AXLES, dt), a_p, a_r)
+    front_c = kinematics.to_level_frame(sense.tips[:2], a_p, a_r)
     clear = jnp.min(axles_c[:, 2] - params.MAIN_WHEEL_RADIUS - (front_c[:, 2] - params.ROLLER_RADIUS))
     front_low = clear < p["front_clearance"]
     band = p["level_band"]
@@ -931,7 +928,7 @@ def release_step(p, q_cmd: Array, flip: Array, pitch: Array, roll: Array) -> tup
     `paper_release_step`. Returns arm commands, flipper commands and whether all are
     back (-> DONE)."""
     dz = p["delta_e"] * params.L1
-    high = kin.arm_tips(_KP, q_cmd)[:, 2] >= TABLE2_Z - 1e-3
+    high = kinematics.arm_tips(_KP, q_cmd)[:, 2] >= TABLE2_Z - 1e-3
     q_release = _tips_moved(q_cmd, ~high, dz, pitch, roll)
     flip_r = jnp.where(flip < 0, jnp.minimum(flip + p["delta_f"], 0.0), flip)
     back = jnp.all(high) & jnp.all(flip >= 0.0)
@@ -1086,8 +1083,8 @@ def clm_step(p, s: ClmState, obs, control_dt: float = CONTROL_DT) -> tuple[ClmSt
     f_rule, f_case, at_riser = front_flipper_rule(p, s.flip, sense.flip_tau)
     stall = crawler_stall(p, s.stall, sense.v, ph, confirmed, s.crawl.sub, control_dt)
     # CLIMB, RELEASE, CRAWL, DONE
-    h = kin.cog_height(_KP, sense.tips, a_p, a_r)
-    travel = kin.travel_update(s.travel, travel_step, a_p)
+    h = kinematics.cog_height(_KP, sense.tips, a_p, a_r)
+    travel = kinematics.travel_update(s.travel, travel_step, a_p)
     climb = climb_step(p, s, sense, h, travel)
     q_release, flip_release, release_over = release_step(p, s.arms.q_cmd, s.flip, a_p, a_r)
     flip_crawl, crawl, crawl_over = crawl_step(p, s, sense, stall > p["stall_s"], ph.crawl, control_dt)
@@ -1095,7 +1092,7 @@ def clm_step(p, s: ClmState, obs, control_dt: float = CONTROL_DT) -> tuple[ClmSt
     # commands: the PREPARE approach holds the arm commands (the passive rollers roll
     # along with the body: holding the contacts by the encoder travel there loaded the
     # arms more as the tracks slipped at the riser, until the robot stood on its arms)
-    support = s.arms.arm_phase == cr.PLACED
+    support = s.arms.arm_phase == clm_rules.PLACED
     hold = support & ~(approaching & ~approach.squared)
     q_cmd = arm_commands(ph, tr.transferring, hold, tr.cmd, q_hold, s.arms.q_cmd, climb.q, q_release, q_done)
     flip_n = flipper_commands(p, ph, s.flip, f_rule, climb.flip, flip_release, flip_crawl)

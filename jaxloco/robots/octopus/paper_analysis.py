@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from jaxloco.analysis import Analysis, Param, Summary, mean_worst
-from jaxloco.robots.octopus import sim_analysis as sa
+from jaxloco.robots.octopus import sim_analysis
 
 
 @dataclass(frozen=True)
@@ -83,10 +83,10 @@ def _with_default(p: Param) -> Param:
 PARAMS = (
     Param("task", "step1_clm", "the paper's experiment: " + "; ".join(f"{k}: {t.doc}" for k, t in TASKS.items()),
           kind="str", choices=TASK_NAMES),
-    *(_with_default(p) for p in sa.PARAMS if p.name not in _TASK_OWNED),
+    *(_with_default(p) for p in sim_analysis.PARAMS if p.name not in _TASK_OWNED),
 )
-METRICS = sa.METRICS
-STATUSES = sa.STATUSES
+METRICS = sim_analysis.METRICS
+STATUSES = sim_analysis.STATUSES
 
 
 def task_values(task: str) -> dict[str, Any]:
@@ -104,8 +104,8 @@ def make_batch_fn(fixed: Mapping[str, Any]):
     def batch_of(task: str):
         if task not in batches:
             values = task_values(task)
-            step_fixed = {**sa.PARAM_DEFAULTS, **{k: v for k, v in fixed.items() if k != "task"}, **values}
-            batches[task] = sa.make_batch_fn(step_fixed)
+            step_fixed = {**sim_analysis.PARAM_DEFAULTS, **{k: v for k, v in fixed.items() if k != "task"}, **values}
+            batches[task] = sim_analysis.make_batch_fn(step_fixed)
         return batches[task]
 
     def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:

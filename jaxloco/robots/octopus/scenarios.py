@@ -79,8 +79,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.robots.octopus import ccm, clm, operator, params
-from jaxloco.robots.octopus import model as octo_model
+from jaxloco.robots.octopus import ccm, clm, model, operator, params
 from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.data import SimData, sensor_slice
@@ -115,15 +114,15 @@ CONTACT_SITES = (
     + tuple(f"{a}_tip" for a in params.ARM_NAMES)
 )
 N_ARM_SITES = 4  # the last CONTACT_SITES are the arm roller centres
-# the touch sensors of the CONTACT_SITES, in that order (`octo_model.touch_names`): main
+# the touch sensors of the CONTACT_SITES, in that order (`model.touch_names`): main
 # end wheels, flipper tip wheels, rollers
 CONTACT_TOUCH = tuple(n.removesuffix("_tip") + "_touch" for n in CONTACT_SITES)
-# every touch sensor (one per wheel and roller), `octo_model.touch_names` order: those of
+# every touch sensor (one per wheel and roller), `model.touch_names` order: those of
 # the CONTACT_SITES (CONTACT_TOUCH), then the other wheels
-SUPPORT_TOUCH = octo_model.touch_names()
+SUPPORT_TOUCH = model.touch_names()
 # the wheel and roller bodies of the SUPPORT_TOUCH sensors, in that order: the support set
-_BODY_OF_TOUCH = {octo_model.touch_name(b): b for b in
-                  [w for s in "lr" for w in octo_model.wheel_names(s)] + [f"{a}_roller" for a in params.ARM_NAMES]}
+_BODY_OF_TOUCH = {model.touch_name(b): b for b in
+                  [w for s in "lr" for w in model.wheel_names(s)] + [f"{a}_roller" for a in params.ARM_NAMES]}
 SUPPORT_BODIES = tuple(_BODY_OF_TOUCH[n] for n in SUPPORT_TOUCH)
 # the wheel bodies of each segment of the bottom line (`track_load`): side (l, r) x (rear
 # flipper, main crawler, front flipper); a flipper segment has the flipper's wheels and
@@ -159,7 +158,7 @@ def build_model(kind: str) -> tuple[mujoco.MjModel, tr.Terrain]:
     """The robot (`models/octopus.xml`) with the terrain of `kind`."""
     if kind not in KINDS:
         raise ValueError(f"kind: expected one of {', '.join(KINDS)}, got {kind!r}")
-    spec = octo_model.load_spec()
+    spec = model.load_spec()
     if kind == "flat":
         terrain = tr.flat(half_extent=10.0, half_depth=0.5)
     elif kind == "block":
@@ -289,7 +288,7 @@ def make_scenario(
     support = np.array([m.body(b).id for b in SUPPORT_BODIES])
     radii = np.array([_sphere_radius(m, b) for b in support])
     segment_sum = np.array([[[b in seg for b in SUPPORT_BODIES] for seg in side] for side in SEGMENT_WHEELS], float)
-    qpos0, ctrl0 = octo_model.pose_qpos_ctrl(m, arms0, [PARAM_DEFAULTS[front_key]] * 2 + [0.0, 0.0])
+    qpos0, ctrl0 = model.pose_qpos_ctrl(m, arms0, [PARAM_DEFAULTS[front_key]] * 2 + [0.0, 0.0])
     qpos0, ctrl0 = jnp.asarray(qpos0), jnp.asarray(ctrl0)
     flip_adr = np.array([m.joint(n).qposadr[0] for n in params.FLIPPER_NAMES])
     flip_act = np.array([m.actuator(n).id for n in params.FLIPPER_NAMES])

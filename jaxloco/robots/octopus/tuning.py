@@ -53,8 +53,7 @@ import numpy as np
 
 from jaxloco.analysis import Param
 from jaxloco.errors import SpecError
-from jaxloco.robots.octopus import analysis
-from jaxloco.robots.octopus import kinematics as kin
+from jaxloco.robots.octopus import analysis, kinematics
 from jaxloco.robots.octopus.params import SIGMA
 from jaxloco.tune.objective import Objective, Tunable
 
@@ -228,13 +227,13 @@ def make_loss(settings: Mapping[str, Any]):
         expected = probs * cost
         soft_undetectable = jnp.sum(w * expected[:, 0])
         soft_danger = jnp.sum(w * jnp.sum(expected[:, 1:], axis=1))
-        case = jax.vmap(lambda d: kin.terrain_case(d, sigma))(diffs)
+        case = jax.vmap(lambda d: kinematics.terrain_case(d, sigma))(diffs)
         hot = jax.nn.one_hot(case, 4, dtype=dt)
         right = jnp.sum(hot * truth, axis=1)
         aux = {
             "accuracy": jnp.sum(w * right),
-            "danger_rate": jnp.sum(w * (case != kin.CASE_UNDETECTABLE) * (1.0 - right)),
-            "undetectable_rate": jnp.sum(w * (case == kin.CASE_UNDETECTABLE) * (1.0 - right)),
+            "danger_rate": jnp.sum(w * (case != kinematics.CASE_UNDETECTABLE) * (1.0 - right)),
+            "undetectable_rate": jnp.sum(w * (case == kinematics.CASE_UNDETECTABLE) * (1.0 - right)),
             "hard_cost": jnp.sum(w * jnp.sum(hot * cost, axis=1)),
             "soft_danger": soft_danger,
             "soft_undetectable": soft_undetectable,
