@@ -30,11 +30,11 @@ from jaxloco import runtime
 runtime.configure(x64=True, cache_dir=True)
 
 from jaxloco import sweep
-from jaxloco.robots.octopus import paper_analysis as pa
+from jaxloco.robots.octopus import paper_analysis
 
 CLM_TASKS = ("step1_clm", "step2_front", "step2_side", "block")
 ROW_SETS = (
-    ("paper", pa.TASK_NAMES, {}),
+    ("paper", paper_analysis.TASK_NAMES, {}),
     ("ours, level lift", CLM_TASKS, {"climb_paper": 0.0}),
     ("ours, level lift + CRAWL", ("step2_front",), {"climb_paper": 0.0, "crawl_max_h": 0.25}),
     ("operator", CLM_TASKS, {"operator_gain": 0.2}),
@@ -65,7 +65,7 @@ def main(argv: list[str]) -> None:
         for label, tasks, fixed in sets:
             table, wall = run_set(tasks, fixed, n, f"{tmp}/{len(throughput)}")
             throughput.append((label, len(tasks) * n, wall))
-            summary = pa.summarize(table)
+            summary = paper_analysis.summarize(table)
             for row in summary.rows:
                 task, success, pitch, roll, margin, t, failures = row
                 print(f"{label:<26} {task:<12} {success:>14} | {pitch:>18} | {roll:>18} | {margin:>21} | {t:>6} | "
