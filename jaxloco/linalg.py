@@ -7,6 +7,14 @@ execution waits on the runtime's thread pool (seen with the T² Snake-3 controll
 weighted pseudo-inverse; the same solve alone, or one device, runs). The systems here
 are tiny (up to ~20 unknowns), so an unrolled Cholesky factorization costs little,
 differentiates with ordinary autodiff and keeps every program free of custom calls.
+
+Two forms. `cholesky` / `spd_solve` work on arrays (column updates with `.at[].set`
+and small dots). `cholesky_scalars`, `cho_solve_scalars`, `solve_upper` and
+`solve_upper_transposed` are unrolled scalar by scalar, so that under `jax.vmap` each
+scalar operation becomes one elementwise operation over the batch and XLA fuses them
+into a few loops: an 8 x 8 factorization and solve at batch 2,000 costs ~120 ns per
+problem against ~1,000 ns for `spd_solve` (2 CPU cores, 4 Dec 2026). `jaxloco.qp_ipm`
+uses the scalar forms.
 """
 
 from __future__ import annotations
@@ -77,3 +85,65 @@ def spd_solve(M: Array, B: Array) -> Array:
     vector = B.ndim == 1
     X = _solve(M, B[:, None] if vector else B)
     return X[:, 0] if vector else X
+
+
+def cholesky_scalars(M: Array) -> list:
+    """Lower-triangular L (rows as lists of scalars, L[i][j] for j <= i), L L^T = M.
+
+    M is a symmetric positive definite (k, k) array; a non-positive pivot gives NaN."""
+    k = M.shape[0]
+    L = [[None] * (i + 1) for i in range(k)]
+    for j in range(k):
+        acc = M[j, j]
+        for c in range(j):
+            acc = acc - L[j][c] * L[j][c]
+        d = jnp.sqrt(acc)
+        L[j][j] = d
+        inv = 1.0 / d
+        for i in range(j + 1, k):
+            acc = M[i, j]
+            for c in range(j):
+                acc = acc - L[i][c] * L[j][c]
+            L[i][j] = acc * inv
+    return L
+
+
+def cho_solve_scalars(L: list, r: Array) -> Array:
+    """Solve L L^T x = r for x (r: (k,); L from `cholesky_scalars`)."""
+    k = len(L)
+    y = [None] * k
+    for i in range(k):
+        acc = r[i]
+        for c in range(i):
+            acc = acc - L[i][c] * y[c]
+        y[i] = acc / L[i][i]
+    x = [None] * k
+    for i in reversed(range(k)):
+        acc = y[i]
+        for c in range(i + 1, k):
+            acc = acc - L[c][i] * x[c]
+        x[i] = acc / L[i][i]
+    return jnp.stack(x)
+
+
+def solve_upper_transposed(R: Array, b: Array) -> Array:
+    """Solve R^T w = b for upper-triangular R (m, m)."""
+    w = []
+    for i in range(b.shape[0]):
+        acc = b[i]
+        for c in range(i):
+            acc = acc - R[c, i] * w[c]
+        w.append(acc / R[i, i])
+    return jnp.stack(w)
+
+
+def solve_upper(R: Array, c: Array) -> Array:
+    """Solve R y = c for upper-triangular R (m, m)."""
+    m = c.shape[0]
+    y = [None] * m
+    for i in reversed(range(m)):
+        acc = c[i]
+        for j in range(i + 1, m):
+            acc = acc - R[i, j] * y[j]
+        y[i] = acc / R[i, i]
+    return jnp.stack(y)

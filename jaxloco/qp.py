@@ -72,7 +72,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from jaxloco import qp_ipm
+from jaxloco import linalg, qp_ipm
 
 __all__ = ["QPSolution", "solve", "solve_batch"]
 
@@ -134,16 +134,16 @@ def _adjoint_solve(Q, A, G, D, a, b, gz, refinements):
     m = b.shape[0]
     null = qp_ipm.null_space(A) if m else None
     H = Q + (G.T * D) @ G
-    L = qp_ipm.cholesky(H if not m else null.Z.T @ H @ null.Z)
+    L = linalg.cholesky_scalars(H if not m else null.Z.T @ H @ null.Z)
 
     def solve(a, b, c):  # Q dx + A^T dy + G^T w = a, A dx = b, D G dx - w = c
         rhs = a + G.T @ c
         if not m:
-            dx = qp_ipm.cho_solve(L, rhs)
+            dx = linalg.cho_solve_scalars(L, rhs)
             return dx, jnp.zeros((0,), a.dtype), D * (G @ dx) - c
-        dx0 = null.Y @ qp_ipm.solve_rt(null.R, b)
-        dx = dx0 + null.Z @ qp_ipm.cho_solve(L, null.Z.T @ (rhs - H @ dx0))
-        dy = qp_ipm.solve_r(null.R, null.Y.T @ (rhs - H @ dx))
+        dx0 = null.Y @ linalg.solve_upper_transposed(null.R, b)
+        dx = dx0 + null.Z @ linalg.cho_solve_scalars(L, null.Z.T @ (rhs - H @ dx0))
+        dy = linalg.solve_upper(null.R, null.Y.T @ (rhs - H @ dx))
         return dx, dy, D * (G @ dx) - c
 
     c = D * gz

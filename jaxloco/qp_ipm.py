@@ -6,7 +6,8 @@ Written for thousands of tiny problems (n <= ~20) solved at once under `jax.vmap
 a CPU: every matrix product is one batched `dot_general`, and the sequential parts
 (the Cholesky factorization and the triangular solves of the k x k reduced system) are
 unrolled scalar by scalar, so `vmap` turns each of their scalar operations into one
-elementwise operation over the batch, which XLA fuses into a few loops. No LAPACK
+elementwise operation over the batch, which XLA fuses into a few loops (the scalar forms
+of `jaxloco.linalg`). No LAPACK
 custom call is emitted (batched LAPACK calls can deadlock XLA's CPU thread pool).
 
 Method (in the caller's units; the caller, `jaxloco.qp`, scales the problem first):
@@ -37,75 +38,14 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from jaxloco import linalg
+
 Array = jax.Array
 
-__all__ = ["IPMResult", "NullSpace", "cholesky", "cho_solve", "null_space", "solve_ipm",
-           "solve_r", "solve_rt"]
+__all__ = ["IPMResult", "NullSpace", "null_space", "solve_ipm"]
 
 
-# ------------------------------------------------------ unrolled small factorizations
-def cholesky(M: Array) -> list:
-    """Lower-triangular L (rows as lists of scalars, L[i][j] for j <= i), L L^T = M.
-
-    M is a symmetric positive definite (k, k) array; a non-positive pivot gives NaN."""
-    k = M.shape[0]
-    L = [[None] * (i + 1) for i in range(k)]
-    for j in range(k):
-        acc = M[j, j]
-        for c in range(j):
-            acc = acc - L[j][c] * L[j][c]
-        d = jnp.sqrt(acc)
-        L[j][j] = d
-        inv = 1.0 / d
-        for i in range(j + 1, k):
-            acc = M[i, j]
-            for c in range(j):
-                acc = acc - L[i][c] * L[j][c]
-            L[i][j] = acc * inv
-    return L
-
-
-def cho_solve(L: list, r: Array) -> Array:
-    """Solve L L^T x = r for x (r: (k,))."""
-    k = len(L)
-    y = [None] * k
-    for i in range(k):
-        acc = r[i]
-        for c in range(i):
-            acc = acc - L[i][c] * y[c]
-        y[i] = acc / L[i][i]
-    x = [None] * k
-    for i in reversed(range(k)):
-        acc = y[i]
-        for c in range(i + 1, k):
-            acc = acc - L[c][i] * x[c]
-        x[i] = acc / L[i][i]
-    return jnp.stack(x)
-
-
-def solve_rt(R: Array, b: Array) -> Array:
-    """Solve R^T w = b for upper-triangular R (m, m)."""
-    w = []
-    for i in range(b.shape[0]):
-        acc = b[i]
-        for c in range(i):
-            acc = acc - R[c, i] * w[c]
-        w.append(acc / R[i, i])
-    return jnp.stack(w)
-
-
-def solve_r(R: Array, c: Array) -> Array:
-    """Solve R y = c for upper-triangular R (m, m)."""
-    m = c.shape[0]
-    y = [None] * m
-    for i in reversed(range(m)):
-        acc = c[i]
-        for j in range(i + 1, m):
-            acc = acc - R[i, j] * y[j]
-        y[i] = acc / R[i, i]
-    return jnp.stack(y)
-
-
+# ------------------------------------------------------------------ equality removal
 class NullSpace(NamedTuple):
     """A^T = Y R with [Y Z] orthogonal (n, n) and R upper triangular (m, m)."""
 
@@ -171,7 +111,7 @@ def _reduce(Q, q, G, h, x0, Z) -> _Reduced:
 def _direction(L, red: _Reduced, D, r_d, r_p, r_c, s):
     """Newton step of Q du + G^T dz = -r_d, G du + ds = -r_p, Z ds + S dz = -r_c."""
     rc_s = r_c / s
-    du = cho_solve(L, red.G.T @ (rc_s - D * r_p) - r_d)
+    du = linalg.cho_solve_scalars(L, red.G.T @ (rc_s - D * r_p) - r_d)
     Gdu = red.G @ du
     return du, -r_p - Gdu, -rc_s + D * (r_p + Gdu)
 
@@ -190,7 +130,7 @@ def _start(red: _Reduced):
     """CVXOPT's initial point: the least-squares solution with s = z = 1, then s and z
     shifted into the positive orthant."""
     H = red.Q + red.G.T @ red.G
-    u = cho_solve(cholesky(H), red.G.T @ red.h - red.q)
+    u = linalg.cho_solve_scalars(linalg.cholesky_scalars(H), red.G.T @ red.h - red.q)
     r = red.G @ u - red.h  # = -s
     worst_s, worst_z = jnp.max(r), -jnp.min(r)
     s = jnp.where(worst_s < 0, -r, -r + 1.0 + worst_s)
@@ -206,7 +146,7 @@ def _mehrotra_step(red: _Reduced, state: _Iterate) -> _Iterate:
     p = s.shape[0]
     r_d, r_p = _residuals(red, u, s, z)
     D = z / s
-    L = cholesky(red.Q + (red.G.T * D) @ red.G)
+    L = linalg.cholesky_scalars(red.Q + (red.G.T * D) @ red.G)
     sz = s * z
     mu = jnp.sum(sz) / p
     _, ds_a, dz_a = _direction(L, red, D, r_d, r_p, sz, s)
@@ -226,7 +166,7 @@ def solve_ipm(Q: Array, q: Array, A: Array, b: Array, G: Array, h: Array, *,
     n, m = q.shape[0], b.shape[0]
     if m:
         ns = null_space(A)
-        x0 = ns.Y @ solve_rt(ns.R, b)
+        x0 = ns.Y @ linalg.solve_upper_transposed(ns.R, b)
         Z = ns.Z
     else:
         x0, Z = jnp.zeros_like(q), jnp.eye(n, dtype=q.dtype)
@@ -235,7 +175,7 @@ def solve_ipm(Q: Array, q: Array, A: Array, b: Array, G: Array, h: Array, *,
     final = jax.lax.fori_loop(0, iterations, lambda _, st: _mehrotra_step(red, st), _Iterate(u, s, z))
     x = x0 + Z @ final.u
     if m:
-        y = solve_r(ns.R, -(ns.Y.T @ (Q @ x + q + G.T @ final.z)))
+        y = linalg.solve_upper(ns.R, -(ns.Y.T @ (Q @ x + q + G.T @ final.z)))
     else:
         y = jnp.zeros((0,), q.dtype)
     return IPMResult(x, y, final.z, final.s, jnp.asarray(iterations, jnp.int32))

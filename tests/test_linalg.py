@@ -2,7 +2,8 @@
 on random symmetric positive definite systems of the sizes the controllers use
 (n = 1, 6, 18), for vector and matrix right-hand sides, in float64 and float32; its
 derivatives (autodiff through the unrolled factorization) against finite differences;
-and no custom calls in the compiled program (why the module exists)."""
+and no custom calls in the compiled program (why the module exists). The scalar forms
+(`cholesky_scalars`, `cho_solve_scalars`) against NumPy."""
 
 from __future__ import annotations
 
@@ -82,3 +83,14 @@ def test_no_custom_calls_in_the_compiled_program():
     M = jnp.asarray(_spd(18, seed=0))
     text = _SOLVE.lower(M, jnp.ones(18)).as_text()
     assert "custom_call" not in text and "lapack" not in text.lower()
+
+
+def test_scalar_cholesky_and_solve_match_numpy():
+    rng = np.random.default_rng(1)
+    B = rng.normal(size=(7, 7))
+    M = B @ B.T + 0.1 * np.eye(7)
+    r = rng.normal(size=7)
+    L = linalg.cholesky_scalars(jnp.asarray(M))
+    dense = np.array([[float(L[i][j]) if j <= i else 0.0 for j in range(7)] for i in range(7)])
+    np.testing.assert_allclose(dense, np.linalg.cholesky(M), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(linalg.cho_solve_scalars(L, jnp.asarray(r)), np.linalg.solve(M, r), rtol=1e-10)

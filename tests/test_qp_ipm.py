@@ -1,5 +1,5 @@
-"""jaxloco.qp_ipm: the unrolled factorizations against NumPy, the interior-point method
-against clarabel, and the batched program against the properties the
+"""jaxloco.qp_ipm: the null space against its defining properties, the interior-point
+method against clarabel, and the batched program against the properties the
 QP layer relies on (one call for a batch of 4,096, no custom calls)."""
 
 from __future__ import annotations
@@ -12,18 +12,7 @@ import numpy as np
 import pytest
 from test_qp import KEYS, X_SCALE, clarabel_solve, make_problem
 
-from jaxloco import qp, qp_ipm
-
-
-def test_cholesky_and_solve_match_numpy():
-    rng = np.random.default_rng(1)
-    B = rng.normal(size=(7, 7))
-    M = B @ B.T + 0.1 * np.eye(7)
-    r = rng.normal(size=7)
-    L = qp_ipm.cholesky(jnp.asarray(M))
-    dense = np.array([[float(L[i][j]) if j <= i else 0.0 for j in range(7)] for i in range(7)])
-    np.testing.assert_allclose(dense, np.linalg.cholesky(M), rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(qp_ipm.cho_solve(L, jnp.asarray(r)), np.linalg.solve(M, r), rtol=1e-10)
+from jaxloco import linalg, qp, qp_ipm
 
 
 def test_null_space_is_an_orthonormal_complement():
@@ -36,7 +25,8 @@ def test_null_space_is_an_orthonormal_complement():
     np.testing.assert_allclose(Y @ R, A.T, atol=1e-12)
     np.testing.assert_allclose(np.tril(R, -1), 0.0)
     b = rng.normal(size=5)
-    np.testing.assert_allclose(A @ (Y @ np.asarray(qp_ipm.solve_rt(jnp.asarray(R), jnp.asarray(b)))), b, atol=1e-10)
+    w = np.asarray(linalg.solve_upper_transposed(jnp.asarray(R), jnp.asarray(b)))
+    np.testing.assert_allclose(A @ (Y @ w), b, atol=1e-10)
 
 
 @pytest.fixture(scope="module")
