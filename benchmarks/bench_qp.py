@@ -3,6 +3,7 @@
 
     python benchmarks/bench_qp.py [--iterations 25] [--float32] [--problems file.npz]
     python benchmarks/bench_qp.py --set contact --peers --batches 2000   # the peers table of the README
+    python benchmarks/bench_qp.py --devices 2 ...   # each batch sharded over 2 CPU devices (cores)
 
 Without --problems it uses random QPs: `--set random` (default) quadruped-force-
 distribution-sized ones (n=16 with 12 forces of O(70 N), a zero-curvature margin
@@ -156,6 +157,9 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--sequential", action="store_true",
                     help="solve_batch(sequential=True): lax.map instead of vmap")
+    ap.add_argument("--devices", type=int, default=1,
+                    help="JAX CPU devices to shard each batch over (as a sweep does: one per core); "
+                         "batches not divisible by it run on one device")
     ap.add_argument("--watchdog", type=float, default=600.0,
                     help="abort with a stack dump if one measurement takes longer (s)")
     args = ap.parse_args(argv)
@@ -164,7 +168,10 @@ def main(argv=None):
     import jax.numpy as jnp
 
     jax.config.update("jax_enable_x64", not args.float32)
+    jax.config.update("jax_num_cpu_devices", args.devices)
     from jaxloco import qp
+
+    mesh = jax.sharding.Mesh(np.array(jax.devices()), ("batch",))
 
     dtype = np.float32 if args.float32 else np.float64
     tol = args.tol if args.tol is not None else (1e-4 if args.float32 else 1e-6)
@@ -176,7 +183,7 @@ def main(argv=None):
     n, m, p = data["q"].shape[1], data["b"].shape[1], data["h"].shape[1]
     print(f"jaxloco.qp benchmark: {src}; n={n} m={m} p={p}; {np.dtype(dtype).name}; "
           f"iterations={args.iterations} tol={tol:g}; {'lax.map' if args.sequential else 'vmap'}; "
-          f"jax {jax.__version__} on {jax.devices()[0].platform}", flush=True)
+          f"jax {jax.__version__} on {len(jax.devices())} {jax.devices()[0].platform} device(s)", flush=True)
 
     def batched(Q, q, A, b, G, h, xs, tol=tol):
         return qp.solve_batch(Q, q, A, b, G, h, x_scale=xs, iterations=args.iterations, tol=tol,
@@ -187,7 +194,10 @@ def main(argv=None):
         faulthandler.dump_traceback_later(args.watchdog, exit=True, file=sys.stderr)
 
     def as_args(d, dt=dtype):
-        return tuple(jnp.asarray(d[k], dt) for k in (*KEYS, "x_scale"))
+        arrays = tuple(jnp.asarray(d[k], dt) for k in (*KEYS, "x_scale"))
+        if arrays[1].shape[0] % len(mesh.devices):
+            return arrays
+        return jax.device_put(arrays, jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch")))
 
     sol = None
     rows = []  # (solver, batch, QPs/s, ok fraction, x)

@@ -1,7 +1,7 @@
 """`jaxloco check SPEC`: what running a sweep or tune spec would do, without running it.
 
 For a sweep: rows, chunks, batch calls per chunk and rows per call as the runner makes
-them on this machine's JAX devices (`chunks.rows_per_call`, `chunks.call_slices`), the
+them on this machine's JAX devices (`chunks.rows_per_call`), the
 output directory's state (`store.check_output`) and a time estimate. For a tuning: the
 objective, tunables, settings, optimizer, steps, output state and the [validate] sweep.
 
@@ -158,7 +158,7 @@ class SweepPlan:
 
     bounds: list[tuple[int, int]]  # (start, stop) rows of every chunk
     batch: int  # rows per call of the batch function (padded; host: the chunk size)
-    calls: list[int]  # calls per chunk
+    calls: list[int]  # calls per chunk (one each: a chunk is one call)
     padded: set[int]  # the distinct row counts the calls are made with (compiled shapes)
     n_devices: int
     platform: str
@@ -177,15 +177,14 @@ class SweepPlan:
 
 def sweep_plan(spec: SweepSpec, n_devices: int, platform: str) -> SweepPlan:
     """The chunks and calls of `spec` on `n_devices` JAX devices of `platform` ("cpu", "gpu")."""
-    from jaxloco.sweep.chunks import call_slices, rows_per_call
+    from jaxloco.sweep.chunks import rows_per_call
     from jaxloco.sweep.grid import chunk_bounds
 
     host = spec.analysis.executor == "host"
     bounds = chunk_bounds(spec.n_rows, spec.chunk_size)
     batch = rows_per_call(spec.chunk_size, spec.n_rows, n_devices, platform, host)
-    slices = [call_slices(stop - start, batch) for start, stop in bounds]
-    padded = {hi - lo if host else batch for chunk in slices for lo, hi in chunk}
-    return SweepPlan(bounds, batch, [len(s) for s in slices], padded, n_devices, platform, host)
+    padded = {stop - start if host else batch for start, stop in bounds}
+    return SweepPlan(bounds, batch, [1] * len(bounds), padded, n_devices, platform, host)
 
 
 def jax_devices() -> tuple[int, str]:

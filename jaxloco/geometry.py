@@ -18,6 +18,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from jaxloco import linalg
+
 Array = jax.Array
 
 
@@ -157,7 +159,7 @@ def fit_plane(points: Array, mask: Array | None = None) -> tuple[Array, Array]:
     w = jnp.ones(points.shape[0], points.dtype) if mask is None else mask.astype(points.dtype)
     X = jnp.stack([jnp.ones_like(points[:, 0]), points[:, 0], points[:, 1]], axis=1)
     XtW = X.T * w
-    c = jnp.linalg.solve(XtW @ X, XtW @ points[:, 2])
+    c = linalg.spd_solve(XtW @ X, XtW @ points[:, 2])
     raw = jnp.stack([-c[1], -c[2], jnp.ones_like(c[0])])
     scale = jnp.linalg.norm(raw)
     return raw / scale, c[0] / scale

@@ -147,3 +147,17 @@ def solve_upper(R: Array, c: Array) -> Array:
             acc = acc - R[i, j] * y[j]
         y[i] = acc / R[i, i]
     return jnp.stack(y)
+
+
+def solve_2x2(M: Array, b: Array) -> Array:
+    """x with M x = b for a non-singular (2, 2) M and b (2,), in closed form (Cramer's
+    rule; a singular M gives inf or NaN, as LAPACK's solve would)."""
+    det = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
+    return jnp.stack([M[1, 1] * b[0] - M[0, 1] * b[1], M[0, 0] * b[1] - M[1, 0] * b[0]]) / det
+
+
+def det_3x3(M: Array) -> Array:
+    """Determinant of a (3, 3) matrix by cofactor expansion along the first row."""
+    return (M[0, 0] * (M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1])
+            - M[0, 1] * (M[1, 0] * M[2, 2] - M[1, 2] * M[2, 0])
+            + M[0, 2] * (M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]))

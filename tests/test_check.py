@@ -119,17 +119,15 @@ def batch_calls(monkeypatch):
 
 def test_rows_per_call_is_the_runners_call_shape():
     assert chunks.rows_per_call(101, 505, 2, "cpu", host=False) == 102  # padded to the devices
-    assert chunks.rows_per_call(2000, 5000, 2, "cpu", host=False) == 2 * chunks.MAX_ROWS_PER_DEVICE
-    assert chunks.rows_per_call(2000, 5000, 2, "gpu", host=False) == 2000  # accelerators: the chunk
+    assert chunks.rows_per_call(4096, 5000, 2, "cpu", host=False) == 4096  # the chunk, in one call
+    assert chunks.rows_per_call(2000, 5000, 2, "gpu", host=False) == 2000
     assert chunks.rows_per_call(8, 3, 2, "cpu", host=False) == 4  # never more than the sweep's rows
     assert chunks.rows_per_call(8, 3, 2, "cpu", host=True) == 8  # a host analysis: the chunk, unpadded
-    assert chunks.call_slices(5, 2) == [(0, 2), (2, 4), (4, 5)]
 
 
 def test_plan_printed_matches_the_runner(workdir, monkeypatch, batch_calls):
-    """Several calls per chunk (a cap of 1 row per device): the rows, chunks and calls that
-    check prints are those of load_spec and of the runner's actual calls, all of one shape."""
-    monkeypatch.setattr(chunks, "MAX_ROWS_PER_DEVICE", 1)
+    """The rows, chunks and calls that check prints are those of load_spec and of the
+    runner's actual calls: one per chunk, all of one shape (the last chunk padded)."""
     path = write_sweep(workdir, chunk_size=5)
     spec = load_spec(path)
     devices = len(jax.devices())
@@ -141,16 +139,15 @@ def test_plan_printed_matches_the_runner(workdir, monkeypatch, batch_calls):
     assert max(len(line) for line in out.splitlines()) <= 80
     assert field(out, "rows") == f"{spec.n_rows} = 5 a x 2 flag x 2 seeds" and spec.n_rows == 20
     assert field(out, "chunks") == "4 x 5 rows"
-    calls_per_chunk = -(-5 // devices)
-    assert field(out, "calls").startswith(f"{calls_per_chunk} per chunk ({4 * calls_per_chunk} in all), "
-                                          f"{devices} rows per call")  # fmt: skip
-    assert field(out, "compiled shapes") == f"1 (calls padded to {devices} rows)"
+    batch = -(-5 // devices) * devices
+    assert field(out, "calls").startswith(f"1 per chunk (4 in all), {batch} rows per call")
+    assert field(out, "compiled shapes") == f"1 (calls padded to {batch} rows)"
     assert field(out, "output") == "results/toy: absent (the sweep creates it)"
     assert "(from the spec's header)" in field(out, "estimate")
     assert not (workdir / "results").exists()
 
     run(spec, progress=False)
-    assert len(batch_calls) == sum(plan.calls) == 4 * calls_per_chunk
+    assert len(batch_calls) == sum(plan.calls) == 4
     assert set(batch_calls) == plan.padded == {plan.batch}
 
 

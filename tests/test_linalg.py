@@ -3,7 +3,8 @@ on random symmetric positive definite systems of the sizes the controllers use
 (n = 1, 6, 18), for vector and matrix right-hand sides, in float64 and float32; its
 derivatives (autodiff through the unrolled factorization) against finite differences;
 and no custom calls in the compiled program (why the module exists). The scalar forms
-(`cholesky_scalars`, `cho_solve_scalars`) against NumPy."""
+(`cholesky_scalars`, `cho_solve_scalars`) and the closed forms (`solve_2x2`, `det_3x3`)
+against NumPy."""
 
 from __future__ import annotations
 
@@ -94,3 +95,18 @@ def test_scalar_cholesky_and_solve_match_numpy():
     dense = np.array([[float(L[i][j]) if j <= i else 0.0 for j in range(7)] for i in range(7)])
     np.testing.assert_allclose(dense, np.linalg.cholesky(M), rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(linalg.cho_solve_scalars(L, jnp.asarray(r)), np.linalg.solve(M, r), rtol=1e-10)
+
+
+def test_closed_form_2x2_solve_and_3x3_determinant_match_numpy():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        M2, b, M3 = rng.normal(size=(2, 2)), rng.normal(size=2), rng.normal(size=(3, 3))
+        np.testing.assert_allclose(linalg.solve_2x2(jnp.asarray(M2), jnp.asarray(b)), np.linalg.solve(M2, b),
+                                   rtol=1e-9, atol=1e-12)
+        assert abs(float(linalg.det_3x3(jnp.asarray(M3))) - np.linalg.det(M3)) < 1e-12
+    M2, b, M3 = (jnp.asarray(v) for v in (rng.normal(size=(2, 2)) + 2 * np.eye(2), rng.normal(size=2),
+                                          rng.normal(size=(3, 3))))
+    check_grads(linalg.solve_2x2, (M2, b), order=2, modes=("fwd", "rev"))
+    check_grads(linalg.det_3x3, (M3,), order=2, modes=("fwd", "rev"))
+    text = jax.jit(linalg.solve_2x2).lower(M2, b).as_text() + jax.jit(linalg.det_3x3).lower(M3).as_text()
+    assert "custom_call" not in text

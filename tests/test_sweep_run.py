@@ -332,18 +332,6 @@ def test_int_sweep_uses_int32_inputs(tmp_path):
     assert np.array_equal(result.table.column("m").to_numpy(), [0, 2, 4, 6])
 
 
-def test_chunks_larger_than_one_call_are_split(tmp_path, monkeypatch):
-    """A chunk bigger than MAX_ROWS_PER_DEVICE x devices runs as several calls of one
-    compiled shape (guarding against jaxlib's batched-LAPACK hang); the table is the
-    same as with one call per chunk."""
-    from jaxloco.sweep import chunks
-
-    whole = run(toy_spec(tmp_path / "whole"), progress=False).table
-    monkeypatch.setattr(chunks, "MAX_ROWS_PER_DEVICE", 1)
-    split = run(toy_spec(tmp_path / "split"), progress=False).table
-    assert split.drop_columns(["jaxloco_version"]).equals(whole.drop_columns(["jaxloco_version"]))
-
-
 def test_a_wide_summary_is_not_cut_in_a_narrow_terminal():
     import io
 

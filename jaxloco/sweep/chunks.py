@@ -116,22 +116,19 @@ def _check_swept(spec: SweepSpec) -> None:
 def rows_per_call(chunk_size: int, n_rows: int, n_devices: int, platform: str, host: bool) -> int:
     """Rows of one call of the batch function (every call of a sweep has this shape).
 
-    The batch axis is sharded over every JAX device (all CPU cores, or the GPUs): on CPU
-    one compiled call takes at most MAX_ROWS_PER_DEVICE rows per device and larger chunks
-    run in several calls of that shape (accelerators take the whole chunk); the rows are
-    padded to a multiple of n_devices. A host analysis batches itself: one call per chunk
-    of chunk_size rows, not padded. platform: JAX's, e.g. "cpu" or "gpu".
+    A JAX analysis runs each chunk as one compiled call whose batch axis is sharded over
+    every JAX device (all CPU cores, or the GPUs), its rows padded to a multiple of
+    n_devices. There is no cap per call: JAX analyses emit no LAPACK call (whose batched
+    CPU kernels could deadlock at ~1,000 factorizations per call; tests/test_no_lapack.py
+    guards this), so `chunk_size` alone sets the call's size. A host analysis batches
+    itself: one call per chunk of chunk_size rows, not padded. platform: JAX's, e.g.
+    "cpu" or "gpu" (the shape does not depend on it).
     """
+    del platform
     if host:
         return chunk_size
-    cap = MAX_ROWS_PER_DEVICE * n_devices if platform == "cpu" else chunk_size
-    per_call = min(chunk_size, n_rows, cap)
+    per_call = min(chunk_size, n_rows)
     return -(-per_call // n_devices) * n_devices
-
-
-def call_slices(rows: int, batch: int) -> list[tuple[int, int]]:
-    """The (lo, hi) row ranges, within a chunk of `rows` rows, of its calls of `batch` rows."""
-    return [(lo, min(lo + batch, rows)) for lo in range(0, rows, batch)]
 
 
 def call_args(
@@ -155,14 +152,12 @@ def compute_chunk(prepared: PreparedSweep, index: int) -> pa.Table:
     analysis = p.spec.analysis
     start, stop = p.bounds[index]
     swept, seed_pos = p.grid.rows(start, stop)
-    parts = []
-    for lo, hi in call_slices(stop - start, p.batch):
-        raw = p.fn(*call_args(p, swept, seed_pos, lo, hi))
-        if p.host:
-            parts.append(checked_outputs(analysis, raw, hi - lo))
-            continue
-        parts.append({k: v[: hi - lo] for k, v in checked_outputs(analysis, raw, p.batch).items()})
-    outputs = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
+    rows = stop - start
+    raw = p.fn(*call_args(p, swept, seed_pos, 0, rows))
+    if p.host:
+        outputs = checked_outputs(analysis, raw, rows)
+    else:
+        outputs = {k: v[:rows] for k, v in checked_outputs(analysis, raw, p.batch).items()}
     return chunk_table(
         p.schema,
         analysis,
@@ -270,12 +265,6 @@ def compute_job_chunk(job: ChunkJob, index: int) -> pa.Table:
     return compute_chunk(prepared, index)
 
 
-# jaxlib 0.10.2's batched LAPACK kernels on CPU were seen to deadlock when one call
-# batched about 1,000 small factorizations (the leg-grope QP at vmapped batch 1,000 hung;
-# 512 ran). Keeping each compiled call at or below this many rows per device avoids it.
-MAX_ROWS_PER_DEVICE = 256
-
-
 def _device_array(values: np.ndarray, x64: bool) -> np.ndarray:
     if values.dtype == np.float64:
         return values if x64 else values.astype(np.float32)
@@ -297,7 +286,6 @@ __all__ = [
     "PreparedSweep",
     "SweepWork",
     "call_args",
-    "call_slices",
     "compute_chunk",
     "compute_job_chunk",
     "prepare",

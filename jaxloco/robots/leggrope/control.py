@@ -56,6 +56,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco import geometry as geo
+from jaxloco import linalg
 from jaxloco.robots.leggrope import gait, kinematics, regions
 from jaxloco.robots.leggrope.model import TOE_RADIUS
 from jaxloco.robots.leggrope.params import G, LegGropeParams, default_params
@@ -448,7 +449,7 @@ def twist_mode(xy: Array) -> Array:
     the stance). A rigid body on four stiff position-controlled legs can carry any
     amount of it: it is set by millimetre errors in the toe heights."""
     A = jnp.concatenate([jnp.ones((1, 4), xy.dtype), xy.T], axis=0)  # (3, 4)
-    cof = jnp.stack([(-1.0) ** i * jnp.linalg.det(jnp.delete(A, i, axis=1, assume_unique_indices=True))
+    cof = jnp.stack([(-1.0) ** i * linalg.det_3x3(jnp.delete(A, i, axis=1, assume_unique_indices=True))
                      for i in range(4)])
     return cof / jnp.maximum(jnp.linalg.norm(cof), 1e-12)
 

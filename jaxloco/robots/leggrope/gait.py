@@ -56,6 +56,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco import geometry as geo
+from jaxloco import linalg
 from jaxloco.robots.leggrope import kinematics, regions
 from jaxloco.robots.leggrope.params import G, LegGropeParams
 
@@ -459,7 +460,7 @@ def place_body(
 
     def step(uv, _):
         J = jax.jacfwd(cog_of)(uv)
-        return uv + jnp.linalg.solve(J, cog_xy - cog_of(uv)), None
+        return uv + linalg.solve_2x2(J, cog_xy - cog_of(uv)), None
 
     uv0 = jnp.stack([cog_xy[0] / jnp.cos(terrain.theta), cog_xy[1]])
     uv, _ = jax.lax.scan(step, uv0, None, length=iters)

@@ -40,6 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco import geometry as geo
+from jaxloco import linalg
 from jaxloco import stability as stab
 from jaxloco.robots.titan import kinematics
 from jaxloco.robots.titan import model as titan_model
@@ -256,7 +257,7 @@ def load_shares(com: Array, feet: Array, support: Array, up: Array) -> Array:
     m = support.astype(feet.dtype)
     rel = feet - com[None]
     A = jnp.stack([jnp.ones(4, feet.dtype), rel @ e1, rel @ e2]) * m[None]
-    w = A.T @ jnp.linalg.solve(A @ A.T, jnp.array([1.0, 0.0, 0.0], feet.dtype))
+    w = A.T @ linalg.spd_solve(A @ A.T, jnp.array([1.0, 0.0, 0.0], feet.dtype))
     w = jnp.maximum(w, 0.0) * m
     return w / jnp.sum(w)
 
@@ -341,7 +342,7 @@ def support_shift(p, n_steps: int, now: StepTargets, obs) -> Array:
         w = jnp.where(E & (norm > 0), jnp.exp(-(s_plan - s_min) / EDGE_TAU), 0.0)
         M = jnp.einsum("ij,ijk,ijl->kl", w, unit, unit) + MEAN_SLIP_WEIGHT * jnp.eye(2, dtype=actual.dtype)
         rhs = jnp.einsum("ij,ij,ijk->k", w, gap, unit) + MEAN_SLIP_WEIGHT * (mean_slip - shift2)
-        shift2 = shift2 + jnp.linalg.solve(M, rhs)
+        shift2 = shift2 + linalg.solve_2x2(M, rhs)
     return p["support_relative"] * (shift2 @ B)
 
 
