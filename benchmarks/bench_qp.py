@@ -157,6 +157,8 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--sequential", action="store_true",
                     help="solve_batch(sequential=True): lax.map instead of vmap")
+    ap.add_argument("--block", type=int, default=None,
+                    help="solve_batch's block (members per vmapped block; default qp.BLOCK, 0: one vmap)")
     ap.add_argument("--devices", type=int, default=1,
                     help="JAX CPU devices to shard each batch over (as a sweep does: one per core); "
                          "batches not divisible by it run on one device")
@@ -171,6 +173,7 @@ def main(argv=None):
     jax.config.update("jax_num_cpu_devices", args.devices)
     from jaxloco import qp
 
+    block = qp.BLOCK if args.block is None else (args.block or None)
     mesh = jax.sharding.Mesh(np.array(jax.devices()), ("batch",))
 
     dtype = np.float32 if args.float32 else np.float64
@@ -182,12 +185,13 @@ def main(argv=None):
     src = args.problems or f"{n_prob} {args.set} problems (seed {args.seed})"
     n, m, p = data["q"].shape[1], data["b"].shape[1], data["h"].shape[1]
     print(f"jaxloco.qp benchmark: {src}; n={n} m={m} p={p}; {np.dtype(dtype).name}; "
-          f"iterations={args.iterations} tol={tol:g}; {'lax.map' if args.sequential else 'vmap'}; "
+          f"iterations={args.iterations} tol={tol:g}; "
+          f"{'lax.map' if args.sequential else f'vmap in blocks of {block}'}; "
           f"jax {jax.__version__} on {len(jax.devices())} {jax.devices()[0].platform} device(s)", flush=True)
 
     def batched(Q, q, A, b, G, h, xs, tol=tol):
         return qp.solve_batch(Q, q, A, b, G, h, x_scale=xs, iterations=args.iterations, tol=tol,
-                              sequential=args.sequential)
+                              sequential=args.sequential, block=block)
 
     def watchdog():  # fail loudly, not silently, should a measurement hang
         faulthandler.cancel_dump_traceback_later()
@@ -214,7 +218,7 @@ def main(argv=None):
         if sol is None or bsz >= args.sample:
             sol, sol_bsz = out, bsz
         if bsz == max(batches):
-            rows.append((f"jaxloco.qp {np.dtype(dtype).name} (jit + vmap, one call)", bsz, bsz / t,
+            rows.append((f"jaxloco.qp {np.dtype(dtype).name} (jit + vmap in blocks, one call)", bsz, bsz / t,
                          float(jnp.mean(out.ok)), np.asarray(out.x, np.float64), np.asarray(out.ok)))
 
     count = min(args.sample, n_prob, sol_bsz)
@@ -266,20 +270,22 @@ def main(argv=None):
             f32 = jax.jit(lambda *a: batched(*a, tol=1e-4)).lower(*fargs).compile()
             out = jax.block_until_ready(f32(*fargs))
             t = best_time(f32, fargs, args.repeats)
-            rows.append(("jaxloco.qp float32, tol 1e-4 (jit + vmap, one call)", bsz, bsz / t, float(jnp.mean(out.ok)),
-                         np.asarray(out.x, np.float64), np.asarray(out.ok)))
+            rows.append(("jaxloco.qp float32, tol 1e-4 (jit + vmap in blocks, one call)", bsz, bsz / t,
+                         float(jnp.mean(out.ok)), np.asarray(out.x, np.float64), np.asarray(out.ok)))
         if grad_rate is not None:
             rows.append((f"jaxloco.qp {np.dtype(dtype).name} solve + reverse gradient", grad_rate[0], grad_rate[1],
                          float("nan"), None, None))
         from qp_peers import PEERS
 
         for name, fn in PEERS.items():
+            watchdog()  # qpax's batched LAPACK calls can hang with --devices > 1 (jaxlib 0.10.2)
             try:
                 xp, okp, t = fn(pdata)
             except ImportError as e:
                 print(f"{name}: skipped ({e})")
                 continue
             rows.append((name, bsz, bsz / t, float(np.mean(okp)), xp, okp))
+        faulthandler.cancel_dump_traceback_later()
         print(f"\nside by side: {bsz} problems ({src}), accuracy against clarabel (tol 1e-10) on the first {count}")
         print("| solver | batch | QPs/s | own solved / ok flag | max abs(x - x_ref) / x_scale |")
         print("| --- | ---: | ---: | ---: | ---: |")

@@ -57,7 +57,7 @@ def test_matches_clarabel(problems):
 def test_batch_of_4096_in_one_call_without_custom_calls(problems):
     _, stacked = problems
     big = tuple(np.concatenate([a] * 64) for a in stacked)  # 4,096 members
-    fn = jax.jit(lambda *a: qp.solve_batch(*a, x_scale=X_SCALE))
+    fn = jax.jit(lambda *a: qp.solve_batch(*a, x_scale=X_SCALE, block=None))  # one vmap over 4,096
     assert "custom_call" not in fn.lower(*big).as_text()
     sol = fn(*big)
     assert bool(np.all(sol.ok))
@@ -71,3 +71,30 @@ def test_gradient_program_has_no_custom_calls(problems):
         return jnp.sum(qp.solve_batch(*a, x_scale=X_SCALE).x)
 
     assert "custom_call" not in jax.jit(jax.grad(loss, argnums=(1, 5))).lower(*stacked).as_text()
+
+
+def test_blocked_batch_equals_one_vmap_in_values_and_gradient(problems):
+    """solve_batch's blocks (a lax.map over vmapped blocks, members strided over the
+    blocks, the last block padded) give one vmap's results and gradient."""
+    _, stacked = problems
+    Q, q, A, b, G, h = (np.concatenate([a] * 5)[:300] for a in stacked)  # 300 = 2 x 128 + 44
+    Q = Q[0]  # shared by every member: no batch axis
+
+    def solve(q, h, block):
+        return qp.solve_batch(Q, q, A, b, G, h, x_scale=X_SCALE, iterations=20, block=block)
+
+    blocked = jax.jit(functools.partial(solve, block=128))(q, h)
+    whole = jax.jit(functools.partial(solve, block=None))(q, h)
+    assert blocked.x.shape == whole.x.shape == q.shape and bool(np.all(blocked.ok))
+    for got, want in zip(blocked, whole):
+        np.testing.assert_allclose(np.asarray(got), np.asarray(want), rtol=1e-12, atol=1e-13)
+
+    def loss(q, h, block):
+        return jnp.sum(solve(q, h, block).x ** 2)
+
+    g_blocked = jax.jit(jax.grad(functools.partial(loss, block=128), argnums=(0, 1)))(q, h)
+    g_whole = jax.jit(jax.grad(functools.partial(loss, block=None), argnums=(0, 1)))(q, h)
+    for got, want in zip(g_blocked, g_whole):
+        np.testing.assert_allclose(np.asarray(got), np.asarray(want), rtol=1e-10, atol=1e-12)
+    with pytest.raises(ValueError, match="block"):
+        qp.solve_batch(Q, q, A, b, G, h, block=0)
