@@ -1,7 +1,8 @@
-"""Throughput of the stability margins of jaxloco.stability (jit + vmap).
+"""Throughput of the stability margins of jaxloco.stability (jit + vmap, and jit +
+`batching.vmap_in_blocks`), the batch sharded over the CPU cores.
 
-    python benchmarks/bench_margins.py [--batch 100000] [--contacts 4,16]
-                                       [--dtypes float64,float32] [--repeats 5]
+    python benchmarks/bench_margins.py [--batch 100000] [--contacts 4,8,16]
+                                       [--dtypes float64,float32] [--repeats 5] [--block 256]
 
 For each margin (static_margin, ne_stability_margin, longitudinal_margin,
 friction_margin), each contact count N and each dtype it builds random scenes (contacts
@@ -10,7 +11,9 @@ under a random mask, garbage in the masked rows, a COG above the support polygon
 random travel direction, random contact forces), compiles `jit(vmap(margin))` and
 prints the compile time (lower + compile, persistent cache off unless --cache), the
 best wall time of --repeats evaluations of the whole batch (block_until_ready, after
-compilation) and margins evaluated per second.
+compilation) and margins evaluated per second; then, in the same run, margins/s with
+`vmap_in_blocks(margin, block=--block)` (blocks keep the working set in the cache) and
+the largest difference between the two (0: same members, same operations).
 """
 
 from __future__ import annotations
@@ -61,11 +64,12 @@ def margin_fn(name: str, mu: float = 0.6):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--batch", type=int, default=100_000)
-    ap.add_argument("--contacts", default="4,16", help="comma-separated contact counts N")
+    ap.add_argument("--contacts", default="4,8,16", help="comma-separated contact counts N")
     ap.add_argument("--dtypes", default="float64,float32", help="comma-separated: float64, float32")
     ap.add_argument("--margins", default=",".join(MARGINS), help="comma-separated subset of " + ", ".join(MARGINS))
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--block", type=int, default=256, help="block of vmap_in_blocks (0: skip)")
     ap.add_argument("--cache", action="store_true", help="use the persistent compilation cache")
     args = ap.parse_args(argv)
 
@@ -83,7 +87,13 @@ def main(argv=None):
         f"{jax.devices()[0].platform} ({os.cpu_count()} CPUs, {platform.machine()}); "
         f"persistent cache {'on' if args.cache else 'off'}"
     )
-    print(f"{'margin':<22}{'N':>4}{'dtype':>9}{'compile s':>11}{'batch ms':>11}{'margins/s':>13}  check")
+    from jaxloco.batching import vmap_in_blocks
+
+    mesh = jax.sharding.Mesh(np.array(jax.devices()), ("batch",))
+    sharded = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch"))
+    print(f"batch sharded over {len(jax.devices())} devices; blocks of {args.block}")
+    print(f"{'margin':<22}{'N':>4}{'dtype':>9}{'compile s':>11}{'batch ms':>11}{'margins/s':>13}"
+          f"{'in blocks/s':>13}{'max diff':>10}  check")
     for n in contacts:
         scenes64 = random_scenes(args.batch, n, args.seed)
         for dt in dtypes:
@@ -91,6 +101,8 @@ def main(argv=None):
             scenes = {
                 k: jnp.asarray(v) if v.dtype == bool else jnp.asarray(v, dtype) for k, v in scenes64.items()
             }
+            if args.batch % len(jax.devices()) == 0:
+                scenes = jax.device_put(scenes, sharded)
             for name in margins:
                 f = jax.jit(jax.vmap(margin_fn(name)))
                 t0 = time.perf_counter()
@@ -104,8 +116,23 @@ def main(argv=None):
                     best = min(best, time.perf_counter() - t0)
                 vals = np.asarray(out)
                 check = f"finite {np.mean(np.isfinite(vals)):.3f}, >0 {np.mean(vals > 0):.3f}"
+                blocks, diff = "-", "-"
+                if args.block:
+                    fb = jax.jit(vmap_in_blocks(margin_fn(name), block=args.block)).lower(scenes).compile()
+                    out_b = np.asarray(fb(scenes).block_until_ready())
+                    best_b = np.inf
+                    for _ in range(args.repeats):
+                        t0 = time.perf_counter()
+                        fb(scenes).block_until_ready()
+                        best_b = min(best_b, time.perf_counter() - t0)
+                    same = np.isfinite(vals) & np.isfinite(out_b)
+                    blocks = f"{args.batch / best_b:.3g}"
+                    diff = f"{np.max(np.abs(vals[same] - out_b[same]), initial=0.0):.1e}"
+                    if not np.array_equal(np.isfinite(vals), np.isfinite(out_b)):
+                        diff += "!"
                 print(
-                    f"{name:<22}{n:>4}{dt:>9}{t_compile:>11.2f}{best * 1e3:>11.1f}{args.batch / best:>13.3g}  {check}",
+                    f"{name:<22}{n:>4}{dt:>9}{t_compile:>11.2f}{best * 1e3:>11.1f}{args.batch / best:>13.3g}"
+                    f"{blocks:>13}{diff:>10}  {check}",
                     flush=True,
                 )
 
