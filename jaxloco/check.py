@@ -158,7 +158,6 @@ class SweepPlan:
 
     bounds: list[tuple[int, int]]  # (start, stop) rows of every chunk
     batch: int  # rows per call of the batch function (padded; host: the chunk size)
-    calls: list[int]  # calls per chunk (one each: a chunk is one call)
     padded: set[int]  # the distinct row counts the calls are made with (compiled shapes)
     n_devices: int
     platform: str
@@ -169,10 +168,10 @@ class SweepPlan:
         return len(self.bounds)
 
     def work(self, index: int) -> int:
-        """What chunk `index` costs: its calls (JAX: every call has the same shape) or its
+        """What chunk `index` costs: one call (JAX: every call has the same shape) or its
         rows (a host analysis batches itself, one call per chunk)."""
         start, stop = self.bounds[index]
-        return stop - start if self.host else self.calls[index]
+        return stop - start if self.host else 1
 
 
 def sweep_plan(spec: SweepSpec, n_devices: int, platform: str) -> SweepPlan:
@@ -182,9 +181,9 @@ def sweep_plan(spec: SweepSpec, n_devices: int, platform: str) -> SweepPlan:
 
     host = spec.analysis.executor == "host"
     bounds = chunk_bounds(spec.n_rows, spec.chunk_size)
-    batch = rows_per_call(spec.chunk_size, spec.n_rows, n_devices, platform, host)
+    batch = rows_per_call(spec.chunk_size, spec.n_rows, n_devices, host)
     padded = {stop - start if host else batch for start, stop in bounds}
-    return SweepPlan(bounds, batch, [1] * len(bounds), padded, n_devices, platform, host)
+    return SweepPlan(bounds, batch, padded, n_devices, platform, host)
 
 
 def jax_devices() -> tuple[int, str]:
@@ -228,17 +227,14 @@ def chunks_text(spec: SweepSpec, plan: SweepPlan) -> str:
 
 def calls_text(plan: SweepPlan) -> str:
     """Calls of the batch function per chunk and rows per call, as the runner makes them."""
-    total = sum(plan.calls)
+    total = plan.n_chunks
     if plan.host:
         return (
             f"1 per chunk ({total:,} in all), the chunk's rows in one call: a host analysis"
             " batches itself (native MuJoCo), JAX does not compile it"
         )
-    per_chunk = f"{plan.calls[0]:,} per chunk"
-    if plan.calls[-1] != plan.calls[0]:
-        per_chunk += f", {plan.calls[-1]:,} for the last"
     devices = f"{plan.n_devices} {plan.platform} {'device' if plan.n_devices == 1 else 'devices'}"
-    return f"{per_chunk} ({total:,} in all), {plan.batch:,} rows per call sharded over {devices}"
+    return f"1 per chunk ({total:,} in all), {plan.batch:,} rows per call sharded over {devices}"
 
 
 def shapes_text(plan: SweepPlan) -> str:
@@ -327,7 +323,7 @@ def sweep_probe(spec: SweepSpec, plan: SweepPlan) -> Estimate:
     swept, seed_pos = prepared.grid.rows(start, stop)
     if prepared.host:
         rows = min(stop - start, 2 * plan.n_devices)
-        args = call_args(prepared, swept, seed_pos, 0, rows)
+        args = call_args(prepared, swept, seed_pos, rows)
         once = _timed(lambda: prepared.fn(*args))
         total = once * spec.n_rows / rows
         text = (
@@ -335,11 +331,11 @@ def sweep_probe(spec: SweepSpec, plan: SweepPlan) -> Estimate:
             f" {duration(once)}, extrapolated linearly"
         )
     else:
-        args = call_args(prepared, swept, seed_pos, 0, min(prepared.batch, stop - start))
+        args = call_args(prepared, swept, seed_pos, stop - start)
         first = _timed(lambda: prepared.fn(*args))
         run = _timed(lambda: prepared.fn(*args))
         compiling = max(first - run, 0.0)
-        calls = sum(plan.calls)
+        calls = plan.n_chunks
         total = compiling + calls * run
         text = (
             f"{duration(total)} for {_plural(spec.n_rows, 'row')} = compiling {duration(compiling)}"

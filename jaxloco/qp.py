@@ -256,7 +256,7 @@ def solve_batch(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: fl
     members (`jaxloco.batching.vmap_in_blocks`), which keeps an iteration's working set
     in the CPU's cache: ~1.4x the QPs/s of one vmap over thousands (see the README).
     None: one vmap. Results do not depend on it. `sequential=True` solves one instance
-    at a time (less memory, same results). The solver emits no LAPACK call, so neither
+    at a time (blocks of one: less memory, same results). The solver emits no LAPACK call, so neither
     form can hit jaxlib 0.10's batched-LAPACK deadlock on the CPU.
     """
     fn = functools.partial(solve, iterations=iterations, tol=tol, differentiable=differentiable)
@@ -268,12 +268,4 @@ def solve_batch(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: fl
     def call(*a):
         return fn(*a[:6], x_scale=None if x_scale is None else a[6])
 
-    if not sequential:
-        return batching.vmap_in_blocks(call, block=block, in_axes=axes)(*args)
-    mapped = [a for a, ax in zip(args, axes) if ax == 0]
-
-    def one(ms):
-        it = iter(ms)
-        return call(*(next(it) if ax == 0 else a for a, ax in zip(args, axes)))
-
-    return jax.lax.map(one, mapped)
+    return batching.vmap_in_blocks(call, block=1 if sequential else block, in_axes=axes)(*args)

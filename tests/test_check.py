@@ -118,11 +118,11 @@ def batch_calls(monkeypatch):
 
 
 def test_rows_per_call_is_the_runners_call_shape():
-    assert chunks.rows_per_call(101, 505, 2, "cpu", host=False) == 102  # padded to the devices
-    assert chunks.rows_per_call(4096, 5000, 2, "cpu", host=False) == 4096  # the chunk, in one call
-    assert chunks.rows_per_call(2000, 5000, 2, "gpu", host=False) == 2000
-    assert chunks.rows_per_call(8, 3, 2, "cpu", host=False) == 4  # never more than the sweep's rows
-    assert chunks.rows_per_call(8, 3, 2, "cpu", host=True) == 8  # a host analysis: the chunk, unpadded
+    assert chunks.rows_per_call(101, 505, 2, host=False) == 102  # padded to the devices
+    assert chunks.rows_per_call(4096, 5000, 2, host=False) == 4096  # the chunk, in one call
+    assert chunks.rows_per_call(2000, 5000, 2, host=False) == 2000
+    assert chunks.rows_per_call(8, 3, 2, host=False) == 4  # never more than the sweep's rows
+    assert chunks.rows_per_call(8, 3, 2, host=True) == 8  # a host analysis: the chunk, unpadded
 
 
 def test_plan_printed_matches_the_runner(workdir, monkeypatch, batch_calls):
@@ -147,7 +147,7 @@ def test_plan_printed_matches_the_runner(workdir, monkeypatch, batch_calls):
     assert not (workdir / "results").exists()
 
     run(spec, progress=False)
-    assert len(batch_calls) == sum(plan.calls) == 4
+    assert len(batch_calls) == plan.n_chunks == 4
     assert set(batch_calls) == plan.padded == {plan.batch}
 
 

@@ -84,7 +84,7 @@ def prepare(spec: SweepSpec, batch_fn: Callable[..., Any] | None = None) -> Prep
         "mujoco_version": versions["mujoco"],
     }
     devices = jax.devices()
-    batch = rows_per_call(spec.chunk_size, grid.n_rows, len(devices), devices[0].platform, host)
+    batch = rows_per_call(spec.chunk_size, grid.n_rows, len(devices), host)
     sharding = jax.sharding.NamedSharding(
         jax.sharding.Mesh(np.array(devices), ("batch",)), jax.sharding.PartitionSpec("batch")
     )
@@ -113,7 +113,7 @@ def _check_swept(spec: SweepSpec) -> None:
             raise SpecError(f"{spec.source}: params.{name}: {problem}")
 
 
-def rows_per_call(chunk_size: int, n_rows: int, n_devices: int, platform: str, host: bool) -> int:
+def rows_per_call(chunk_size: int, n_rows: int, n_devices: int, host: bool) -> int:
     """Rows of one call of the batch function (every call of a sweep has this shape).
 
     A JAX analysis runs each chunk as one compiled call whose batch axis is sharded over
@@ -121,10 +121,8 @@ def rows_per_call(chunk_size: int, n_rows: int, n_devices: int, platform: str, h
     n_devices. There is no cap per call: JAX analyses emit no LAPACK call (whose batched
     CPU kernels could deadlock at ~1,000 factorizations per call; tests/test_no_lapack.py
     guards this), so `chunk_size` alone sets the call's size. A host analysis batches
-    itself: one call per chunk of chunk_size rows, not padded. platform: JAX's, e.g.
-    "cpu" or "gpu" (the shape does not depend on it).
+    itself: one call per chunk of chunk_size rows, not padded.
     """
-    del platform
     if host:
         return chunk_size
     per_call = min(chunk_size, n_rows)
@@ -132,17 +130,18 @@ def rows_per_call(chunk_size: int, n_rows: int, n_devices: int, platform: str, h
 
 
 def call_args(
-    prepared: PreparedSweep, swept: Mapping[str, np.ndarray], seed_pos: np.ndarray, lo: int, hi: int
+    prepared: PreparedSweep, swept: Mapping[str, np.ndarray], seed_pos: np.ndarray, rows: int
 ) -> tuple:
-    """The arguments of `prepared.fn` for rows lo:hi of a chunk's `grid.rows(...)`: as they
-    are for a host analysis, else padded to `prepared.batch` rows and placed on the devices."""
+    """The arguments of `prepared.fn` for the first `rows` rows of a chunk's `grid.rows(...)`:
+    as they are for a host analysis, else padded to `prepared.batch` rows and placed on the
+    devices."""
     import jax
 
     p = prepared
     if p.host:
-        return {name: v[lo:hi] for name, v in swept.items()}, p.keys_by_seed[seed_pos[lo:hi]]
-    inputs = {name: _padded(_device_array(v[lo:hi], p.x64), p.batch) for name, v in swept.items()}
-    keys = _padded(p.keys_by_seed[seed_pos[lo:hi]], p.batch)
+        return {name: v[:rows] for name, v in swept.items()}, p.keys_by_seed[seed_pos[:rows]]
+    inputs = {name: _padded(_device_array(v[:rows], p.x64), p.batch) for name, v in swept.items()}
+    keys = _padded(p.keys_by_seed[seed_pos[:rows]], p.batch)
     return jax.device_put((inputs, keys), p.sharding)
 
 
@@ -153,7 +152,7 @@ def compute_chunk(prepared: PreparedSweep, index: int) -> pa.Table:
     start, stop = p.bounds[index]
     swept, seed_pos = p.grid.rows(start, stop)
     rows = stop - start
-    raw = p.fn(*call_args(p, swept, seed_pos, 0, rows))
+    raw = p.fn(*call_args(p, swept, seed_pos, rows))
     if p.host:
         outputs = checked_outputs(analysis, raw, rows)
     else:
