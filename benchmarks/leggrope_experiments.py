@@ -45,7 +45,7 @@ def main(trials: int = 5) -> None:
 
 
 def _table(sim_analysis, mean_worst, jax, fixed: dict, trials: int) -> None:
-    batch = sim_analysis.make_batch_fn(fixed)
+    batch = sim_analysis.FRAGILE_WALK.batch_fn(fixed)
     n = len(EXPERIMENTS) * trials
     swept = {name: np.repeat([e[col] for e in EXPERIMENTS], trials)
              for col, name in ((1, "facet_spread"), (2, "weak_leg"), (3, "regrope"))}

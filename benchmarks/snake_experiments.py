@@ -77,7 +77,7 @@ def release_order(times: np.ndarray) -> str:
 def limit_table(tuned: dict[str, float] | None) -> None:
     rows = _rows(tuned)
     fixed = analysis.KV.defaults()
-    fn = jax.jit(analysis.make_batch_fn(fixed))
+    fn = jax.jit(analysis.KV.batch_fn(fixed))
     names = [p.name for p in analysis.PARAMS if p.sweepable]
     n = len(rows)
     swept = {k: jnp.asarray([float(r[1].get(k, fixed[k])) for r in rows]) for k in names if k != "mode_order"}

@@ -28,7 +28,7 @@ DEFAULT_KPS = (30.0, 100.0, 200.0, 400.0, 600.0)
 def main(argv: list[str]) -> None:
     kps = np.array([float(a) for a in argv[1:]] or DEFAULT_KPS)
     fixed = {p.name: p.default for p in table3.PARAMS}
-    fn = table3.make_batch_fn(fixed)
+    fn = table3.TABLE3.batch_fn(fixed)
     n_t = len(table3.TARGETS)
     swept = {"target": np.tile(np.array(table3.TARGETS), len(kps)), "head_kp": np.repeat(kps, n_t),
              "head_kv": np.repeat(0.5 * np.sqrt(kps / 30.0), n_t), "mu_jitter": np.zeros(n_t * len(kps)),

@@ -6,7 +6,8 @@ Layers (imports go downward only): core kernels (`geometry`, `stability`, `qp`,
 applications (`sweep`, `tune`, `render`, `cli`). Importing `jaxloco` is cheap: nothing
 here imports JAX or MuJoCo.
 
-Modules: `analysis` (what a sweep analysis is, and the analysis registry), `registry`
+Modules: `analysis` (what a sweep analysis is, and the analysis registry), `parameters`
+(a robot's parameters, each stated once), `registry`
 (the one registry behind analyses, objectives and replays), `errors` (every exception
 jaxloco raises on purpose), `catalog` (what the CLI prints about the built-ins, without
 importing them), `check` (`jaxloco check`), `cli`, `info` (versions and environment),

@@ -1,23 +1,32 @@
-"""The registry of analyses that `jaxloco sweep` can run.
+"""The registry of analyses that `jaxloco sweep` can run, and the one contract they follow.
 
-An *analysis* is a batched, jittable function from parameter values to metrics, plus
-the description of its parameters (name, unit, range, default) and metrics. The sweep
-layer only talks to this interface; robots register their analyses here.
+An *analysis* describes its parameters (name, unit, range, default) and metrics, and
+computes the metrics of parameter values in one of two ways:
 
-Contract of `Analysis.make_batch_fn(fixed)`:
-  * `fixed` maps every parameter that is *not* swept to a plain Python value (already
-    validated with `Param.check`).
-  * It returns `fn(swept, keys)` where `swept` maps each swept parameter name to an
-    array of shape (B,) and `keys` is a (B, 2) uint32 array of PRNG keys (one per row,
-    from the row's seed). `fn` is pure and jit-compatible; the caller jits it.
-  * A string parameter (kind "str") can be swept only when it has `choices` and only by a
-    host analysis (JAX arrays cannot hold strings): `swept[name]` is then a numpy unicode
-    array (dtype "<U..") of the row's choices. See `sweep_problem`.
-  * `fn` returns a dict with one (B,) array per metric in `Analysis.metrics` plus
-    `"status"`: an int array indexing `Analysis.statuses` (0 means "ok").
-  * executor "jax" (default): the runner jits `fn` and shards the batch over the JAX
-    devices. executor "host": `fn` is called as it is with numpy arrays (it runs its own
-    batched engine, e.g. the native MuJoCo backend of `jaxloco.sim`) once per chunk.
+  * a JAX analysis gives `row(values, key) -> metrics`: the metrics of ONE row. `values`
+    maps every parameter, swept and fixed, already merged and validated: sweepable
+    numbers as scalar arrays (float in the run's precision, int32, bool), the others
+    (`sweepable=False`, and strings) as plain Python values, fixed for the sweep, which
+    may shape the program (horizons, step counts, a design name). `key` is the row's
+    PRNG key. It returns one scalar array per metric in `Analysis.metrics` plus
+    `"status"`, an int indexing `Analysis.statuses` (0 means "ok"). The framework merges
+    the values, vmaps `row`, jits it once per sweep, shards the batch over the JAX
+    devices and splits the sweep into chunks.
+  * a simulated analysis gives `simulate(values, keys, simulator) -> metrics` for a
+    batch of B rows: `values` as above but every sweepable parameter a (B,) numpy
+    column (a string one: a numpy unicode array of its choices), `keys` (B, 2) uint32.
+    It builds its scenarios and per-simulation parameters and runs them with
+    `simulator.run(scenario, params)` (`jaxloco.sim.rollout.Simulator`); the framework
+    owns the simulator: the backend (the analysis' `backend` parameter, else native
+    MuJoCo), the physics threads (its `nthread` parameter) and, for a replay, the
+    recording of every simulated state. It returns (B,) numpy arrays, one per metric,
+    plus "status". A simulation's rows may be grouped, split or left out as the
+    analysis needs (e.g. three pushes per row, or a plan per row, grouped by terrain).
+
+`Analysis.batch_fn(fixed)` is the one place that turns either form into the function the
+sweep runs on each chunk, `fn(swept, keys)` with swept: name -> (B,) column of each swept
+parameter. A string parameter (kind "str") can be swept only with `choices` and only by a
+simulated analysis (JAX arrays cannot hold strings); see `sweep_problem`.
 """
 
 from __future__ import annotations
@@ -155,17 +164,25 @@ def mean_worst(values: Any, worst: Literal["max", "min"] = "max", digits: int = 
     return f"{v.mean():.{digits}f} ({w:.{digits}f})"
 
 
+RowFn = Callable[[Mapping[str, Any], Any], Mapping[str, Any]]
+SimulateFn = Callable[[Mapping[str, Any], Any, Any], Mapping[str, Any]]
+BatchFn = Callable[[Mapping[str, Any], Any], dict[str, Any]]
+
+
 @dataclass(frozen=True)
 class Analysis:
+    """A sweep analysis: exactly one of `row` (JAX) or `simulate` (simulated); see the
+    module docstring for both contracts."""
+
     name: str
     doc: str
     params: tuple[Param, ...]
     metrics: tuple[Metric, ...]
-    make_batch_fn: Callable[[Mapping[str, Any]], Callable[..., dict[str, Any]]]
+    row: RowFn | None = None
+    simulate: SimulateFn | None = None
     statuses: tuple[str, ...] = ("ok",)
     summarize: SummaryFn | None = None  # pyarrow.Table -> Summary
     x64: bool = True  # run in float64 (the CLI configures JAX accordingly)
-    executor: Literal["jax", "host"] = "jax"
     _by_name: dict[str, Param] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -174,7 +191,15 @@ class Analysis:
             raise ValueError(f"analysis {self.name}: duplicate parameter names")
         if not self.statuses or self.statuses[0] != "ok":
             raise ValueError(f"analysis {self.name}: statuses[0] must be 'ok'")
+        if (self.row is None) == (self.simulate is None):
+            raise ValueError(f"analysis {self.name}: give exactly one of row (JAX) and simulate (simulated)")
         self._by_name.update({p.name: p for p in self.params})
+
+    @property
+    def executor(self) -> Literal["jax", "host"]:
+        """"jax": the runner jits the batch and shards it over the JAX devices; "host": the
+        batch runs as it is, once per chunk (its simulator uses every core itself)."""
+        return "jax" if self.row is not None else "host"
 
     def param(self, name: str, where: str | None = None) -> Param:
         try:
@@ -187,6 +212,92 @@ class Analysis:
 
     def defaults(self) -> dict[str, Any]:
         return {p.name: p.default for p in self.params}
+
+    def batch_fn(self, fixed: Mapping[str, Any], simulator: Any = None) -> BatchFn:
+        """The function a sweep runs on each chunk: `fn(swept, keys) -> metrics`, swept:
+        name -> (B,) column of each swept parameter, keys: (B, 2) uint32, metrics: name
+        -> (B,) array (every metric and "status"). `fixed` gives every other parameter
+        (validated with `Param.check`). A JAX analysis' function is pure and jittable
+        (the caller jits it); a simulated one runs on `simulator` (default: one made from
+        the `backend` and `nthread` parameters, `simulator_for`)."""
+        if self.row is not None:
+            return _row_batch(self, fixed)
+        return _simulated_batch(self, fixed, simulator)
+
+
+def _is_column(p: Param) -> bool:
+    """Whether a parameter reaches `row` / `simulate` as a per-row value (else a plain
+    Python value, the same for the whole sweep)."""
+    return p.sweepable and (p.kind != "str" or p.choices is not None)
+
+
+def static_values(analysis: Analysis, fixed: Mapping[str, Any]) -> dict[str, Any]:
+    """The parameters that stay plain Python values (not sweepable, or free text)."""
+    return {p.name: fixed[p.name] for p in analysis.params if not _is_column(p)}
+
+
+def _array_params(analysis: Analysis) -> list[Param]:
+    return [p for p in analysis.params if _is_column(p) and p.kind != "str"]
+
+
+def _dtypes() -> dict[str, Any]:
+    """The array dtype of each numeric parameter kind (floats in the run's precision)."""
+    import jax.numpy as jnp
+
+    return {"float": jnp.result_type(float), "int": jnp.int32, "bool": jnp.bool_}
+
+
+def row_arrays(analysis: Analysis, values: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(arrays, static) of one row as `row` gets them: the sweepable numbers as scalar
+    arrays, the rest plain. For replays and notebooks that call a JAX analysis' own
+    functions on one row: `jax.jit(lambda a: f({**static, **a}))(arrays)`."""
+    import jax.numpy as jnp
+
+    kinds = _dtypes()
+    arrays = {p.name: jnp.asarray(values[p.name], kinds[p.kind]) for p in _array_params(analysis)}
+    return arrays, static_values(analysis, values)
+
+
+def _row_batch(analysis: Analysis, fixed: Mapping[str, Any]) -> BatchFn:
+    """vmap of `analysis.row` over the rows: every sweepable parameter a (B,) column, the
+    fixed ones broadcast (so that a fixed and a swept value give the same program)."""
+    import jax
+    import jax.numpy as jnp
+
+    static = static_values(analysis, fixed)
+    columns = _array_params(analysis)
+    row = analysis.row
+
+    def batch(swept: Mapping[str, Any], keys: Any) -> dict[str, Any]:
+        n = keys.shape[0]
+        kinds = _dtypes()
+        values = {
+            p.name: jnp.asarray(swept[p.name], kinds[p.kind]) if p.name in swept
+            else jnp.full(n, fixed[p.name], kinds[p.kind])
+            for p in columns
+        }
+        return jax.vmap(lambda v, k: dict(row({**static, **v}, k)))(values, keys)
+
+    return batch
+
+
+def _simulated_batch(analysis: Analysis, fixed: Mapping[str, Any], simulator: Any) -> BatchFn:
+    """`analysis.simulate` on numpy columns of the rows (fixed values broadcast)."""
+    import numpy as np
+
+    from jaxloco.sim.rollout import simulator_for
+
+    static = static_values(analysis, fixed)
+    columns = [p.name for p in analysis.params if _is_column(p)]
+    sim = simulator if simulator is not None else simulator_for(fixed)
+    simulate = analysis.simulate
+
+    def batch(swept: Mapping[str, Any], keys: Any) -> dict[str, Any]:
+        n = np.shape(keys)[0]
+        values = {name: np.asarray(swept[name]) if name in swept else np.full(n, fixed[name]) for name in columns}
+        return dict(simulate({**static, **values}, np.asarray(keys, np.uint32), sim))
+
+    return batch
 
 
 # Built-in analyses come from the robots' entries modules (jaxloco.registry).

@@ -55,3 +55,26 @@ def test_the_tuned_stance_is_near_the_smallest_safe_one(namespace):
     assert rows["hand-set"]["ok_fraction"] == 1.0
     assert rows["tuned"]["static_margin_min"] == pytest.approx(
         min(values["half_width"], uphill(values["half_length"], 0.3)), abs=1e-9)
+
+
+def test_the_simulated_stance_slides_exactly_when_tan_slope_exceeds_mu(namespace):
+    rows = namespace["slides"].table.to_pylist()
+    assert [r["mu"] for r in rows] == [0.2, 0.25, 0.35, 0.4]
+    for r in rows:
+        slides = r["mu"] < math.tan(0.3)
+        assert r["status"] == ("slides" if slides else "ok")
+        # sliding: about (g sin - mu g cos) t^2 / 2 in 1 s; holding: no more than contact creep
+        expected = 0.5 * 9.81 * (math.sin(0.3) - r["mu"] * math.cos(0.3)) if slides else 0.0
+        assert r["slide"] == pytest.approx(expected, abs=0.05)
+
+
+def test_a_simulated_row_replays_through_its_own_simulate(namespace):
+    from jaxloco.render.replay import replay_row
+    from jaxloco.render.rows import load_row
+
+    row = load_row(namespace["slides"].table_path, 0)
+    replay = replay_row(row)
+    assert replay.kind == "native MuJoCo simulation" and replay.n_states == 50
+    assert replay.metrics["slide"] == row.metrics["slide"] and replay.status == row.status == "slides"
+    # the replayed states are those the metric came from: the slide is x's first minus last record
+    assert replay.qpos[0, 0] - replay.qpos[-1, 0] == pytest.approx(row.metrics["slide"], rel=1e-12)

@@ -23,14 +23,10 @@ from jaxloco.analysis import Analysis, Metric, Param, register
 from jaxloco.sweep import chunks, executors, load_spec, run, store
 
 
-def _host_batch_fn(fixed):
-    """numpy only, as a host analysis (the native MuJoCo engine) is."""
-
-    def fn(swept, keys):
-        r = fixed["scale"] * np.asarray(swept["a"], dtype=np.float64) ** 2
-        return {"r": r, "status": np.zeros(len(r), dtype=np.int64)}
-
-    return fn
+def _host_simulate(values, keys, simulator):
+    """numpy only, as a simulated analysis (the native MuJoCo engine) is."""
+    r = values["scale"] * np.asarray(values["a"], dtype=np.float64) ** 2
+    return {"r": r, "status": np.zeros(len(r), dtype=np.int64)}
 
 
 HOST = register(
@@ -39,8 +35,7 @@ HOST = register(
         doc="A numpy-only host analysis.",
         params=(Param("a", 1.0, "input", unit="m"), Param("scale", 2.0, "factor", sweepable=False)),
         metrics=(Metric("r", "scale a^2", unit="m^2"),),
-        make_batch_fn=_host_batch_fn,
-        executor="host",
+        simulate=_host_simulate,
     )
 )
 

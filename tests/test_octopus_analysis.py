@@ -23,7 +23,7 @@ SAMPLES = 64
 
 @cache
 def _batch(samples: int):
-    return jax.jit(oa.make_batch_fn({**DEFAULTS, "samples": samples}))
+    return jax.jit(oa.TERRAIN_CLASSIFICATION.batch_fn({**DEFAULTS, "samples": samples}))
 
 
 def _swept(rows: list[dict]) -> dict[str, jax.Array]:

@@ -21,7 +21,7 @@ from typer.testing import CliRunner
 from jaxloco.cli import app
 from jaxloco.errors import SpecError
 from jaxloco.render import gl, video
-from jaxloco.render.replay import capture_rollouts, frame_indices, replay_row
+from jaxloco.render.replay import frame_indices, replay_row
 from jaxloco.render.rows import load_row
 from jaxloco.sweep import run, spec_from_dict
 
@@ -63,18 +63,17 @@ def gl_ok():
 
 @pytest.fixture(scope="module")
 def tables(tmp_path_factory):
-    """name -> table.parquet of the tiny sweeps in SPECS (run lazily, once). The simulated
-    ones run one row per batch under `capture_rollouts`: the replay then reuses the traced
-    and compiled rollout (tracing the leg-grope controller alone takes ~30 s); the extra
-    records do not touch the physics, and the replay's states are checked independently."""
+    """name -> table.parquet of the tiny sweeps in SPECS (run lazily, once). A replay of a
+    simulated row reuses the sweep's traced and compiled rollout (tracing the leg-grope
+    controller alone takes ~30 s): on the native backend the states are copied from the
+    batch, not recorded by the compiled tick."""
     root = tmp_path_factory.mktemp("render")
     made: dict[str, Path] = {}
 
     def get(name: str) -> Path:
         if name not in made:
             doc = {**SPECS[name], "sweep": {**SPECS[name]["sweep"], "output": str(root / name)}}
-            with capture_rollouts():
-                result = run(spec_from_dict(doc, source=name), progress=False)
+            result = run(spec_from_dict(doc, source=name), progress=False)
             made[name] = result.table_path
         return made[name]
 

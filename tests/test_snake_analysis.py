@@ -48,7 +48,7 @@ def _row_values(i: int) -> dict[str, jax.Array]:
 def rows():
     """(batch metrics, [run_one metrics and records per row])."""
     fixed = {k: v for k, v in DEFAULTS.items() if k not in SWEPT} | {"horizon": HORIZON, "dt": DT}
-    batch_fn = jax.jit(analysis.make_batch_fn(fixed))
+    batch_fn = jax.jit(analysis.KV.batch_fn(fixed))
     swept = {k: jnp.asarray(v, jnp.int32 if k == "mode_order" else jnp.float64) for k, v in SWEPT.items()}
     keys = jnp.zeros((3, 2), jnp.uint32)
     batch = {k: np.asarray(v) for k, v in batch_fn(swept, keys).items()}

@@ -69,7 +69,7 @@ def rows():
     """Posture (iii), two trials, short ramp and hold (one compile for the module)."""
     assert analysis.get("snake.contact") is contact.CONTACT
     fixed = {p.name: p.default for p in contact.PARAMS} | {"ramp": 2.0, "hold": 1.0, "settle": 1.0, "nthread": 2}
-    fn = contact.make_batch_fn(fixed)
+    fn = contact.CONTACT.batch_fn(fixed)
     swept = {"posture": np.array(["iii", "iii"])}
     keys = np.array([[0, 0], [0, 1]], np.uint32)
     return fn, swept, keys, fn(swept, keys)

@@ -192,7 +192,7 @@ def test_reach_analysis_batch_equals_single_rows():
         "horizon": HORIZON,
         "nthread": 2,
     }
-    fn = sim_analysis.make_batch_fn(fixed)
+    fn = sim_analysis.REACH.batch_fn(fixed)
     swept = {"gain_k": np.array([0.5, 1.0, 3.0]), "d_z": np.array([0.03, -0.02, 0.03])}
     keys = np.zeros((3, 2), np.uint32)
     batch = fn(swept, keys)

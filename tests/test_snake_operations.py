@@ -139,7 +139,7 @@ def test_the_operations_analysis_rows_and_summary():
     assert analysis.get("snake.operations") is operations_analysis.OPERATIONS
     fixed = {p.name: p.default for p in operations_analysis.PARAMS} | {"nthread": 2}
     swept = {"operation": np.array(["pick", "valve"]), "operator_gain": np.array([1.0, 0.0])}
-    out = operations_analysis.make_batch_fn(fixed)(swept, np.array([[0, 0], [0, 1]], np.uint32))
+    out = operations_analysis.OPERATIONS.batch_fn(fixed)(swept, np.array([[0, 0], [0, 1]], np.uint32))
     assert set(out) == {m.name for m in operations_analysis.METRICS} | {"status"}
     assert list(out["status"]) == [0, 0] and list(out["success"]) == [True, True]
     assert out["pipe_lift"][0] > 0.08 and np.isnan(out["pipe_lift"][1])

@@ -22,7 +22,7 @@ def rows():
     """z and beta targets, two seeds each, a short ramp (one compile for the module)."""
     assert analysis.get("snake.table3") is table3.TABLE3
     fixed = {p.name: p.default for p in table3.PARAMS} | {"ramp": 1.0, "nthread": 2}
-    fn = table3.make_batch_fn(fixed)
+    fn = table3.TABLE3.batch_fn(fixed)
     swept = {"target": np.array(["z", "z", "beta", "beta"])}
     keys = np.array([[0, 0], [0, 1], [0, 0], [0, 1]], np.uint32)
     return fn, swept, keys, fn(swept, keys)

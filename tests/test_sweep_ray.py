@@ -39,16 +39,11 @@ TESTS = Path(__file__).resolve().parent
 # ------------------------------------------------------- a toy "host" analysis
 
 
-def _host_batch_fn(fixed):
-    """numpy only, as a host analysis (e.g. the native MuJoCo engine) would be."""
-    scale = fixed["scale"]
-
-    def fn(swept, keys):
-        a = np.asarray(swept["a"], dtype=np.float64)
-        r = scale * a**2 + keys[:, 1].astype(np.float64) % 7
-        return {"r": r, "status": (r > 5.0).astype(np.int64)}
-
-    return fn
+def _host_simulate(values, keys, simulator):
+    """numpy only, as a simulated analysis (e.g. on the native MuJoCo engine) would be."""
+    a = np.asarray(values["a"], dtype=np.float64)
+    r = values["scale"] * a**2 + keys[:, 1].astype(np.float64) % 7
+    return {"r": r, "status": (r > 5.0).astype(np.int64)}
 
 
 HOST_TOY = register(
@@ -57,20 +52,14 @@ HOST_TOY = register(
         doc="A numpy-only host analysis for the Ray tests.",
         params=(Param("a", 1.0, "input", unit="m"), Param("scale", 2.0, "factor", sweepable=False)),
         metrics=(Metric("r", "scale a^2 + (second word of the row's key mod 7)", unit="m^2"),),
-        make_batch_fn=_host_batch_fn,
+        simulate=_host_simulate,
         statuses=("ok", "failed: large"),
-        executor="host",
     )
 )
 
 
-def _devices_batch_fn(fixed):
-    def fn(swept, keys):
-        rows = keys.shape[0]
-        return {"devices": jnp.full(rows, jax.device_count()), "twice": 2.0 * swept["x"],
-                "status": jnp.zeros(rows, jnp.int32)}  # fmt: skip
-
-    return fn
+def _devices_row(values, key):
+    return {"devices": jnp.asarray(jax.device_count()), "twice": 2.0 * values["x"], "status": jnp.asarray(0, jnp.int32)}
 
 
 DEVICES = register(
@@ -79,7 +68,7 @@ DEVICES = register(
         doc="How many JAX devices the process computing a row has.",
         params=(Param("x", 0.0, "input"),),
         metrics=(Metric("devices", "jax.device_count() where the row ran", kind="int"), Metric("twice", "2 x")),
-        make_batch_fn=_devices_batch_fn,
+        row=_devices_row,
     )
 )
 
@@ -312,10 +301,10 @@ def test_ctrl_c_while_waiting_keeps_every_finished_chunk(ray_cluster, tmp_path, 
 
 
 def test_worker_errors_arrive_as_themselves(ray_cluster, tmp_path):
-    def bad_fn(fixed):  # a closure: Ray sends it by value, as from a notebook
-        return lambda swept, keys: {"y": jnp.zeros(keys.shape[0]), "status": jnp.zeros(keys.shape[0], jnp.int32)}
+    def bad_row(values, key):  # a closure: Ray sends it by value, as from a notebook
+        return {"y": jnp.zeros(()), "status": jnp.zeros((), jnp.int32)}
 
-    register(dataclasses.replace(test_sweep_run.TOY, name="test.ray_wrong_keys", make_batch_fn=bad_fn))
+    register(dataclasses.replace(test_sweep_run.TOY, name="test.ray_wrong_keys", row=bad_row))
     spec = toy_spec(tmp_path / "out", analysis="test.ray_wrong_keys")
     with pytest.raises(AnalysisError, match="missing: k, pos, u") as info:
         run(spec, progress=False, executor=ray_executor())

@@ -29,28 +29,13 @@ from jaxloco.sweep import (
 TRACES: list[dict[str, str]] = []  # one entry per trace of a toy batch function: input dtypes
 
 
-def _toy_batch_fn(fixed):
-    n = fixed["n"]  # not sweepable: a Python int that sets an array shape
-
-    def fn(swept, keys):
-        TRACES.append({name: str(v.dtype) for name, v in swept.items()})
-        rows = keys.shape[0]
-
-        def value(name):
-            return jnp.broadcast_to(jnp.asarray(swept[name] if name in swept else fixed[name]), (rows,))
-
-        a, b, m, flag = value("a"), value("b"), value("m"), value("flag")
-        y = a * jnp.sum(jnp.arange(n)) / n + b + jnp.where(flag, 1.0, 0.0)
-        u = jax.vmap(jax.random.uniform)(keys)
-        return {
-            "y": y,
-            "u": u,
-            "k": m + n,
-            "pos": y > 0,
-            "status": jnp.where(y < 0, 1, 0),
-        }
-
-    return fn
+def _toy_row(values, key):
+    """One row of the toy: every sweepable value a scalar array, the others plain."""
+    TRACES.append({name: str(v.dtype) for name, v in values.items() if hasattr(v, "dtype")})
+    n = values["n"]  # not sweepable: a Python int that sets an array shape
+    assert isinstance(n, int) and isinstance(values["label"], str)
+    y = values["a"] * jnp.sum(jnp.arange(n)) / n + values["b"] + jnp.where(values["flag"], 1.0, 0.0)
+    return {"y": y, "u": jax.random.uniform(key), "k": values["m"] + n, "pos": y > 0, "status": jnp.where(y < 0, 1, 0)}
 
 
 def toy_expected_y(a, b, n, flag):
@@ -82,7 +67,7 @@ TOY = register(
         doc="A toy analysis for the sweep tests.\nSecond line.",
         params=TOY_PARAMS,
         metrics=TOY_METRICS,
-        make_batch_fn=_toy_batch_fn,
+        row=_toy_row,
         statuses=("ok", "failed: negative"),
     )
 )
@@ -148,7 +133,7 @@ def test_run_table_columns_types_order_and_values(tmp_path):
     assert len(u[0]) == 1 and len(u[1]) == 1 and u[0] != u[1]
     assert {r["status"] for r in rows} == {"ok", "failed: negative"}
     # float64 inputs, int32 ints, one compilation for all chunks
-    assert TRACES == [{"a": "float64", "flag": "bool"}]
+    assert TRACES == [{"a": "float64", "b": "float64", "m": "int32", "flag": "bool"}]
     assert (result.path / "table.parquet").is_file() and not (result.path / "table.csv").exists()
     assert pq.read_table(result.path / "table.parquet").equals(t)
     assert result.summary is not None and result.summary.columns == ("status", "rows", "share")
@@ -294,7 +279,7 @@ def test_custom_summary_and_failing_summary(tmp_path):
 
     bad = Analysis(
         name="test.toy_bad_summary", doc="", params=TOY_PARAMS, metrics=TOY_METRICS,
-        make_batch_fn=_toy_batch_fn, statuses=("ok", "failed: negative"), summarize=broken,
+        row=_toy_row, statuses=("ok", "failed: negative"), summarize=broken,
     )  # fmt: skip
     register(bad)
     result = run(toy_spec(tmp_path / "b", analysis="test.toy_bad_summary", seeds=(0,)), progress=False)
@@ -303,10 +288,10 @@ def test_custom_summary_and_failing_summary(tmp_path):
 
 
 def test_analysis_returning_wrong_keys_is_a_bug_not_a_user_error(tmp_path):
-    def bad_fn(fixed):
-        return lambda swept, keys: {"y": jnp.zeros(keys.shape[0]), "status": jnp.zeros(keys.shape[0], jnp.int32)}
+    def bad_row(values, key):
+        return {"y": jnp.zeros(()), "status": jnp.zeros((), jnp.int32)}
 
-    register(Analysis(name="test.wrong_keys", doc="", params=TOY_PARAMS, metrics=TOY_METRICS, make_batch_fn=bad_fn))
+    register(Analysis(name="test.wrong_keys", doc="", params=TOY_PARAMS, metrics=TOY_METRICS, row=bad_row))
     with pytest.raises(AnalysisError, match="missing: k, pos, u"):
         run(toy_spec(tmp_path / "out", analysis="test.wrong_keys", seeds=(0,)), progress=False)
 
@@ -319,7 +304,7 @@ def test_float32_inputs_when_x64_is_off(tmp_path):
         result = run(toy_spec(tmp_path / "out", seeds=(0,), a=[0.1, 0.2]), progress=False, configure_jax=False)
     finally:
         jax.config.update("jax_enable_x64", previous)
-    assert TRACES == [{"a": "float32"}]
+    assert TRACES == [{"a": "float32", "b": "float32", "m": "int32", "flag": "bool"}]
     assert result.table.column("a").to_pylist() == [0.1, 0.2]  # the spec's values, not float32 ones
     assert result.table.schema.field("y").type == pa.float64()
 
@@ -327,7 +312,7 @@ def test_float32_inputs_when_x64_is_off(tmp_path):
 def test_int_sweep_uses_int32_inputs(tmp_path):
     TRACES.clear()
     result = run(toy_spec(tmp_path / "out", seeds=(0,), m={"start": 0, "stop": 6, "step": 2}), progress=False)
-    assert TRACES == [{"m": "int32"}]
+    assert len(TRACES) == 1 and TRACES[0]["m"] == "int32"
     assert result.table.column("k").to_pylist() == [4, 6, 8, 10]
     assert np.array_equal(result.table.column("m").to_numpy(), [0, 2, 4, 6])
 
@@ -355,18 +340,11 @@ TASK_OFFSET = {"walk": 0.0, "climb": 10.0, "swim": 100.0}
 HOST_CALLS: list[dict[str, np.ndarray]] = []  # the `swept` argument of every call of the task toy
 
 
-def _task_batch_fn(fixed):
-    """numpy only, as a host analysis is; `swept["task"]` is a numpy array of str."""
-
-    def fn(swept, keys):
-        HOST_CALLS.append(dict(swept))
-        rows = keys.shape[0]
-        task = swept["task"] if "task" in swept else np.full(rows, fixed["task"])
-        speed = swept["speed"] if "speed" in swept else np.full(rows, fixed["speed"])
-        y = np.array([TASK_OFFSET[str(t)] for t in task]) + speed
-        return {"y": y, "status": (task == "swim").astype(np.int64)}
-
-    return fn
+def _task_simulate(values, keys, simulator):
+    """numpy only, as a simulated analysis is; `values["task"]` is a numpy array of str."""
+    HOST_CALLS.append(dict(values))
+    y = np.array([TASK_OFFSET[str(t)] for t in values["task"]]) + values["speed"]
+    return {"y": y, "status": (values["task"] == "swim").astype(np.int64)}
 
 
 TASK_PARAMS = (
@@ -381,12 +359,12 @@ TASKS = register(
         doc="A toy host analysis with a categorical task.",
         params=TASK_PARAMS,
         metrics=(Metric("y", "the task's offset + speed", unit="m/s"),),
-        make_batch_fn=_task_batch_fn,
+        simulate=_task_simulate,
         statuses=("ok", "wet"),
-        executor="host",
     )
 )
-TASKS_JAX = register(dataclasses.replace(TASKS, name="test.tasks_jax", executor="jax"))
+TASKS_JAX = register(dataclasses.replace(TASKS, name="test.tasks_jax", simulate=None,
+                                         row=lambda values, key: {"y": values["speed"], "status": 0}))
 
 
 def task_spec(out, *, chunk_size=4, formats=("parquet",), **params):

@@ -42,7 +42,7 @@ ROWS = [
 
 @cache
 def _batch():
-    return jax.jit(ta.make_batch_fn(FIXED))
+    return jax.jit(ta.STRIDE.batch_fn(FIXED))
 
 
 @pytest.fixture(scope="module")

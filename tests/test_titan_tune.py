@@ -53,7 +53,7 @@ def analysis_rows() -> dict[str, np.ndarray]:
     pts = [*POINTS, HELD, (titan_params.L_STD, titan_params.W_STD)]
     swept = {"l_std": jnp.asarray([p[0] for p in pts]), "w_std": jnp.asarray([p[1] for p in pts])}
     keys = jax.vmap(jax.random.PRNGKey)(jnp.arange(len(pts)))
-    out = jax.jit(ta.make_batch_fn(fixed))(swept, keys)
+    out = jax.jit(ta.STRIDE.batch_fn(fixed))(swept, keys)
     return {k: np.asarray(v) for k, v in out.items()}
 
 

@@ -18,7 +18,7 @@ N_CYCLES = 2
 def rows():
     analysis = get("titan.walk")
     fixed = {**analysis.defaults(), "n_cycles": N_CYCLES, "nthread": 2}
-    batch = analysis.make_batch_fn(fixed)
+    batch = analysis.batch_fn(fixed)
     swept = {"map": np.array(["exact", "survey"]), "start_jitter": np.array([0.0, 0.3])}
     keys = np.array([[0, 1], [0, 2]], np.uint32)
     return batch(swept, keys)
@@ -50,7 +50,7 @@ def test_planned_walks_hold_up_in_mujoco(rows):
 
 
 def test_the_long_field_is_surveyed_and_walked_along_x():
-    batch = get("titan.walk").make_batch_fn({**get("titan.walk").defaults(), "n_cycles": 1})
+    batch = get("titan.walk").batch_fn({**get("titan.walk").defaults(), "n_cycles": 1})
     with pytest.raises(SpecError, match="long field"):
         batch({"field": np.array(["long"]), "map": np.array(["exact"])}, np.zeros((1, 2), np.uint32))
     with pytest.raises(SpecError, match="walked along"):

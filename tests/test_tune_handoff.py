@@ -50,17 +50,9 @@ def y_of(a, b, c):
     return (a - 2.0) ** 2 + b * c
 
 
-def _batch_fn(fixed):
-    def fn(swept, keys):
-        rows = keys.shape[0]
-
-        def value(name):
-            return jnp.broadcast_to(jnp.asarray(swept[name] if name in swept else fixed[name]), (rows,))
-
-        y = y_of(value("a"), value("b"), value("c"))
-        return {"y": y, "good": y < 1.0, "status": jnp.where(y < 4.0, 0, 1)}
-
-    return fn
+def _row(values, key):
+    y = y_of(values["a"], values["b"], values["c"])
+    return {"y": y, "good": y < 1.0, "status": jnp.where(y < 4.0, 0, 1)}
 
 
 ANALYSIS = register_analysis(
@@ -74,7 +66,7 @@ ANALYSIS = register_analysis(
             Param("d", 1.0, "d", sweepable=False),
         ),
         metrics=(Metric("y", "(a - 2)^2 + b c"), Metric("good", "y < 1", kind="bool")),
-        make_batch_fn=_batch_fn,
+        row=_row,
         statuses=("ok", "too far"),
     )
 )

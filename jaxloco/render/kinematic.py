@@ -1,8 +1,8 @@
 """Replays of kinematic analyses: the row's trajectory from the robot's own JAX code,
 written into its MJCF model's qpos (and the terrain's mocap poses) frame by frame.
 
-* `titan.stride`: the row's gait plan (`gait.plan_cycles` on the row's frame grid map,
-  built as `gait.sweep_plan` builds it) animated step by step: a COG shift moves the body
+* `titan.stride`: the row's gait plan (the analysis' `row_plan`: `gait.plan_cycles` on
+  the row's frame grid map) animated step by step: a COG shift moves the body
   along a smoothstep, a swing moves the foot through the planner's rectangular swing
   waypoints (`GaitPlan.swing_path`); leg joints from `kinematics.legs_inverse_kinematics`
   of the foot centres (ground point + foot radius along the slope normal) in the body
@@ -87,30 +87,14 @@ def _titan_model(frame_size: float, interval: float):
 
 
 def titan_plan(values: Mapping[str, Any]):
-    """(params, start, plan, gmap) of a `titan.stride` row: `gait.sweep_plan`'s map, start
-    and plan for the row's parameter values."""
+    """(start, plan, map, metrics) of a `titan.stride` row, from the analysis' own
+    `row_plan` (the plan its metrics come from)."""
+    from jaxloco.analysis import row_arrays
     from jaxloco.robots.titan import analysis
-    from jaxloco.robots.titan import gait as titan_gait
 
-    sweepable = [p.name for p in analysis.PARAMS if p.sweepable]
-    v = {name: jnp.asarray(values[name], F64) for name in sweepable}
-    n_cycles = int(values["n_cycles"])
-    shape = (int(values["map_nx"]), int(values["map_ny"]))
-    cell = float(values["cell"])
-    params = analysis.row_params(v, F64)
-    gmap, start = titan_gait.sweep_setup(
-        params,
-        v["frame_size"],
-        v["frame_interval"],
-        v["slope"],
-        v["direction"],
-        shape,
-        cell,
-        **analysis.field_values(v),
-    )
-    plan = jax.jit(titan_gait.plan_cycles, static_argnames="n_cycles")(params, gmap, start, n_cycles=n_cycles,
-                                                               direction=v["direction"])
-    metrics = analysis.plan_metrics(plan, params.s_ne_c, v["softmin_tau"])
+    arrays, static = row_arrays(analysis.STRIDE, values)
+    params, gmap, start, plan = jax.jit(lambda a: analysis.row_plan({**static, **a}))(arrays)
+    metrics = analysis.plan_metrics(plan, params.s_ne_c, arrays["softmin_tau"])
     return start, plan, gmap, metrics
 
 
@@ -206,12 +190,12 @@ def _snake_model():
 
 def snake_rollout(values: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """(metrics with status code, records) of a `snake.kv` row (`analysis.run_one`)."""
+    from jaxloco.analysis import row_arrays
     from jaxloco.robots.snake import analysis
 
     config = analysis.rollout_config(values["horizon"], values["dt"], values["feedback"])
-    v = {p.name: jnp.asarray(values[p.name], jnp.int32 if p.name == "mode_order" else F64)
-         for p in analysis.PARAMS if p.sweepable}
-    metrics, recs = jax.jit(lambda x: analysis.run_one(x, config))(v)
+    arrays, _ = row_arrays(analysis.KV, values)
+    metrics, recs = jax.jit(lambda x: analysis.run_one(x, config))(arrays)
     return metrics, {k: np.asarray(r) for k, r in recs.items()}
 
 
@@ -272,19 +256,16 @@ def _leggrope_model():
 def leggrope_cycle(values: Mapping[str, Any], key: np.ndarray):
     """(plan, body (N, 3), toes (N, 4, 3), info) of a `leggrope.slope_cycle` row: the
     plan of `forces.simulate_cycle` and the pose at the end of each of its QP steps."""
+    from jaxloco.analysis import row_arrays
     from jaxloco.robots.leggrope import analysis, gait
-    from jaxloco.robots.leggrope.params import default_params
 
+    arrays, static = row_arrays(analysis.SLOPE_CYCLE, values)
     config, _ = analysis.walk_config(values)
     dt = float(values["dt"])
-    v = {p.name: jnp.asarray(values[p.name], F64) for p in analysis.PARAMS if p.sweepable}
-    params = default_params().with_(mu=v["mu"], r_ref_factor=v["r_ref_factor"], a_max=v["a_max"],
-                                    v_max=v["v_max"], h_s=v["h_s"], h_tau=v["h_tau"], h_c=v["h_c"], dt=dt)
-    walk = analysis.cycle_design(values).walk(stride=v["stride"], swing_height=v["swing_height"])
 
     @jax.jit
-    def run(key):
-        terrain = gait.irregular_slope(v["theta"], v["psi"], v["facet_spread"], key)
+    def run(arrays, key):
+        params, walk, terrain, _, _ = analysis.row_setup({**static, **arrays}, key)
         plan = gait.plan_cycle(params, walk, terrain, config)
 
         def pose(i):
@@ -292,9 +273,9 @@ def leggrope_cycle(values: Mapping[str, Any], key: np.ndarray):
             body, toes = gait.pose_at(params, walk, plan, info, info.tau, config)
             return body, toes, info.grope, info.leg, info.phase
 
-        return plan, jax.vmap(pose)(jnp.arange(config.n_steps))
+        return params, plan, jax.vmap(pose)(jnp.arange(config.n_steps))
 
-    plan, (body, toes, grope, leg, phase) = run(jnp.asarray(key))
+    params, plan, (body, toes, grope, leg, phase) = run(arrays, jnp.asarray(key))
     return params, plan, np.asarray(body), np.asarray(toes), (np.asarray(grope), np.asarray(leg), np.asarray(phase))
 
 

@@ -6,13 +6,12 @@ full trajectory (every recorded state, times in seconds from the start), the met
 replay itself recomputed, what to write on the frames and where the camera looks.
 
 Two kinds of replay:
-  * simulated analyses (executor "host": `leggrope.fragile_walk`, `octopus.step_climb`,
-    and any other host analysis that runs `jaxloco.sim.rollout.rollout`): the
-    analysis' own batch function runs the row once (batch of 1, the row's seed) on the
-    native backend while `capture_rollouts` adds qpos, mocap poses and time to the
-    scenario's records. The metrics therefore come from the analysis' own code, and the
-    states are those its metrics were computed from. A row swept on MJX is replayed on
-    native MuJoCo (its metrics may then differ slightly from the table's);
+  * simulated analyses (`leggrope.fragile_walk`, `octopus.step_climb`, and any other
+    analysis with `simulate`): the analysis runs the row once (batch of 1, the row's
+    seed) through the same `Analysis.batch_fn` as the sweep, on a simulator
+    (`jaxloco.sim.rollout.Simulator`) with the row's backend that records every state
+    (`record_state`). The metrics therefore come from the analysis' own code, and the
+    states are those its metrics were computed from;
   * kinematic analyses (`jaxloco.render.kinematic`): the robot's own JAX code computes the
     row's trajectory or posture, which is written into the MJCF model's qpos.
 
@@ -22,12 +21,11 @@ Frames: `frame_indices` picks the states to draw: all of them up to `seconds`, e
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import math
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -35,8 +33,10 @@ from jaxloco.errors import SpecError
 from jaxloco.registry import Registry, robot_entries
 from jaxloco.render.rows import Row
 
+if TYPE_CHECKING:
+    from jaxloco.sim.rollout import Run
+
 MAX_FRAMES = 150  # default cap of a video's frames (a GIF of 480x360 renders in well under a minute)
-STATE_KEYS = ("_render_qpos", "_render_mocap_pos", "_render_mocap_quat", "_render_time")
 
 
 @dataclass
@@ -165,92 +165,34 @@ def model_copy(model: Any) -> Any:
 
 
 # --------------------------------------------------------------------- simulated rows
-@dataclass
-class Captured:
-    """One rollout seen by `capture_rollouts`: the scenario that ran (with the state
-    records), its batched params, its result (state records removed) and the states."""
+def run_host_row(row: Row) -> tuple[dict[str, Any], str, Run]:
+    """Run a simulated analysis on one row as the sweep does (batch of 1, the row's PRNG
+    key, the row's backend) on a simulator that records every state: (metrics, status,
+    the first rollout it ran, states included)."""
+    from jaxloco.sim.rollout import simulator_for
 
-    scenario: Any
-    params: Mapping[str, Any]
-    result: Any
-    state: dict[str, np.ndarray]
-
-
-def _with_state(record: Callable) -> Callable:
-    def recorded(p, data, obs, ctrl_state, env_state):
-        out = dict(record(p, data, obs, ctrl_state, env_state))
-        out.update(_render_qpos=data.qpos, _render_mocap_pos=data.mocap_pos, _render_mocap_quat=data.mocap_quat,
-                   _render_time=data.time)
-        return out
-
-    return recorded
-
-
-_WRAPPED: dict[int, tuple[Any, Any]] = {}  # id(scenario) -> (scenario, scenario recording its states)
-
-
-def recording_scenario(scenario: Any) -> Any:
-    """`scenario` with qpos, mocap poses and time added to its records; one object per
-    scenario (cached), so that repeated replays reuse its traced and compiled functions."""
-    hit = _WRAPPED.get(id(scenario))
-    if hit is None or hit[0] is not scenario:
-        hit = (scenario, scenario.with_(record=_with_state(scenario.record)))
-        _WRAPPED[id(scenario)] = hit
-    return hit[1]
-
-
-@contextlib.contextmanager
-def capture_rollouts() -> Iterator[list[Captured]]:
-    """While active, `jaxloco.sim.rollout.rollout` runs on the native backend with qpos,
-    mocap poses and time added to the scenario's records, and appends what it ran to the
-    yielded list (the caller's records are returned unchanged). Analyses import
-    `rollout` when their batch function is made, so make it inside the block."""
-    from jaxloco.sim import rollout as module
-
-    original = module.rollout
-    captured: list[Captured] = []
-
-    def recording(scenario, params, **kwargs):
-        kwargs["backend"] = "native"
-        scenario = recording_scenario(scenario)
-        result = original(scenario, params, **kwargs)
-        state = {key: np.asarray(result.records.pop(key)) for key in STATE_KEYS}
-        captured.append(Captured(scenario, params, result, state))
-        return result
-
-    module.rollout = recording
-    try:
-        yield captured
-    finally:
-        module.rollout = original
-
-
-def run_host_row(row: Row) -> tuple[dict[str, Any], str, Captured]:
-    """Run a host (simulated) analysis on one row as the sweep does (batch of 1, the
-    row's PRNG key) and capture its rollout: (metrics, status, captured)."""
     analysis = row.analysis
-    with capture_rollouts() as captured:
-        fn = analysis.make_batch_fn(dict(row.values))
-        out = fn({}, row.key[None])
-    if not captured:
-        raise SpecError(f"analysis {analysis.name} has no replay yet (its batch function runs no jaxloco.sim rollout)")
+    simulator = simulator_for(row.values, record_state=True)
+    out = analysis.batch_fn(dict(row.values), simulator)({}, row.key[None])
+    if not simulator.runs:
+        raise SpecError(f"analysis {analysis.name} has no replay yet (it ran no simulation for this row)")
     metrics = {m.name: np.asarray(out[m.name])[0].item() for m in analysis.metrics if m.name in out}
     status = analysis.statuses[int(np.asarray(out["status"])[0])]
-    return metrics, status, captured[0]
+    return metrics, status, simulator.runs[0]
 
 
-def _row_params(captured: Captured, i: int = 0) -> dict[str, Any]:
-    return {k: np.asarray(v)[i] for k, v in captured.params.items()}
+def _row_params(run: Run, i: int = 0) -> dict[str, Any]:
+    return {k: np.asarray(v)[i] for k, v in run.params.items()}
 
 
-def simulated_model(captured: Captured) -> Any:
+def simulated_model(run: Run) -> Any:
     """A copy of the scenario's model with the row's per-simulation model fields written in."""
     import mujoco
 
-    model = model_copy(captured.scenario.model)
-    params = _row_params(captured)
+    model = model_copy(run.scenario.model)
+    params = _row_params(run)
     set_const = False
-    for f in captured.scenario.model_fields:
+    for f in run.scenario.model_fields:
         arr = getattr(model, f.name)
         index = f.index if isinstance(f.index, tuple) else (f.index,)
         arr[index] = np.asarray(f.value(params))
@@ -265,21 +207,21 @@ def simulated_replay(row: Row, headline: Sequence[str] = (),
                      **extra: Any) -> Replay:
     """The replay of a host analysis (module docstring). caption(row, records) gives one
     line per recorded state from the scenario's own records (without the batch axis)."""
-    metrics, status, captured = run_host_row(row)
-    state = {k: v[0] for k, v in captured.state.items()}
-    records = {k: np.asarray(v)[0] for k, v in captured.result.records.items()}
+    metrics, status, run = run_host_row(row)
+    state = {k: np.asarray(v)[0] for k, v in run.result.states.items()}
+    records = {k: np.asarray(v)[0] for k, v in run.result.records.items()}
     headline = tuple(headline) or tuple(m.name for m in row.analysis.metrics[:3])
     return Replay(
         row=row,
-        model=simulated_model(captured),
-        qpos=state["_render_qpos"],
-        times=state["_render_time"] - state["_render_time"][0],
-        mocap_pos=state["_render_mocap_pos"],
-        mocap_quat=state["_render_mocap_quat"],
+        model=simulated_model(run),
+        qpos=state["qpos"],
+        times=state["time"] - state["time"][0],
+        mocap_pos=state["mocap_pos"],
+        mocap_quat=state["mocap_quat"],
         metrics=metrics,
         status=status,
         headline=headline,
-        kind="native MuJoCo simulation",
+        kind={"native": "native MuJoCo simulation", "mjx": "MJX simulation"}.get(run.result.backend, "simulation"),
         captions=None if caption is None else list(caption(row, records)),
         **extra,
     )

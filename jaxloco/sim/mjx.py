@@ -44,7 +44,7 @@ with contextlib.redirect_stdout(io.StringIO()):  # mujoco.mjx prints "Failed to 
     from mujoco import mjx
 
 from jaxloco.sim import data as simdata
-from jaxloco.sim.scenario import Final, Scenario, init_fn, initial_activation, model_field_values, tick_fn
+from jaxloco.sim.scenario import Final, Scenario, init_fn, initial_activation, model_field_values, per_scenario, tick_fn
 
 
 def check_supported(scenario: Scenario) -> None:
@@ -118,11 +118,8 @@ _COMPILED: dict[int, Any] = {}
 
 
 def batched_fn(scenario: Scenario):
-    """The jitted, vmapped rollout of `rollout_fn` (cached per scenario object)."""
-    key = id(scenario)
-    if key not in _COMPILED or _COMPILED[key][0] is not scenario:
-        _COMPILED[key] = (scenario, jax.jit(jax.vmap(rollout_fn(scenario))))
-    return _COMPILED[key][1]
+    """The jitted, vmapped rollout of `rollout_fn`, kept as long as the scenario lives."""
+    return per_scenario(_COMPILED, scenario, lambda: jax.jit(jax.vmap(rollout_fn(scenario))))
 
 
 def run(scenario: Scenario, params: Any, keys: jax.Array, *, shard: bool = True) -> dict[str, Any]:

@@ -26,9 +26,10 @@ import mujoco.batch
 import numpy as np
 
 from jaxloco.sim import data as simdata
-from jaxloco.sim.scenario import Final, Scenario, init_fn, initial_activation, tick_fn
+from jaxloco.sim.scenario import Final, Scenario, init_fn, initial_activation, per_scenario, tick_fn
 
 # warnings that mean the simulation can no longer be trusted
+STATE_KEYS = ("qpos", "mocap_pos", "mocap_quat", "time")  # what record_state keeps
 DIVERGENCE_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQPOS,
     mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -62,10 +63,13 @@ def run(
     *,
     nthread: int = 0,
     progress: bool = False,
+    record_state: bool = False,
 ) -> dict[str, Any]:
     """Run the scenario for a batch of parameter sets (leaves with leading axis B) and
     PRNG keys (B, 2). Returns a dict with records (B, R, ...), metrics (B,), final
-    (batched `Final`) and timings; `jaxloco.sim.rollout.rollout` wraps it."""
+    (batched `Final`) and timings, and with `record_state` the MuJoCo states at the
+    recorded periods ("states": STATE_KEYS -> (B, R, ...), copied from the batch on the
+    host: the compiled tick is the same as without); `jaxloco.sim.rollout.rollout` wraps it."""
     nsim = int(keys.shape[0])
     t0 = time.perf_counter()
     batch = make_batch(scenario, params, nsim, nthread)
@@ -90,6 +94,7 @@ def run(
     alive = np.ones(nsim, bool)
     t_div = np.full(nsim, np.nan)
     records: dict[str, np.ndarray] = {}
+    states: dict[str, np.ndarray] = {}
     bar = _progress(scenario.horizon, enabled=progress)
     t_setup = time.perf_counter() - t0
     try:
@@ -99,6 +104,8 @@ def run(
             cstate, estate, out, rec = tick(params, cstate, estate, flat)
             if t % scenario.record_every == 0:
                 _store(records, rec, t // scenario.record_every, scenario.n_records)
+                if record_state:
+                    _store(states, {k: bound[k] for k in STATE_KEYS}, t // scenario.record_every, scenario.n_records)
             out = np.asarray(out)
             ctrl, mocap_pos = out[:, :nu], out[:, nu:nu + 3 * nmocap].reshape(nsim, nmocap, 3)
             mocap_quat = out[:, nu + 3 * nmocap:nu + 7 * nmocap].reshape(nsim, nmocap, 4)
@@ -126,12 +133,16 @@ def run(
     for t_rest in range(t + 1, scenario.horizon):  # only after everything diverged
         if t_rest % scenario.record_every == 0:
             _store(records, rec, t_rest // scenario.record_every, scenario.n_records)
+            if record_state:
+                _store(states, {k: bound[k] for k in STATE_KEYS}, t_rest // scenario.record_every,
+                       scenario.n_records)
     t_loop = time.perf_counter() - t0 - t_setup
     final_data = simdata.from_native(bound)
     final = Final(final_data, cstate, estate, jnp.asarray(alive), jnp.asarray(t_div))
     metrics = jitted["summarize"](params, records, final)
     return {
         "records": records,
+        "states": states if record_state else None,
         "metrics": {k: np.asarray(v) for k, v in metrics.items()},
         "final": final,
         "alive": alive,
@@ -140,22 +151,18 @@ def run(
     }
 
 
-_TICKS: dict[tuple, Any] = {}
+_TICKS: dict[int, Any] = {}
 _INITS: dict[int, Any] = {}
 
 
 def _jitted_inits(scenario: Scenario) -> dict[str, Any]:
     """The jitted, vmapped initial_state, controller/environment init and summarize of a
-    scenario, cached per scenario object so repeated rollouts do not re-trace them."""
-    key = id(scenario)
-    if key not in _INITS or _INITS[key][0] is not scenario:
-        fns = {
-            "initial_state": jax.jit(jax.vmap(scenario.initial_state)),
-            "init": jax.jit(jax.vmap(init_fn(scenario))),
-            "summarize": jax.jit(jax.vmap(scenario.summarize)),
-        }
-        _INITS[key] = (scenario, fns)
-    return _INITS[key][1]
+    scenario, kept as long as the scenario lives so repeated rollouts do not re-trace them."""
+    return per_scenario(_INITS, scenario, lambda: {
+        "initial_state": jax.jit(jax.vmap(scenario.initial_state)),
+        "init": jax.jit(jax.vmap(init_fn(scenario))),
+        "summarize": jax.jit(jax.vmap(scenario.summarize)),
+    })
 
 
 def _layout(bound: dict[str, np.ndarray]) -> tuple[tuple[str, int, tuple[int, ...]], ...]:
@@ -176,8 +183,8 @@ def _unpack(flat, layout) -> simdata.SimData:
 def _jitted_tick(scenario: Scenario, layout):
     """One jitted, vmapped tick per scenario object (reused across calls), on the packed
     data; it returns (ctrl_state, env_state, [ctrl | mocap_pos | mocap_quat | bad], record)."""
-    key = (id(scenario), layout)
-    if key not in _TICKS or _TICKS[key][0] is not scenario:
+    ticks = per_scenario(_TICKS, scenario, dict)
+    if layout not in ticks:
         tick = tick_fn(scenario)
 
         def packed(params, cstate, estate, flat):
@@ -188,8 +195,8 @@ def _jitted_tick(scenario: Scenario, layout):
                                    mocap_quat.reshape(-1).astype(dtype), bad.astype(dtype)[None]])
             return cstate, estate, out, rec
 
-        _TICKS[key] = (scenario, jax.jit(jax.vmap(packed)))
-    return _TICKS[key][1]
+        ticks[layout] = jax.jit(jax.vmap(packed))
+    return ticks[layout]
 
 
 def _step(batch: mujoco.batch.Batch, ids: np.ndarray, nstep: int, alive: np.ndarray, t_div: np.ndarray) -> None:

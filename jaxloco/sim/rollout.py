@@ -9,6 +9,12 @@ controller gains, thresholds, terrain and physical parameters); `stack_params` b
 from a list of per-simulation dicts. PRNG keys (for random terrain and perturbations)
 come from `seeds` (one per simulation, default 0..B-1); each simulation's key is also
 passed to the scenario as `params["key"]` (controllers and environments draw from it).
+`record_state=True` adds every recorded period's MuJoCo state (qpos, mocap poses, time)
+to the result (`RolloutResult.states`), for replays, on either backend.
+
+`Simulator` is what a simulated sweep analysis runs its rollouts on
+(`jaxloco.analysis`): the framework makes it (backend, threads, state recording) and the
+analysis only calls `simulator.run(scenario, params)`.
 """
 
 from __future__ import annotations
@@ -21,10 +27,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.sim.scenario import Final, Scenario
+from jaxloco.sim.scenario import Final, Scenario, per_scenario
 
 Backend = Literal["native", "mjx"]
 DIVERGED = "diverged"
+STATE_KEYS = ("qpos", "mocap_pos", "mocap_quat", "time")  # RolloutResult.states with record_state (native.STATE_KEYS)
+_STATE_PREFIX = "_state_"
 
 
 @dataclass(frozen=True)
@@ -33,7 +41,9 @@ class RolloutResult:
 
     records: signal -> (B, n_records, ...), sampled every `record_every` control periods
     from t = 0 (`times`). metrics: name -> (B,). status: (B,) strings, "ok", one of the
-    scenario's statuses, or "diverged". t_diverged: (B,) [s], nan where none diverged."""
+    scenario's statuses, or "diverged". t_diverged: (B,) [s], nan where none diverged.
+    states (with `record_state`): STATE_KEYS -> (B, n_records, ...) MuJoCo states at the
+    recorded periods (qpos, mocap_pos, mocap_quat, time [s]), else None."""
 
     records: dict[str, np.ndarray]
     metrics: dict[str, np.ndarray]
@@ -43,6 +53,7 @@ class RolloutResult:
     final: Final
     backend: str
     timing: dict[str, float] = field(default_factory=dict)
+    states: dict[str, np.ndarray] | None = None
 
     @property
     def n(self) -> int:
@@ -87,12 +98,14 @@ def rollout(
     backend: Backend = "native",
     nthread: int = 0,
     progress: bool = False,
+    record_state: bool = False,
 ) -> RolloutResult:
     """Run `scenario` closed loop for every parameter set of the batch `params`.
 
     backend "native" (mujoco.batch on `nthread` threads, 0 = all cores; the CPU
     workhorse) or "mjx" (one jitted scan, sharded over the JAX devices; differentiable:
-    see `jaxloco.sim.mjx`)."""
+    see `jaxloco.sim.mjx`). record_state: also return the recorded periods' MuJoCo
+    states (`RolloutResult.states`)."""
     n = batch_size(params)
     if seeds is None:
         seeds = np.arange(n)
@@ -105,20 +118,79 @@ def rollout(
     else:
         keys = jnp.stack([jax.random.PRNGKey(int(s)) for s in seeds])
         params["key"] = keys  # the simulation's PRNG key, for controllers and environments too
+    if backend not in ("native", "mjx"):
+        raise ValueError(f"backend: expected 'native' or 'mjx', got {backend!r}")
     if backend == "native":
         from jaxloco.sim import native
 
-        out = native.run(scenario, params, keys, nthread=nthread, progress=progress)
-    elif backend == "mjx":
+        out = native.run(scenario, params, keys, nthread=nthread, progress=progress, record_state=record_state)
+        states = out["states"]
+    else:
         from jaxloco.sim import mjx
 
-        out = mjx.run(scenario, params, keys)
-    else:
-        raise ValueError(f"backend: expected 'native' or 'mjx', got {backend!r}")
-    return _result(scenario, out, backend)
+        out = mjx.run(recording_scenario(scenario) if record_state else scenario, params, keys)
+        states = {key: np.asarray(out["records"].pop(_STATE_PREFIX + key)) for key in STATE_KEYS} \
+            if record_state else None
+    return _result(scenario, out, backend, states)
 
 
-def _result(scenario: Scenario, out: dict[str, Any], backend: str) -> RolloutResult:
+@dataclass(frozen=True)
+class Run:
+    """One rollout a `Simulator` ran while recording states: the scenario, its batched
+    params and the result (with `states`)."""
+
+    scenario: Scenario
+    params: Mapping[str, Any]
+    result: RolloutResult
+
+
+@dataclass(eq=False)
+class Simulator:
+    """Where a simulated analysis runs its rollouts (`jaxloco.analysis`), made and held by
+    the framework: the backend, the physics threads (native backend; 0 = all cores) and,
+    for a replay, `record_state` (every run is then kept in `runs`, states included)."""
+
+    backend: Backend = "native"
+    nthread: int = 0
+    record_state: bool = False
+    runs: list[Run] = field(default_factory=list)
+
+    def run(self, scenario: Scenario, params: Mapping[str, Any]) -> RolloutResult:
+        """`rollout(scenario, params)` on this simulator's backend and threads."""
+        result = rollout(scenario, params, backend=self.backend, nthread=self.nthread,
+                         record_state=self.record_state)
+        if self.record_state:
+            self.runs.append(Run(scenario, dict(params), result))
+        return result
+
+
+def simulator_for(values: Mapping[str, Any], record_state: bool = False) -> Simulator:
+    """The simulator of an analysis' fixed values: its `backend` parameter (default
+    "native") and `nthread` (default 0: all cores)."""
+    return Simulator(backend=str(values.get("backend", "native")), nthread=int(values.get("nthread", 0)),
+                     record_state=record_state)
+
+
+_RECORDING: dict[int, Any] = {}
+
+
+def recording_scenario(scenario: Scenario) -> Scenario:
+    """`scenario` with qpos, mocap poses and time added to its records, for MJX (the
+    native backend copies them from its batch instead); one object per scenario, so that
+    repeated replays reuse its compiled functions."""
+    record = scenario.record
+
+    def recorded(p, data, obs, ctrl_state, env_state):
+        out = dict(record(p, data, obs, ctrl_state, env_state))
+        out.update({_STATE_PREFIX + "qpos": data.qpos, _STATE_PREFIX + "mocap_pos": data.mocap_pos,
+                    _STATE_PREFIX + "mocap_quat": data.mocap_quat, _STATE_PREFIX + "time": data.time})
+        return out
+
+    return per_scenario(_RECORDING, scenario, lambda: scenario.with_(record=recorded))
+
+
+def _result(scenario: Scenario, out: dict[str, Any], backend: str,
+            states: dict[str, np.ndarray] | None = None) -> RolloutResult:
     metrics = out["metrics"]
     codes = np.asarray(metrics.get("status", np.zeros(len(out["alive"]), int)), int)
     names = np.asarray(scenario.statuses, dtype=object)
@@ -133,4 +205,5 @@ def _result(scenario: Scenario, out: dict[str, Any], backend: str) -> RolloutRes
         final=out["final"],
         backend=backend,
         timing=out.get("timing", {}),
+        states=states,
     )

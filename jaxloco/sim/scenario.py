@@ -16,6 +16,7 @@ load exceeds a threshold). It owns the mocap bodies' poses.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from functools import partial
@@ -271,3 +272,15 @@ def _uniform_per_key(keys: jax.Array, n: int) -> jax.Array:
     """One jitted program per (batch, n): run eagerly, the vmapped draw lowered again on
     every call (every chunk of a sweep)."""
     return jax.vmap(lambda k: jax.random.uniform(k, (n,), minval=-1.0, maxval=1.0))(keys)
+
+
+def per_scenario(cache: dict[int, Any], scenario: Any, make: Callable[[], Any]) -> Any:
+    """`cache[id(scenario)]`, made by `make()` on a miss; the entry is dropped when the
+    scenario is garbage-collected (compiled functions live as long as their scenario)."""
+    key = id(scenario)
+    hit = cache.get(key)
+    if hit is None or hit[0]() is not scenario:
+        hit = (weakref.ref(scenario), make())
+        cache[key] = hit
+        weakref.finalize(scenario, cache.pop, key, None)
+    return hit[1]

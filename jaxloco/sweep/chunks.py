@@ -65,7 +65,7 @@ def prepare(spec: SweepSpec, batch_fn: Callable[..., Any] | None = None) -> Prep
     """Make (and jit) the batch function and fix the call shape of `spec`'s chunks.
 
     JAX must already be configured (float64 flag, CPU devices). batch_fn: the result of
-    `analysis.make_batch_fn(fixed)` when the caller already has it.
+    `analysis.batch_fn(fixed)` when the caller already has it.
     """
     import jax
 
@@ -73,7 +73,7 @@ def prepare(spec: SweepSpec, batch_fn: Callable[..., Any] | None = None) -> Prep
     _check_swept(spec)
     grid = expand(spec)
     host = analysis.executor == "host"
-    fn = batch_fn if batch_fn is not None else analysis.make_batch_fn(dict(spec.fixed))
+    fn = batch_fn if batch_fn is not None else analysis.batch_fn(dict(spec.fixed))
     if not host:
         fn = jax.jit(fn)
     versions = info.versions()

@@ -6,7 +6,7 @@ this process ("local") or in Ray worker processes ("ray"), with `jaxloco.sweep.c
 The table, its spec hash and provenance do not depend on the executor, so a run started
 with one executor can be resumed with another.
 
-Every check that can fail on user input (spec, output directory, `make_batch_fn(fixed)`,
+Every check that can fail on user input (spec, output directory, `batch_fn(fixed)`,
 the executor's connection) runs before the first chunk is computed and before anything
 is written.
 """
@@ -101,7 +101,7 @@ def run(
 
     if configure_jax:
         runtime.configure(x64=analysis.x64, cache_dir=True)
-    fn = analysis.make_batch_fn(dict(spec.fixed))  # its user errors come before anything runs
+    fn = analysis.batch_fn(dict(spec.fixed))  # its user errors come before anything runs
     work = SweepWork(
         spec,
         spec_hash,

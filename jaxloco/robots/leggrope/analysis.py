@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -19,7 +19,7 @@ import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
 from jaxloco.robots.leggrope import forces, gait, results
-from jaxloco.robots.leggrope.params import G, default_params
+from jaxloco.robots.leggrope.params import G, LegGropeParams, default_params
 
 HALF_PI = 0.5 * math.pi
 # a cycle is feasible with Eq. 19 hard when no step needed more relaxation than this
@@ -102,16 +102,35 @@ def walk_config(fixed: Mapping[str, Any]) -> tuple[gait.WalkConfig, forces.QPSet
     return config, settings
 
 
-def run_one(values: Mapping[str, jax.Array], key: jax.Array, config: gait.WalkConfig,
-            settings: forces.QPSettings, dt: float, design: gait.GaitDesign) -> dict[str, jax.Array]:
-    """Metrics and status code of one cycle for scalar parameter `values` and the footstep
-    design `design`."""
+class RowSetup(NamedTuple):
+    """What one row's cycle is computed from (`row_setup`)."""
+
+    params: LegGropeParams
+    walk: gait.WalkParams
+    terrain: gait.SlopeTerrain
+    config: gait.WalkConfig
+    settings: forces.QPSettings
+
+
+def row_setup(values: Mapping[str, Any], key: jax.Array) -> RowSetup:
+    """The robot parameters, footstep design, terrain, step counts and QP settings of one
+    row; values: every parameter (`Analysis.row`'s form). What the row's metrics and its
+    replay (`jaxloco.render.kinematic`) are computed from."""
+    config, settings = walk_config(values)
     params = default_params().with_(
         mu=values["mu"], r_ref_factor=values["r_ref_factor"], a_max=values["a_max"], v_max=values["v_max"],
-        h_s=values["h_s"], h_tau=values["h_tau"], h_c=values["h_c"], dt=dt,
+        h_s=values["h_s"], h_tau=values["h_tau"], h_c=values["h_c"], dt=float(values["dt"]),
     )
-    walk = design.walk(stride=values["stride"], swing_height=values["swing_height"])
+    walk = cycle_design(values).walk(stride=values["stride"], swing_height=values["swing_height"])
     terrain = gait.irregular_slope(values["theta"], values["psi"], values["facet_spread"], key)
+    return RowSetup(params, walk, terrain, config, settings)
+
+
+def row(values: Mapping[str, Any], key: jax.Array) -> dict[str, jax.Array]:
+    """`Analysis.row`: metrics and status of one cycle; values: every parameter of PARAMS
+    (the sweepable ones scalar arrays, the step counts, QP settings and numbering plain)."""
+    params, walk, terrain, config, settings = row_setup(values, key)
+    dt = float(values["dt"])
     plan, sm, _ = forces.simulate_cycle(params, walk, terrain, config, settings)
     weight = params.total_mass * G
     r_ref = params.r_ref_factor * weight * jnp.cos(terrain.theta)
@@ -149,24 +168,6 @@ def run_one(values: Mapping[str, jax.Array], key: jax.Array, config: gait.WalkCo
         cycle_time=jnp.asarray(config.n_steps * dt, weight.dtype),
         status=status,
     )
-
-
-def make_batch_fn(fixed: Mapping[str, Any]):
-    config, settings = walk_config(fixed)
-    design = cycle_design(fixed)
-    dt = float(fixed["dt"])
-    sweepable = [p.name for p in PARAMS if p.sweepable]
-
-    def batch(swept: Mapping[str, jax.Array], keys: jax.Array) -> dict[str, jax.Array]:
-        n = keys.shape[0]
-        dtype = jnp.result_type(float)
-        values = {
-            name: jnp.asarray(swept[name], dtype) if name in swept else jnp.full(n, fixed[name], dtype)
-            for name in sweepable
-        }
-        return jax.vmap(lambda v, k: run_one(v, k, config, settings, dt, design))(values, keys)
-
-    return batch
 
 
 def summarize(table) -> Summary:
@@ -236,7 +237,7 @@ SLOPE_CYCLE = Analysis(
     doc="One leg-grope walk cycle on a slope: is a slip-free force distribution feasible at every step?",
     params=PARAMS,
     metrics=METRICS,
-    make_batch_fn=make_batch_fn,
+    row=row,
     statuses=STATUSES,
     summarize=summarize,
     x64=True,

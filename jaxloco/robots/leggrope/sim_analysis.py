@@ -19,6 +19,7 @@ import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary, mean_worst
 from jaxloco.robots.leggrope import scenarios
+from jaxloco.sim.rollout import Simulator
 from jaxloco.sim.scenario import seed_jitter
 
 HALF_PI = 0.5 * math.pi
@@ -119,35 +120,27 @@ def _scenario(horizon: float, numbering: str):
     return scenarios.make_scenario(horizon_s=horizon, record_every=5, numbering=numbering)
 
 
-def make_batch_fn(fixed: Mapping[str, Any]):
-    """A host batch function: numpy swept values and keys -> metrics (native backend)."""
-    from jaxloco.sim.rollout import rollout
-
-    scenario = _scenario(float(fixed["horizon"]), str(fixed["numbering"]))
-    nthread = int(fixed["nthread"])
-    names = [p.name for p in PARAMS if p.sweepable]
-
-    def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
-        n = keys.shape[0]
-        values = {name: np.asarray(swept[name]) if name in swept else np.full(n, fixed[name]) for name in names}
-        u = seed_jitter(np.asarray(keys, np.uint32) ^ np.uint32(JITTER_SALT), 2)  # mu, theta
-        values["mu"] = np.maximum(values["mu"] + u[:, 0] * values.pop("mu_jitter"), 0.05)
-        values["theta"] = values["theta"] + u[:, 1] * values.pop("theta_jitter")
-        params = scenarios.params_batch(n, **values)
-        params["key"] = np.asarray(keys, np.uint32)
-        result = rollout(scenario, params, backend="native", nthread=nthread)
-        out = {m.name: np.asarray(result.metrics[m.name]) for m in METRICS if m.name in result.metrics}
-        out["t_diverged"] = result.t_diverged
-        out["tilt_change"] = np.degrees(out["max_attitude_change"])
-        fell = np.asarray(result.metrics["fell"], bool)
-        code = np.array([_SCENARIO_STATUS.get(s, 3) for s in result.status])
-        off = np.asarray(result.metrics["off_foothold"], bool) & (code == 0)
-        code = np.where(result.diverged, 3, np.where(fell & ~result.diverged, 4, np.where(off, 6, code)))
-        out["success"] = np.asarray(out["success"], bool) & ~result.diverged
-        out["status"] = code
-        return out
-
-    return batch
+def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) -> dict[str, np.ndarray]:
+    """`Analysis.simulate`: one simulated cycle per row (values: (B,) columns of the
+    sweepable parameters, horizon and numbering plain)."""
+    scenario = _scenario(float(values["horizon"]), str(values["numbering"]))
+    columns = {p.name: np.asarray(values[p.name]) for p in PARAMS if p.sweepable}
+    u = seed_jitter(keys ^ np.uint32(JITTER_SALT), 2)  # mu, theta
+    columns["mu"] = np.maximum(columns["mu"] + u[:, 0] * columns.pop("mu_jitter"), 0.05)
+    columns["theta"] = columns["theta"] + u[:, 1] * columns.pop("theta_jitter")
+    params = scenarios.params_batch(keys.shape[0], **columns)
+    params["key"] = keys
+    result = simulator.run(scenario, params)
+    out = {m.name: np.asarray(result.metrics[m.name]) for m in METRICS if m.name in result.metrics}
+    out["t_diverged"] = result.t_diverged
+    out["tilt_change"] = np.degrees(out["max_attitude_change"])
+    fell = np.asarray(result.metrics["fell"], bool)
+    code = np.array([_SCENARIO_STATUS.get(s, 3) for s in result.status])
+    off = np.asarray(result.metrics["off_foothold"], bool) & (code == 0)
+    code = np.where(result.diverged, 3, np.where(fell & ~result.diverged, 4, np.where(off, 6, code)))
+    out["success"] = np.asarray(out["success"], bool) & ~result.diverged
+    out["status"] = code
+    return out
 
 
 def summarize(table) -> Summary:
@@ -218,9 +211,8 @@ FRAGILE_WALK = Analysis(
     doc="The simulated leg-grope walk (position control, toe force sensors) over fragile footholds on a slope.",
     params=PARAMS,
     metrics=METRICS,
-    make_batch_fn=make_batch_fn,
+    simulate=simulate,
     statuses=STATUSES,
     summarize=summarize,
     x64=True,
-    executor="host",
 )

@@ -247,22 +247,9 @@ def run_row(v: Mapping[str, jax.Array], key: jax.Array, samples: int) -> dict[st
     return out
 
 
-def make_batch_fn(fixed: Mapping[str, Any]):
-    samples = int(fixed["samples"])
-    sweepable = [p.name for p in PARAMS if p.sweepable]
-
-    def batch(swept: Mapping[str, jax.Array], keys: jax.Array) -> dict[str, jax.Array]:
-        n = keys.shape[0]
-        dtype = jnp.result_type(float)
-
-        def column(name):
-            kind = jnp.int32 if name == "terrain" else dtype
-            return jnp.asarray(swept[name], kind) if name in swept else jnp.full(n, fixed[name], kind)
-
-        values = {name: column(name) for name in sweepable}
-        return jax.vmap(lambda v, k: run_row(v, k, samples))(values, keys)
-
-    return batch
+def row(values: Mapping[str, Any], key: jax.Array) -> dict[str, jax.Array]:
+    """`Analysis.row`: accuracy and costs of one row over `samples` Monte-Carlo draws."""
+    return run_row(values, key, int(values["samples"]))
 
 
 def summarize(table) -> Summary:
@@ -318,7 +305,7 @@ TERRAIN_CLASSIFICATION = Analysis(
     "against sigma_1..3, step height and terrain type",
     params=PARAMS,
     metrics=METRICS,
-    make_batch_fn=make_batch_fn,
+    row=row,
     statuses=STATUSES,
     summarize=summarize,
     x64=True,

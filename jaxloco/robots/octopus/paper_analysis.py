@@ -95,37 +95,29 @@ def task_values(task: str) -> dict[str, Any]:
     return {"kind": t.kind, "controller": t.controller, "height": t.height, **dict(t.fixed)}
 
 
-def make_batch_fn(fixed: Mapping[str, Any]):
-    """A host batch function: rows of mixed tasks are split by task and each group runs
-    the `octopus.step_climb` batch of its terrain and controller."""
-    fixed = dict(fixed)
-    batches: dict[str, Any] = {}
-
-    def batch_of(task: str):
-        if task not in batches:
-            values = task_values(task)
-            step_fixed = {**sim_analysis.PARAM_DEFAULTS, **{k: v for k, v in fixed.items() if k != "task"}, **values}
-            batches[task] = sim_analysis.make_batch_fn(step_fixed)
-        return batches[task]
-
-    def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
-        n = keys.shape[0]
-        tasks = np.asarray(swept["task"]) if "task" in swept else np.full(n, fixed["task"])
-        out: dict[str, np.ndarray] = {}
-        for task in dict.fromkeys(tasks.tolist()):
-            rows = np.flatnonzero(tasks == task)
-            fn = batch_of(task)
-            # the task's height (and side ratio) are fixed values of its step_climb batch
-            sub = {k: np.asarray(v)[rows] for k, v in swept.items() if k != "task"}
-            res = fn(sub, np.asarray(keys)[rows])
-            for k, v in res.items():
-                v = np.asarray(v)
-                if k not in out:
-                    out[k] = np.zeros((n, *v.shape[1:]), v.dtype)
-                out[k][rows] = v
-        return out
-
-    return batch
+def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Any) -> dict[str, np.ndarray]:
+    """`Analysis.simulate`: the rows are split by task, and each group runs as
+    `octopus.step_climb` rows of its terrain and controller (the task's height and side
+    ratio as columns, the other step_climb parameters at their defaults or this sweep's
+    values)."""
+    tasks = np.asarray(values["task"]).astype(str)
+    out: dict[str, np.ndarray] = {}
+    for task in dict.fromkeys(tasks.tolist()):
+        rows = np.flatnonzero(tasks == task)
+        own = {**sim_analysis.PARAM_DEFAULTS, **task_values(task)}
+        step = {}
+        for p in sim_analysis.PARAMS:
+            value = values[p.name] if p.name in values else own[p.name]
+            if p.sweepable:
+                value = np.asarray(value)[rows] if np.ndim(value) else np.full(rows.size, value)
+            step[p.name] = value
+        res = sim_analysis.simulate(step, keys[rows], simulator)
+        for k, v in res.items():
+            v = np.asarray(v)
+            if k not in out:
+                out[k] = np.zeros((tasks.size, *v.shape[1:]), v.dtype)
+            out[k][rows] = v
+    return out
 
 
 def _failures(status: np.ndarray) -> str:
@@ -189,11 +181,10 @@ PAPER_EXPERIMENTS = Analysis(
         "the block beside the robot), one row per perturbed run, the paper's numbers beside.",
     params=PARAMS,
     metrics=METRICS,
-    make_batch_fn=make_batch_fn,
+    simulate=simulate,
     statuses=STATUSES,
     summarize=summarize,
     x64=True,
-    executor="host",
 )
 
 

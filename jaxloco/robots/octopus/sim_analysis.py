@@ -24,6 +24,7 @@ import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary
 from jaxloco.robots.octopus import ccm, clm, operator, scenarios
+from jaxloco.sim.rollout import Simulator
 from jaxloco.sim.scenario import seed_jitter
 
 _CLM = clm.PARAM_DEFAULTS
@@ -116,38 +117,29 @@ def _scenario(kind: str, controller: str, horizon: float):
     return scenarios.make_scenario(kind, ctrl, horizon_s=horizon, record_every=RECORD_EVERY)
 
 
-def make_batch_fn(fixed: Mapping[str, Any]):
-    """A host batch function: numpy swept values and keys -> metrics (native or MJX backend)."""
-    from jaxloco.sim.rollout import rollout
-
-    scenario = _scenario(str(fixed["kind"]), str(fixed["controller"]), float(fixed["horizon"]))
-    nthread = int(fixed["nthread"])
-    backend = str(fixed["backend"])
-    names = [p.name for p in PARAMS if p.sweepable]
-
-    def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
-        n = keys.shape[0]
-        values = {name: np.asarray(swept[name]) if name in swept else np.full(n, fixed[name]) for name in names}
-        u = seed_jitter(keys, 3)  # distance, yaw, mu
-        values["distance"] = values["distance"] + u[:, 0] * values.pop("distance_jitter")
-        values["yaw"] = values["yaw"] + u[:, 1] * values.pop("yaw_jitter")
-        values["mu"] = np.maximum(values["mu"] + u[:, 2] * values.pop("mu_jitter"), 0.1)
-        params = scenarios.params_batch(n, **values)
-        params["key"] = np.asarray(keys, np.uint32)
-        result = rollout(scenario, params, backend=backend, nthread=nthread)
-        out = {m.name: np.asarray(result.metrics[m.name]) for m in METRICS if m.name in result.metrics}
-        out["t_diverged"] = result.t_diverged
-        out["final_phase"] = np.asarray(result.records["phase"])[:, -1].astype(np.int64)
-        diverged = result.diverged
-        tipped = np.asarray(out["tipped"], bool) | diverged
-        code = np.array([_SCENARIO_STATUS.get(s, 2) for s in result.status])
-        code = np.where(diverged, 2, np.where(tipped, 3, code))
-        out["tipped"] = tipped
-        out["success"] = np.asarray(out["success"], bool) & ~diverged
-        out["status"] = code
-        return out
-
-    return batch
+def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) -> dict[str, np.ndarray]:
+    """`Analysis.simulate`: one climb per row (values: (B,) columns of the sweepable
+    parameters; kind, controller and horizon plain) on the simulator's backend."""
+    scenario = _scenario(str(values["kind"]), str(values["controller"]), float(values["horizon"]))
+    columns = {p.name: np.asarray(values[p.name]) for p in PARAMS if p.sweepable}
+    u = seed_jitter(keys, 3)  # distance, yaw, mu
+    columns["distance"] = columns["distance"] + u[:, 0] * columns.pop("distance_jitter")
+    columns["yaw"] = columns["yaw"] + u[:, 1] * columns.pop("yaw_jitter")
+    columns["mu"] = np.maximum(columns["mu"] + u[:, 2] * columns.pop("mu_jitter"), 0.1)
+    params = scenarios.params_batch(keys.shape[0], **columns)
+    params["key"] = keys
+    result = simulator.run(scenario, params)
+    out = {m.name: np.asarray(result.metrics[m.name]) for m in METRICS if m.name in result.metrics}
+    out["t_diverged"] = result.t_diverged
+    out["final_phase"] = np.asarray(result.records["phase"])[:, -1].astype(np.int64)
+    diverged = result.diverged
+    tipped = np.asarray(out["tipped"], bool) | diverged
+    code = np.array([_SCENARIO_STATUS.get(s, 2) for s in result.status])
+    code = np.where(diverged, 2, np.where(tipped, 3, code))
+    out["tipped"] = tipped
+    out["success"] = np.asarray(out["success"], bool) & ~diverged
+    out["status"] = code
+    return out
 
 
 def _median(x: np.ndarray) -> float:
@@ -207,9 +199,8 @@ STEP_CLIMB = Analysis(
     doc="The simulated OCTOPUS (CLM or CCM controller) getting over a step: success, time, min margin, max pitch.",
     params=PARAMS,
     metrics=METRICS,
-    make_batch_fn=make_batch_fn,
+    simulate=simulate,
     statuses=STATUSES,
     summarize=summarize,
     x64=True,
-    executor="host",
 )

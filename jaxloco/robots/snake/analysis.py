@@ -158,22 +158,10 @@ def run_one(values: Mapping[str, jax.Array], config: kinsim.RolloutConfig) -> tu
     return m, recs
 
 
-def make_batch_fn(fixed: Mapping[str, Any]):
-    """`Analysis.make_batch_fn`: every sweepable parameter vmapped; horizon, dt and
-    feedback static. No randomness (keys unused)."""
-    config = rollout_config(fixed["horizon"], fixed["dt"], fixed["feedback"])
-    sweepable = [p.name for p in PARAMS if p.sweepable]
-
-    def batch(swept: Mapping[str, jax.Array], keys: jax.Array) -> dict[str, jax.Array]:
-        n = keys.shape[0]
-        dtype = jnp.result_type(float)
-        values = {}
-        for name in sweepable:
-            kind = jnp.int32 if name == "mode_order" else dtype
-            values[name] = jnp.asarray(swept[name], kind) if name in swept else jnp.full(n, fixed[name], kind)
-        return jax.vmap(lambda v: run_one(v, config)[0])(values)
-
-    return batch
+def row(values: Mapping[str, Any], key: jax.Array) -> dict[str, jax.Array]:
+    """`Analysis.row`: metrics and status of one row; horizon, dt and feedback are plain
+    values (static). No randomness: the key is unused."""
+    return run_one(values, rollout_config(values["horizon"], values["dt"], values["feedback"]))[0]
 
 
 # ---------------------------------------------------------------------------- summary
@@ -238,7 +226,7 @@ KV = Analysis(
     "head error and support margin against K_V, k_eta, K, Delta T and the mode order",
     params=PARAMS,
     metrics=METRICS,
-    make_batch_fn=make_batch_fn,
+    row=row,
     statuses=STATUSES,
     summarize=summarize,
     x64=True,

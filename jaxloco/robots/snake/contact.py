@@ -51,6 +51,7 @@ from jaxloco.errors import SpecError
 from jaxloco.robots.snake import control, experiments, kinematics, kinsim, scenarios, sim_control, trials
 from jaxloco.robots.snake import params as snake_params
 from jaxloco.sim import terrain as tr
+from jaxloco.sim.rollout import Simulator
 from jaxloco.sim.scenario import Scenario
 
 Array = jax.Array
@@ -257,37 +258,31 @@ def push_params(postures: np.ndarray, mu: np.ndarray, heading: np.ndarray, press
     return params
 
 
-def make_batch_fn(fixed: Mapping[str, Any]):
-    """A host batch function: every row three pushes (x, y, -z) on the native backend."""
-    from jaxloco.sim.rollout import rollout
-
-    ramp, hold, settle = float(fixed["ramp"]), float(fixed["hold"]), float(fixed["settle"])
+def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) -> dict[str, np.ndarray]:
+    """`Analysis.simulate`: every row three pushes (x, y, -z) (values: (B,) columns of the
+    sweepable parameters; ramp, hold and settle plain)."""
+    ramp, hold, settle = float(values["ramp"]), float(values["hold"]), float(values["settle"])
     scenario = contact_scenario(ramp, hold, settle)
-    swept_names = [p.name for p in PARAMS if p.sweepable]
-
-    def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
-        n = keys.shape[0]
-        v = {k: np.asarray(swept[k]) if k in swept else np.full(n, fixed[k]) for k in swept_names}
-        postures = v["posture"].astype(str)
-        mu, heading = trials.perturbed(v, keys)
-        params = push_params(postures, mu, heading, v["press"].astype(float), ramp, settle)
-        params["key"] = np.repeat(np.asarray(keys, np.uint32), 3, axis=0)
-        res = rollout(scenario, params, backend="native", nthread=int(fixed["nthread"]))
-        force = np.array([push_force(f) for f in np.asarray(res.records["fixture"])[..., 0]]).reshape(n, 3)
-        tilt = np.asarray(res.metrics["max_tilt"], float).reshape(n, 3)
-        fell = np.asarray(res.metrics["fell"], bool).reshape(n, 3).any(-1)
-        diverged = np.asarray(res.diverged, bool).reshape(n, 3).any(-1)
-        t_div = np.asarray(res.t_diverged, float).reshape(n, 3)
-        return {
-            "fx": force[:, 0], "fy": force[:, 1], "fz": force[:, 2],
-            "z_h": np.array([POSTURES[k][0] for k in postures]), "y_h": np.array([POSTURES[k][1] for k in postures]),
-            "max_tilt": tilt.max(-1),
-            "t_diverged": np.where(np.isfinite(t_div).any(-1), np.nanmin(np.where(np.isfinite(t_div), t_div, np.inf),
-                                                                          -1), np.nan),
-            "status": trials.status(diverged, fell),
-        }
-
-    return batch
+    n = keys.shape[0]
+    v = {p.name: np.asarray(values[p.name]) for p in PARAMS if p.sweepable}
+    postures = v["posture"].astype(str)
+    mu, heading = trials.perturbed(v, keys)
+    params = push_params(postures, mu, heading, v["press"].astype(float), ramp, settle)
+    params["key"] = np.repeat(keys, 3, axis=0)
+    res = simulator.run(scenario, params)
+    force = np.array([push_force(f) for f in np.asarray(res.records["fixture"])[..., 0]]).reshape(n, 3)
+    tilt = np.asarray(res.metrics["max_tilt"], float).reshape(n, 3)
+    fell = np.asarray(res.metrics["fell"], bool).reshape(n, 3).any(-1)
+    diverged = np.asarray(res.diverged, bool).reshape(n, 3).any(-1)
+    t_div = np.asarray(res.t_diverged, float).reshape(n, 3)
+    return {
+        "fx": force[:, 0], "fy": force[:, 1], "fz": force[:, 2],
+        "z_h": np.array([POSTURES[k][0] for k in postures]), "y_h": np.array([POSTURES[k][1] for k in postures]),
+        "max_tilt": tilt.max(-1),
+        "t_diverged": np.where(np.isfinite(t_div).any(-1), np.nanmin(np.where(np.isfinite(t_div), t_div, np.inf),
+                                                                      -1), np.nan),
+        "status": trials.status(diverged, fell),
+    }
 
 
 def push_force(force: np.ndarray, window: int = SMOOTH_RECORDS, on: float = 1.0, off: float = 0.5) -> float:
@@ -373,9 +368,8 @@ CONTACT = Analysis(
         "(posture, trial) with the largest f_x, f_y, f_z, the paper's beside.",
     params=PARAMS,
     metrics=METRICS,
-    make_batch_fn=make_batch_fn,
+    simulate=simulate,
     statuses=STATUSES,
     summarize=summarize,
     x64=True,
-    executor="host",
 )

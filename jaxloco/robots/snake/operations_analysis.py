@@ -31,6 +31,7 @@ import numpy as np
 from jaxloco.analysis import Analysis, Metric, Param, Summary, mean_worst
 from jaxloco.robots.snake import operations, scenarios, trials
 from jaxloco.robots.snake import operator as snake_operator
+from jaxloco.sim.rollout import Simulator
 from jaxloco.sim.scenario import seed_jitter
 
 NAMES = tuple(operations.OPERATIONS)  # ("pick", "valve", "door")
@@ -146,43 +147,36 @@ def success(operation: str, m: Mapping[str, np.ndarray]) -> np.ndarray:
     return m["door_max"] >= DOOR_OPEN_MIN
 
 
-def make_batch_fn(fixed: Mapping[str, Any]):
-    """A host batch function: the rows of each operation in one native rollout."""
-    from jaxloco.sim.rollout import rollout
-
-    swept_names = [p.name for p in PARAMS if p.sweepable]
-
-    def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
-        n = keys.shape[0]
-        v = {k: np.asarray(swept[k]) if k in swept else np.full(n, fixed[k]) for k in swept_names}
-        names = v["operation"].astype(str)
-        out = {m.name: np.full(n, np.nan) for m in METRICS}
-        out["status"] = np.zeros(n, int)
-        for name in NAMES:
-            rows = np.flatnonzero(names == name)
-            if rows.size == 0:
-                continue
-            op = operations.OPERATIONS[name]
-            params = trial_params(name, {k: a[rows] for k, a in v.items()}, keys[rows])
-            res = rollout(operations.operation_scenario(op.fixture, op.horizon), params, backend="native",
-                          nthread=int(fixed["nthread"]))
-            m = operations.measure(op, res)
-            switching = operations.switching_record(res)
-            for key in (*MEASURES, "max_tip_error", "final_tip_error"):
-                if key in m:
-                    out[key][rows] = m[key]
-            out["success"][rows] = success(name, m)
-            out["tip_ok"][rows] = m["max_tip_error"] < TIP_BOUND
-            out["stalls"][rows] = stall_counts(switching)
-            out["switch_time"][rows] = switching.sum(-1) * (res.times[1] - res.times[0])
-            out["t_diverged"][rows] = res.t_diverged
-            out["status"][rows] = trials.status(res.diverged, res.metrics["fell"])
-        out["success"] = out["success"].astype(bool)
-        out["tip_ok"] = out["tip_ok"].astype(bool)
-        out["stalls"] = out["stalls"].astype(int)
-        return out
-
-    return batch
+def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) -> dict[str, np.ndarray]:
+    """`Analysis.simulate`: the rows of each operation in one rollout (values: (B,)
+    columns of the sweepable parameters)."""
+    n = keys.shape[0]
+    v = {p.name: np.asarray(values[p.name]) for p in PARAMS if p.sweepable}
+    names = v["operation"].astype(str)
+    out = {m.name: np.full(n, np.nan) for m in METRICS}
+    out["status"] = np.zeros(n, int)
+    for name in NAMES:
+        rows = np.flatnonzero(names == name)
+        if rows.size == 0:
+            continue
+        op = operations.OPERATIONS[name]
+        params = trial_params(name, {k: a[rows] for k, a in v.items()}, keys[rows])
+        res = simulator.run(operations.operation_scenario(op.fixture, op.horizon), params)
+        m = operations.measure(op, res)
+        switching = operations.switching_record(res)
+        for key in (*MEASURES, "max_tip_error", "final_tip_error"):
+            if key in m:
+                out[key][rows] = m[key]
+        out["success"][rows] = success(name, m)
+        out["tip_ok"][rows] = m["max_tip_error"] < TIP_BOUND
+        out["stalls"][rows] = stall_counts(switching)
+        out["switch_time"][rows] = switching.sum(-1) * (res.times[1] - res.times[0])
+        out["t_diverged"][rows] = res.t_diverged
+        out["status"][rows] = trials.status(res.diverged, res.metrics["fell"])
+    out["success"] = out["success"].astype(bool)
+    out["tip_ok"] = out["tip_ok"].astype(bool)
+    out["stalls"] = out["stalls"].astype(int)
+    return out
 
 
 def summarize(table) -> Summary:
@@ -220,9 +214,8 @@ OPERATIONS = Analysis(
         "script and the teleoperator model: one row per (operation, perturbed trial).",
     params=PARAMS,
     metrics=METRICS,
-    make_batch_fn=make_batch_fn,
+    simulate=simulate,
     statuses=STATUSES,
     summarize=summarize,
     x64=True,
-    executor="host",
 )

@@ -57,6 +57,7 @@ from jaxloco.robots.snake import kinsim, scenarios, sim_control, trials
 from jaxloco.robots.snake import model as snake_model
 from jaxloco.robots.snake import params as snake_params
 from jaxloco.sim import terrain as tr
+from jaxloco.sim.rollout import Simulator
 from jaxloco.sim.scenario import Controller, InitialState, Scenario
 
 Array = jax.Array
@@ -245,33 +246,24 @@ def reach_metrics(tip: Array, phi_cmd: Array, delta: Array, t_start: Array, ramp
 _batched_metrics = jax.jit(jax.vmap(reach_metrics, in_axes=(0, 0, 0, 0, 0, 0, 0)))
 
 
-def make_batch_fn(fixed: Mapping[str, Any]):
-    """A host batch function (numpy swept values and keys -> metrics) running the rows
-    on the native backend (`mujoco.batch`) from the settled state."""
-    from jaxloco.sim.rollout import rollout
+def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) -> dict[str, np.ndarray]:
+    """`Analysis.simulate`: the rows from the settled state (values: (B,) columns of the
+    sweepable parameters; ground, horizon and settle plain)."""
+    scenario = reach_scenario(str(values["ground"]), float(values["horizon"]), float(values["settle"]))
+    v = {p.name: np.asarray(values[p.name], float) for p in PARAMS if p.sweepable}
+    params = reach_params(keys.shape[0], **{k: v[k] for k in ("gain_k", "k_eta", *DELTA_POS, "t_start", "ramp")})
+    params["key"] = keys
+    result = simulator.run(scenario, params)
+    delta = np.stack([v[k] for k in DELTA_POS], -1)
+    m = _batched_metrics(jnp.asarray(result.records["tip"]), jnp.asarray(result.records["phi_cmd"]),
+                         jnp.asarray(delta), jnp.asarray(v["t_start"]), jnp.asarray(v["ramp"]),
+                         jnp.asarray(v["settle_tol"]), jnp.asarray(v["w_effort"]))
+    out = {k: np.asarray(x, float) for k, x in m.items()}
+    out["max_slip"] = np.asarray(result.metrics["max_slip"], float)
+    out["t_diverged"] = result.t_diverged
+    out["status"] = trials.status(result.diverged, result.metrics["fell"])
+    return out
 
-    scenario = reach_scenario(str(fixed["ground"]), float(fixed["horizon"]), float(fixed["settle"]))
-    nthread = int(fixed["nthread"])
-    names = [p.name for p in PARAMS if p.sweepable]
-
-    def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
-        n = keys.shape[0]
-        v = {name: np.asarray(swept[name], float) if name in swept else np.full(n, float(fixed[name]))
-             for name in names}
-        params = reach_params(n, **{k: v[k] for k in ("gain_k", "k_eta", *DELTA_POS, "t_start", "ramp")})
-        params["key"] = np.asarray(keys, np.uint32)
-        result = rollout(scenario, params, backend="native", nthread=nthread)
-        delta = np.stack([v[k] for k in DELTA_POS], -1)
-        m = _batched_metrics(jnp.asarray(result.records["tip"]), jnp.asarray(result.records["phi_cmd"]),
-                             jnp.asarray(delta), jnp.asarray(v["t_start"]), jnp.asarray(v["ramp"]),
-                             jnp.asarray(v["settle_tol"]), jnp.asarray(v["w_effort"]))
-        out = {k: np.asarray(x, float) for k, x in m.items()}
-        out["max_slip"] = np.asarray(result.metrics["max_slip"], float)
-        out["t_diverged"] = result.t_diverged
-        out["status"] = trials.status(result.diverged, result.metrics["fell"])
-        return out
-
-    return batch
 
 
 def summarize(table) -> Summary:
@@ -316,9 +308,8 @@ REACH = Analysis(
     "tip errors, settle time and overshoot against the task gain K.",
     params=PARAMS,
     metrics=METRICS,
-    make_batch_fn=make_batch_fn,
+    simulate=simulate,
     statuses=STATUSES,
     summarize=summarize,
     x64=True,
-    executor="host",
 )

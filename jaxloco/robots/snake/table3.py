@@ -35,6 +35,7 @@ import numpy as np
 from jaxloco.analysis import Analysis, Metric, Param, Summary
 from jaxloco.robots.snake import experiments, scenarios, sim_control, trials
 from jaxloco.robots.snake import model as snake_model
+from jaxloco.sim.rollout import Simulator
 from jaxloco.sim.scenario import Scenario
 
 TARGETS = experiments.ACCURACY_NAMES  # ("x", "y", "z", "alpha", "beta", "gamma")
@@ -86,38 +87,32 @@ def target_deltas(targets: np.ndarray) -> dict[str, np.ndarray]:
     return out
 
 
-def make_batch_fn(fixed: Mapping[str, Any]):
-    """A host batch function: every row one run of its target on the native backend."""
-    from jaxloco.sim.rollout import rollout
-
-    ramp, settle = float(fixed["ramp"]), float(fixed["settle"])
-    scenario = table3_scenario(ramp, settle, bool(fixed["feedback"]))
+def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) -> dict[str, np.ndarray]:
+    """`Analysis.simulate`: every row one run of its target (values: (B,) columns of the
+    sweepable parameters; ramp, settle and feedback plain)."""
+    ramp, settle = float(values["ramp"]), float(values["settle"])
+    scenario = table3_scenario(ramp, settle, bool(values["feedback"]))
     t0 = settle + experiments.T_START
-    swept_names = [p.name for p in PARAMS if p.sweepable]
-
-    def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
-        n = keys.shape[0]
-        v = {k: np.asarray(swept[k]) if k in swept else np.full(n, fixed[k]) for k in swept_names}
-        mu, heading = trials.perturbed(v, keys)
-        params = sim_control.params_batch(n, mu=mu, heading0=heading, t0=t0, duration=ramp,
-                                  head_kp=v["head_kp"].astype(float), head_kv=v["head_kv"].astype(float),
-                                  **target_deltas(v["target"]))
-        params["key"] = np.asarray(keys, np.uint32)
-        res = rollout(scenario, params, backend="native", nthread=int(fixed["nthread"]))
-        disp = experiments.relative_displacement(res.times, np.asarray(res.records["head"]), t0 + ramp, t0)
-        index = np.array([TARGETS.index(str(t)) for t in v["target"]])
-        changed = disp[np.arange(n), index]
-        out = {c: disp[:, j] for j, c in enumerate(COMPONENTS)}
-        out["error"] = (
-            100.0 * np.abs(changed - experiments.ACCURACY_DELTAS[index]) / np.abs(experiments.ACCURACY_DELTAS[index])
-        )
-        out["max_slip"] = np.asarray(res.metrics["max_slip"], float)
-        out["max_roll_slip"] = np.asarray(res.metrics["max_roll_slip"], float)
-        out["t_diverged"] = res.t_diverged
-        out["status"] = trials.status(res.diverged, res.metrics["fell"])
-        return out
-
-    return batch
+    n = keys.shape[0]
+    v = {p.name: np.asarray(values[p.name]) for p in PARAMS if p.sweepable}
+    mu, heading = trials.perturbed(v, keys)
+    params = sim_control.params_batch(n, mu=mu, heading0=heading, t0=t0, duration=ramp,
+                                      head_kp=v["head_kp"].astype(float), head_kv=v["head_kv"].astype(float),
+                                      **target_deltas(v["target"]))
+    params["key"] = keys
+    res = simulator.run(scenario, params)
+    disp = experiments.relative_displacement(res.times, np.asarray(res.records["head"]), t0 + ramp, t0)
+    index = np.array([TARGETS.index(str(t)) for t in v["target"]])
+    changed = disp[np.arange(n), index]
+    out = {c: disp[:, j] for j, c in enumerate(COMPONENTS)}
+    out["error"] = (
+        100.0 * np.abs(changed - experiments.ACCURACY_DELTAS[index]) / np.abs(experiments.ACCURACY_DELTAS[index])
+    )
+    out["max_slip"] = np.asarray(res.metrics["max_slip"], float)
+    out["max_roll_slip"] = np.asarray(res.metrics["max_roll_slip"], float)
+    out["t_diverged"] = res.t_diverged
+    out["status"] = trials.status(res.diverged, res.metrics["fell"])
+    return out
 
 
 def _cell(mean: float, sd: float, unit: str) -> str:
@@ -180,9 +175,8 @@ TABLE3 = Analysis(
         "(target, perturbed trial), the six displacement components, the paper's beside.",
     params=PARAMS,
     metrics=METRICS,
-    make_batch_fn=make_batch_fn,
+    simulate=simulate,
     statuses=STATUSES,
     summarize=summarize,
     x64=True,
-    executor="host",
 )

@@ -206,13 +206,21 @@ def row_params(values: Mapping[str, jax.Array], dtype) -> titan_params.TitanPara
     return titan_params.default_params().astype(dtype).with_(**{n: jnp.asarray(values[n], dtype) for n in TITAN_PARAMS})
 
 
-def run_one(values: Mapping[str, jax.Array], n_cycles: int, shape: tuple[int, int], cell: float
-            ) -> dict[str, jax.Array]:
-    """Metrics and status of one row for scalar parameter `values` (every sweepable one)."""
-    dtype = jnp.asarray(values["l_std"]).dtype
-    params = row_params(values, dtype)
-    plan = gait.sweep_plan(params, values["frame_size"], values["frame_interval"], values["slope"],
-                        values["direction"], n_cycles, shape, cell, **field_values(values))
+def row_plan(values: Mapping[str, Any]) -> tuple[titan_params.TitanParams, Any, gait.GaitState, gait.GaitPlan]:
+    """(params, map, start, plan) of one row (`gait.sweep_setup`'s map and start,
+    `gait.plan_cycles`' plan); values: every parameter (`Analysis.row`'s form). What the
+    row's metrics and its replay (`jaxloco.render.kinematic`) are computed from."""
+    n_cycles, shape, cell = _static(values)
+    params = row_params(values, jnp.asarray(values["l_std"]).dtype)
+    gmap, start = gait.sweep_setup(params, values["frame_size"], values["frame_interval"], values["slope"],
+                                   values["direction"], shape, cell, **field_values(values))
+    return params, gmap, start, gait.plan_cycles(params, gmap, start, n_cycles, values["direction"])
+
+
+def row(values: Mapping[str, Any], key: jax.Array) -> dict[str, jax.Array]:
+    """`Analysis.row`: metrics and status of one row; n_cycles and the map shape/cell are
+    plain values (one compilation per sweep). No randomness: the key is unused."""
+    params, _, _, plan = row_plan(values)
     return plan_metrics(plan, params.s_ne_c, values["softmin_tau"])
 
 
@@ -226,37 +234,19 @@ def _static(fixed: Mapping[str, Any]) -> tuple[int, tuple[int, int], float]:
     return int(fixed["n_cycles"]), (int(fixed["map_nx"]), int(fixed["map_ny"])), float(fixed["cell"])
 
 
-def make_batch_fn(fixed: Mapping[str, Any]):
-    """`Analysis.make_batch_fn`: rows vmapped over every sweepable parameter; n_cycles and
-    the map shape/cell are static (one compilation per sweep). No randomness: keys unused."""
-    n_cycles, shape, cell = _static(fixed)
-    sweepable = [p.name for p in PARAMS if p.sweepable]
-
-    def batch(swept: Mapping[str, jax.Array], keys: jax.Array) -> dict[str, jax.Array]:
-        n = keys.shape[0]
-        dtype = jnp.result_type(float)
-        values = {
-            name: jnp.asarray(swept[name], dtype) if name in swept else jnp.full(n, fixed[name], dtype)
-            for name in sweepable
-        }
-        return jax.vmap(lambda v: run_one(v, n_cycles, shape, cell))(values)
-
-    return batch
-
-
 def objective_fn(fixed: Mapping[str, Any]):
     """`f(l_std, w_std) -> objective` [m] for the other parameters at `fixed` (every
     parameter of PARAMS but l_std and w_std, e.g. `STRIDE.defaults()`): the smooth tuning
     objective of one sweep point. Differentiate with forward mode (`jax.jacfwd`, `jax.jvp`);
     see the module docstring."""
-    n_cycles, shape, cell = _static(fixed)
+    static = {p.name: fixed[p.name] for p in PARAMS if not p.sweepable}
     sweepable = [p.name for p in PARAMS if p.sweepable and p.name not in ("l_std", "w_std")]
 
     def f(l_std: jax.Array, w_std: jax.Array) -> jax.Array:
         dtype = jnp.result_type(l_std, w_std, float)
         values = {name: jnp.asarray(fixed[name], dtype) for name in sweepable}
         values.update(l_std=jnp.asarray(l_std, dtype), w_std=jnp.asarray(w_std, dtype))
-        return run_one(values, n_cycles, shape, cell)["objective"]
+        return row({**static, **values}, None)["objective"]
 
     return f
 
@@ -383,7 +373,7 @@ STRIDE = Analysis(
     "and modifications against the stride (L_std, W_std) and S_NE^c",
     params=PARAMS,
     metrics=METRICS,
-    make_batch_fn=make_batch_fn,
+    row=row,
     statuses=STATUSES,
     summarize=summarize,
     x64=True,

@@ -44,6 +44,7 @@ from jaxloco.analysis import Analysis, Metric, Param, Summary, mean_worst
 from jaxloco.errors import SpecError
 from jaxloco.robots.titan import params as titan_params
 from jaxloco.robots.titan import scenarios, walk
+from jaxloco.sim.rollout import Simulator
 from jaxloco.sim.scenario import seed_jitter
 
 FIELDS = ("grid", "long")
@@ -238,54 +239,50 @@ def _status(m: Mapping[str, Any], planned: bool, diverged: bool) -> int:
     return 5
 
 
-def make_batch_fn(fixed: Mapping[str, Any]):
-    """A host batch function: swept values and keys -> metrics (native backend)."""
-    from jaxloco.sim.rollout import rollout
-
-    n_cycles, nthread = int(fixed["n_cycles"]), int(fixed["nthread"])
+def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) -> dict[str, np.ndarray]:
+    """`Analysis.simulate`: a plan per row (module docstring), the rows grouped by terrain,
+    one rollout per group (values: (B,) columns of the sweepable parameters; n_cycles
+    plain). A row with no clear start gets status 7 and no simulation."""
+    n_cycles = int(values["n_cycles"])
     names = [p.name for p in PARAMS if p.sweepable]
-
-    def batch(swept: Mapping[str, np.ndarray], keys: np.ndarray) -> dict[str, np.ndarray]:
-        n = keys.shape[0]
-        rows = [{k: (swept[k][i] if k in swept else fixed[k]) for k in names} for i in range(n)]
-        blank = {"bool": False, "int": -1}
-        out = {m.name: np.full(n, blank.get(m.kind, np.nan)) for m in METRICS}
-        out["status"] = np.full(n, 7)
-        if any(v["field"] == "long" and v["map"] == "exact" for v in rows):
-            raise SpecError("titan.walk: map = 'exact' is for the grid field; the long field is planned on a survey")
-        if any(v["field"] == "long" and float(v["direction"]) != 0.0 for v in rows):
-            raise SpecError("titan.walk: direction is for the grid field; the long field is walked along +x")
-        groups: dict[tuple, list] = {}
-        for i, v in enumerate(rows):
-            try:
-                planned = plan_row(v, keys[i], n_cycles)
-            except walk.NoClearStart:
-                continue  # status 7, metrics nan
-            groups.setdefault(row_terrain(v), []).append((i, v, planned))
-        for (field, _spacing, width), group in groups.items():
-            sc = _scenario(6 * n_cycles, width, field)
-            plans = [g[2][0] for g in group]
-            scal = [g[2][2] for g in group]
-            over = {k: np.array([s[k] for s in scal]) for k in scal[0]}
-            for k in ("mu", "nesm_tol"):
-                over[k] = np.array([float(g[1][k]) for g in group])
-            res = rollout(sc, scenarios.params_batch(plans, **over), nthread=nthread)
-            for j, (i, _v, (_plan, gait, _s)) in enumerate(group):
-                m = res.row(j)
-                ok_plan = int(gait.n_failures) == 0
-                for name, src in _SIM_METRICS.items():
-                    out[name][i] = float(m[src])
-                out["plan_min_nesm"][i] = float(gait.min_nesm)
-                out["plan_failures"][i] = int(gait.n_failures)
-                out["plan_modifications"][i] = int(gait.n_modifications)
-                out["planned"][i] = ok_plan
-                out["converged"][i] = walk.converged(gait, titan_params.default_params())
-                out["t_diverged"][i] = res.t_diverged[j]
-                out["status"][i] = _status(m, ok_plan, bool(res.diverged[j]))
-                out["success"][i] = out["status"][i] == 0
-        return out
-
-    return batch
+    n = keys.shape[0]
+    rows = [{k: np.asarray(values[k])[i] for k in names} for i in range(n)]
+    blank = {"bool": False, "int": -1}
+    out = {m.name: np.full(n, blank.get(m.kind, np.nan)) for m in METRICS}
+    out["status"] = np.full(n, 7)
+    if any(v["field"] == "long" and v["map"] == "exact" for v in rows):
+        raise SpecError("titan.walk: map = 'exact' is for the grid field; the long field is planned on a survey")
+    if any(v["field"] == "long" and float(v["direction"]) != 0.0 for v in rows):
+        raise SpecError("titan.walk: direction is for the grid field; the long field is walked along +x")
+    groups: dict[tuple, list] = {}
+    for i, v in enumerate(rows):
+        try:
+            planned = plan_row(v, keys[i], n_cycles)
+        except walk.NoClearStart:
+            continue  # status 7, metrics nan
+        groups.setdefault(row_terrain(v), []).append((i, v, planned))
+    for (field, _spacing, width), group in groups.items():
+        sc = _scenario(6 * n_cycles, width, field)
+        plans = [g[2][0] for g in group]
+        scal = [g[2][2] for g in group]
+        over = {k: np.array([s[k] for s in scal]) for k in scal[0]}
+        for k in ("mu", "nesm_tol"):
+            over[k] = np.array([float(g[1][k]) for g in group])
+        res = simulator.run(sc, scenarios.params_batch(plans, **over))
+        for j, (i, _v, (_plan, gait, _s)) in enumerate(group):
+            m = res.row(j)
+            ok_plan = int(gait.n_failures) == 0
+            for name, src in _SIM_METRICS.items():
+                out[name][i] = float(m[src])
+            out["plan_min_nesm"][i] = float(gait.min_nesm)
+            out["plan_failures"][i] = int(gait.n_failures)
+            out["plan_modifications"][i] = int(gait.n_modifications)
+            out["planned"][i] = ok_plan
+            out["converged"][i] = walk.converged(gait, titan_params.default_params())
+            out["t_diverged"][i] = res.t_diverged[j]
+            out["status"][i] = _status(m, ok_plan, bool(res.diverged[j]))
+            out["success"][i] = out["status"][i] == 0
+    return out
 
 
 def summarize(table) -> Summary:
@@ -329,10 +326,9 @@ WALK = Analysis(
         "Sec. 8.3 long field.",
     params=PARAMS,
     metrics=METRICS,
-    make_batch_fn=make_batch_fn,
+    simulate=simulate,
     statuses=STATUSES,
     summarize=summarize,
     x64=True,
-    executor="host",
 )
 
