@@ -78,3 +78,22 @@ def test_a_simulated_row_replays_through_its_own_simulate(namespace):
     assert replay.metrics["slide"] == row.metrics["slide"] and replay.status == row.status == "slides"
     # the replayed states are those the metric came from: the slide is x's first minus last record
     assert replay.qpos[0, 0] - replay.qpos[-1, 0] == pytest.approx(row.metrics["slide"], rel=1e-12)
+
+
+def test_states_recorded_on_mjx_match_the_native_ones(namespace):
+    """record_state on both backends: the same keys and shapes, the scenario's own records
+    untouched, and the states of the two physics engines close (slides of ~0.5 and 0 m)."""
+    import numpy as np
+
+    from jaxloco.sim.rollout import rollout
+
+    scenario = namespace["stance_scenario"](0.3)
+    params = {"mu": np.array([0.2, 0.4])}
+    native = rollout(scenario, params, record_state=True)
+    mjx = rollout(scenario, params, backend="mjx", record_state=True)
+    assert set(mjx.records) == set(native.records) == {"x"}
+    for key in ("qpos", "mocap_pos", "mocap_quat", "time"):
+        assert mjx.states[key].shape == native.states[key].shape
+    np.testing.assert_allclose(mjx.states["time"], native.states["time"], atol=1e-9)
+    np.testing.assert_allclose(mjx.states["qpos"][..., :3], native.states["qpos"][..., :3], atol=0.02)
+    assert rollout(scenario, params).states is None

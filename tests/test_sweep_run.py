@@ -489,3 +489,39 @@ def test_heatmap_over_a_string_axis(tmp_path):
     ax = fig.axes[0]
     assert [t.get_text() for t in ax.get_yticklabels()] == ["climb", "swim", "walk"]
     assert len(ax.patches) == 1  # the marked cell
+
+
+# ------------------------------------------------------------------- the contract itself
+
+
+def test_an_analysis_gives_exactly_one_of_row_and_simulate():
+    with pytest.raises(ValueError, match="exactly one of row"):
+        Analysis(name="test.neither", doc="", params=TOY_PARAMS, metrics=TOY_METRICS)
+    with pytest.raises(ValueError, match="exactly one of row"):
+        Analysis(name="test.both", doc="", params=TOY_PARAMS, metrics=TOY_METRICS, row=_toy_row,
+                 simulate=_task_simulate)
+    assert TOY.executor == "jax" and TASKS.executor == "host"
+
+
+def test_simulate_gets_merged_columns_and_the_frameworks_simulator():
+    from jaxloco.sim.rollout import Simulator, simulator_for
+
+    seen = {}
+
+    def simulate(values, keys, simulator):
+        seen.update(values=dict(values), simulator=simulator)
+        return {"y": np.asarray(values["speed"], float), "status": np.zeros(keys.shape[0], int)}
+
+    toy = dataclasses.replace(TASKS, name="test.tasks_seen", simulate=simulate)
+    fixed = {**toy.defaults(), "note": "n", "mode": "b"}
+    out = toy.batch_fn(fixed)({"speed": np.array([1.0, 2.0, 3.0])}, np.zeros((3, 2), np.uint32))
+    assert out["y"].tolist() == [1.0, 2.0, 3.0]
+    values = seen["values"]
+    assert values["task"].tolist() == ["walk"] * 3  # a fixed column, broadcast to the rows
+    assert values["note"] == "n" and values["mode"] == "b"  # free text and non-sweepable: plain
+    assert isinstance(seen["simulator"], Simulator) and seen["simulator"].backend == "native"
+    mine = Simulator(backend="mjx", nthread=3)
+    toy.batch_fn(fixed, mine)({}, np.zeros((1, 2), np.uint32))
+    assert seen["simulator"] is mine
+    made = simulator_for({"backend": "mjx", "nthread": 2}, record_state=True)
+    assert (made.backend, made.nthread, made.record_state, made.runs) == ("mjx", 2, True, [])
