@@ -63,7 +63,6 @@ def _polyline(points: np.ndarray, s: float) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------ TITAN
-TITAN_STEP_TIME = 3.0  # [s] per step: the footstep executor's nominal step (scenarios.PARAM_DEFAULTS)
 TITAN_REACH = 12.0  # [m] the drawn frames reach at least this far from the origin
 
 
@@ -143,6 +142,7 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
 
     bodies, feet_t, captions, times = [], [], [], []
     names = titan_params.LEG_NAMES
+    step_time = titan_params.PARAMETERS.default("step_time")  # [s] the footstep executor's nominal step
     for k in range(-1, n_steps):
         subs = [1.0] if k < 0 else [(j + 1) / per for j in range(per)]
         for u in subs:
@@ -162,7 +162,7 @@ def titan_stride(row: Row, frames_per_step: int | None = None) -> Replay:
             bodies.append(body)
             feet_t.append(foot)
             captions.append(text)
-            times.append((k + u) * TITAN_STEP_TIME if k >= 0 else 0.0)
+            times.append((k + u) * step_time if k >= 0 else 0.0)
     bodies = (np.asarray(bodies) - shift) @ rot.T
     feet_w = (np.asarray(feet_t) - shift) @ rot.T + kinematics.FOOT_RADIUS * normal
     R = tr.quat_to_matrix(jnp.asarray(body_quat))

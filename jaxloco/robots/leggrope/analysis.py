@@ -17,44 +17,19 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Param, Summary
+from jaxloco.analysis import Analysis, Metric, Summary
 from jaxloco.robots.leggrope import forces, gait, results
-from jaxloco.robots.leggrope.params import G, LegGropeParams, default_params
+from jaxloco.robots.leggrope.params import PARAMETERS, G, LegGropeParams, default_params
 
-HALF_PI = 0.5 * math.pi
 # a cycle is feasible with Eq. 19 hard when no step needed more relaxation than this
 # (fraction of R_ref; the interior-point QP leaves r at ~1e-9 where none is needed)
 HARD_RELAXATION = 1e-6
+MU = PARAMETERS.default("mu")  # the paper's friction coefficient, for the summary's note
 
-PARAMS = (
-    Param("theta", 0.0, "slope inclination (positive: walking direction psi = 0 climbs)", "rad",
-          lo=-HALF_PI, hi=HALF_PI, lo_open=True, hi_open=True),
-    Param("psi", 0.0, "walking direction relative to the slope gradient (paper Fig. 5)", "rad",
-          lo=-HALF_PI, hi=HALF_PI),
-    Param("mu", 0.45, "static friction coefficient", "", lo=0.0, hi=2.0, lo_open=True),
-    Param("r_ref_factor", 0.5, "grope reaction R_ref = factor * M g cos(theta)", "", lo=0.0, hi=1.0, lo_open=True),
-    Param("a_max", 0.15, "body acceleration limit", "m/s^2", lo=0.0, hi=2.0, lo_open=True),
-    Param("v_max", 0.1, "body speed limit", "m/s", lo=0.0, hi=1.0, lo_open=True),
-    Param("h_s", -2.0, "QP weight of the safety margin s (Eq. 22), negative", "1/N", lo=-1e3, hi=0.0, hi_open=True),
-    Param("h_tau", 1.0, "QP weight of the torque norm", "1/(N m)^2", lo=0.0, hi=1e4, lo_open=True),
-    Param("h_c", 80.0, "QP weight of torque continuity", "1/(N m)^2", lo=0.0, hi=1e5),
-    Param("stride", 0.06, "forward step of every foot per cycle", "m", lo=0.0, hi=0.12, lo_open=True),
-    Param("swing_height", 0.03, "toe lift during the swing", "m", lo=0.0, hi=0.1),
-    Param("facet_spread", 0.0, "irregular slope: facet gradient directions spread +- this (uses the seed)", "rad",
-          lo=0.0, hi=HALF_PI),
-    Param("normal_tol", 0.10, "tolerated normal-force excess over R_ref / grope shortfall, fraction of R_ref", "",
-          lo=0.0, hi=1.0),
-    Param("numbering", "mirrored", "leg numbering and footsteps (gait.CYCLE_DESIGNS): 'mirrored' walks along x_R "
-          "(the paper's forward direction), 'literal' along y_R", kind="str", choices=("literal", "mirrored"),
-          sweepable=False),
-    Param("dt", 0.015, "QP time step", "s", lo=0.001, hi=0.1, sweepable=False),
-    Param("n_move", 100, "steps of phase A (body move)", "", kind="int", lo=10, hi=1000, sweepable=False),
-    Param("n_unload", 20, "steps of phase B (unload the groping leg)", "", kind="int", lo=2, hi=1000, sweepable=False),
-    Param("n_swing", 40, "steps of phase C (swing)", "", kind="int", lo=4, hi=1000, sweepable=False),
-    Param("n_load", 20, "steps of phase D (load to R_ref)", "", kind="int", lo=2, hi=1000, sweepable=False),
-    Param("qp_iterations", 20, "interior-point iterations per QP", "", kind="int", lo=5, hi=200, sweepable=False),
-    Param("capacity", False, "also solve max-s (slip capacity) at every step (doubles the cost)", "",
-          kind="bool", sweepable=False),
+PARAMS = PARAMETERS.select(
+    "theta", "psi", "mu", "r_ref_factor", "a_max", "v_max", "h_s", "h_tau", "h_c", "stride", "swing_height",
+    "facet_spread", "normal_tol", "numbering", "dt", "n_move", "n_unload", "n_swing", "n_load", "qp_iterations",
+    "capacity",
 )
 
 METRICS = (
@@ -209,7 +184,7 @@ def summarize(table) -> Summary:
         "hard crit: the same with Eq. 19 hard (feasible: no relaxation of R_ref at all), +theta / -theta; "
         "relax: the largest max_relaxation [R_ref] the ok rows within the critical range needed",
         f"paper (Ambe & Matsuno 2016): critical |theta| ~ {results.PAPER_CRITICAL_THETA:.2f} rad for every psi; "
-        f"rigid block atan(mu) = {math.atan(0.45):.3f} rad at mu = 0.45",
+        f"rigid block atan(mu) = {math.atan(MU):.3f} rad at mu = {MU:g}",
     ]
     if swept:
         notes.append("other swept parameters are pooled: " + ", ".join(swept))

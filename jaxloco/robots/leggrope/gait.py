@@ -58,7 +58,7 @@ import numpy as np
 from jaxloco import geometry as geo
 from jaxloco import linalg
 from jaxloco.robots.leggrope import kinematics, regions
-from jaxloco.robots.leggrope.params import G, LegGropeParams
+from jaxloco.robots.leggrope.params import PARAMETERS, G, LegGropeParams
 
 Array = jax.Array
 
@@ -70,14 +70,14 @@ PHASES = ("A", "B", "C", "D")
 class WalkParams:
     """Continuous design parameters of the walk (pytree leaves; sweepable)."""
 
-    stride: jax.Array = 0.06  # forward step of every foot in the cycle [m]
+    stride: jax.Array = PARAMETERS.default("stride")
     # initial footholds (u, v) in the walking frame, legs L1..L4, relative to the
     # initial COG (see `default_stance`)
     stance: jax.Array = field(default_factory=lambda: default_stance())
     # sideways shift (v, metres) of each leg's step, legs L1..L4 (see `default_lateral`)
     lateral: jax.Array = field(default_factory=lambda: default_lateral())
     heading: jax.Array = 0.5 * np.pi  # walking direction in the body frame (from x_R) [rad]
-    swing_height: jax.Array = 0.03  # toe lift during the swing [m]
+    swing_height: jax.Array = PARAMETERS.default("swing_height")
 
 
 def default_lateral() -> np.ndarray:
@@ -148,7 +148,9 @@ class GaitDesign:
         """Physical legs in the groping order L2, L1, L3, L4."""
         return tuple(self.legs[n] for n in (1, 0, 2, 3))
 
-    def walk(self, stride=0.06, swing_height=0.03) -> "WalkParams":
+    def walk(
+        self, stride=PARAMETERS.default("stride"), swing_height=PARAMETERS.default("swing_height")
+    ) -> "WalkParams":
         return WalkParams(stride=stride, stance=np.asarray(self.stance), lateral=np.asarray(self.lateral),
                           heading=self.heading, swing_height=swing_height)
 

@@ -29,7 +29,7 @@ import numpy as np
 
 from jaxloco import geometry as geo
 from jaxloco.robots.leggrope import control, gait, kinematics, model
-from jaxloco.robots.leggrope.params import LEG_NAMES, G, default_params
+from jaxloco.robots.leggrope.params import LEG_NAMES, PARAMETERS, G, default_params
 from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.data import SimData, sensor_slice
@@ -50,26 +50,13 @@ FELL_TILT = 0.35  # [rad] an attitude change beyond this counts as a fall
 CONTACT_FORCE = 1.0  # [N] a toe with more normal force than this is a support point
 COLLAPSE_WINDOW = 0.2  # [s] `collapse_tilt`: the attitude change over this long after a collapse
 
-PARAM_DEFAULTS: dict[str, float] = {
-    "theta": float(np.pi / 12),
-    "psi": 0.0,
-    "mu": 0.45,
-    "r_ref_factor": 0.5,
-    "stride": 0.06,
-    "swing_height": 0.03,
-    "facet_spread": 0.0,
-    "fallback_distance": 0.04,
-    "safe_blend": 0.4,
-    "swing_margin": 0.005,
-    "twist_relief": 0.02,
-    "shear_relief": 0.1,
-    "grope_blend": 0.1,
-    "p_weak": 0.0,
-    "r_break_lo": 0.35,
-    "r_break_hi": 0.45,
-    "weak_leg": -1,
-    "regrope": 1,
-}
+# the simulation's params (`params.PARAMETERS`); its default slope is 15 deg, not the
+# force-distribution model's level ground
+PARAM_DEFAULTS: dict[str, float] = PARAMETERS.defaults((
+    "theta", "psi", "mu", "r_ref_factor", "stride", "swing_height", "facet_spread", "fallback_distance", "safe_blend",
+    "swing_margin", "twist_relief", "shear_relief", "grope_blend", "p_weak", "r_break_lo", "r_break_hi", "weak_leg",
+    "regrope",
+)) | {"theta": float(np.pi / 12)}
 
 
 def build_model(robot_xml: str | Path | None = None) -> tuple[mujoco.MjModel, tr.Terrain]:

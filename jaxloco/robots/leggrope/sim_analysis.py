@@ -10,60 +10,34 @@ stay below R_ref outside the leg-grope step (so that probed footholds hold)?
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Param, Summary, mean_worst
+from jaxloco.analysis import Analysis, Metric, Summary, mean_worst
 from jaxloco.robots.leggrope import scenarios
+from jaxloco.robots.leggrope.params import PARAMETERS
 from jaxloco.sim.rollout import Simulator
 from jaxloco.sim.scenario import seed_jitter
 
-HALF_PI = 0.5 * math.pi
-
-PARAMS = (
-    Param("theta", float(np.pi / 12), "slope inclination (walking direction psi = 0 climbs)", "rad",
-          lo=-0.45, hi=0.45),
-    Param("psi", 0.0, "walking direction relative to the gradient", "rad", lo=-HALF_PI, hi=HALF_PI),
-    Param("mu", 0.45, "friction coefficient of the terrain", "", lo=0.05, hi=2.0),
-    Param("r_ref_factor", 0.5, "grope reaction R_ref / (M g cos theta)", "", lo=0.2, hi=1.0),
-    Param("stride", 0.06, "forward step of every foot per cycle", "m", lo=0.01, hi=0.09),
-    Param("swing_height", 0.03, "toe lift during the swing", "m", lo=0.005, hi=0.08),
-    Param("facet_spread", 0.0, "irregular slope: facet gradient directions spread +- this (uses the seed)", "rad",
-          lo=0.0, hi=1.0),
-    Param("fallback_distance", 0.04, "the fallback foothold is this far from the target (gait.GaitDesign.fallback)",
-          "m", lo=0.037, hi=0.08),
-    Param("safe_blend", 0.4, "A' COG: this fraction from the grope COG towards the stance centroid (the literal "
-          "numbering's walk was tuned at 0.25)", "", lo=0.0, hi=0.6),
-    Param("swing_margin", 0.005, "A' COG: at least this far inside pi_g, before and after the swing (paper Fig. 10: "
-          "inside the COG's admissible region; control.swing_cog), default (ours)", "m", lo=-0.05, hi=0.05),
-    Param("twist_relief", 0.02, "A', D'-1 (four legs): toe height correction rate per M g of measured stance twist "
-          "(control.twist_relief; the paper's flexible legs do this by themselves; 0: off), default (ours)", "m/s",
-          lo=0.0, hi=0.5),
-    Param("shear_relief", 0.1, "A', D'-1 (four legs): in-plane toe correction rate per M g of a toe's in-plane "
-          "reaction beyond its share by normal load (control.shear_relief; 0: off), default (ours)", "m/s",
-          lo=0.0, hi=1.0),
-    Param("grope_blend", 0.1, "D'-2: the body creeps at most this fraction from the grope COG towards the foothold",
-          "", lo=0.0, hi=0.5),
-    Param("regrope", 1, "after a foothold collapses: 1 regropes a fallback foothold (the method, step D), 0 stops "
-          "the walk (the paper's collapse experiment)", "", kind="int", lo=0, hi=1),
-    Param("p_weak", 0.0, "probability that a target foothold is weak", "", lo=0.0, hi=1.0),
-    Param("r_break_lo", 0.35, "weak footholds break at R_break ~ U(lo, hi) M g: lower end", "", lo=0.0, hi=2.0),
-    Param("r_break_hi", 0.45, "weak footholds break at R_break ~ U(lo, hi) M g: upper end", "", lo=0.0, hi=2.0),
-    Param("weak_leg", -1, "this leg's (0..3 = L1..L4) first target is weak for certain (-1: none)", "",
-          kind="int", lo=-1, hi=3),
-    Param("mu_jitter", 0.0, "perturbed trials: mu + U(-1, 1) x this, from the row's seed (mu stays >= 0.05)", "",
-          lo=0.0, hi=0.5),
-    Param("theta_jitter", 0.0, "perturbed trials: theta + U(-1, 1) x this, from the row's seed", "rad",
-          lo=0.0, hi=0.1),
-    Param("numbering", "mirrored", "leg numbering and footstep design (gait.DESIGNS): 'mirrored' walks along x_R "
-          "(paper's forward direction), 'literal' along y_R", kind="str", choices=("literal", "mirrored"),
-          sweepable=False),
-    Param("horizon", 30.0, "simulated time", "s", lo=1.0, hi=300.0, sweepable=False),
-    Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
+# the simulated robot and terrain: narrower ranges than the force-distribution model's
+# (`params.PARAMETERS`), the scenario's default slope, and its footstep designs
+PARAMS = PARAMETERS.select(
+    "theta", "psi", "mu", "r_ref_factor", "stride", "swing_height", "facet_spread", "fallback_distance", "safe_blend",
+    "swing_margin", "twist_relief", "shear_relief", "grope_blend", "regrope", "p_weak", "r_break_lo", "r_break_hi",
+    "weak_leg", "mu_jitter", "theta_jitter", "numbering", "horizon", "nthread",
+    theta={"default": scenarios.PARAM_DEFAULTS["theta"], "doc": "slope inclination (walking direction psi = 0 climbs)",
+           "lo": -0.45, "hi": 0.45, "lo_open": False, "hi_open": False},
+    psi={"doc": "walking direction relative to the gradient"},
+    mu={"doc": "friction coefficient of the terrain", "lo": 0.05, "lo_open": False},
+    r_ref_factor={"doc": "grope reaction R_ref / (M g cos theta)", "lo": 0.2, "lo_open": False},
+    stride={"lo": 0.01, "hi": 0.09, "lo_open": False},
+    swing_height={"lo": 0.005, "hi": 0.08},
+    facet_spread={"hi": 1.0},
+    numbering={"doc": "leg numbering and footstep design (gait.DESIGNS): 'mirrored' walks along x_R (paper's forward "
+               "direction), 'literal' along y_R"},
 )
 
 METRICS = (

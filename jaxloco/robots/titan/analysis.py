@@ -57,103 +57,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Param, Summary
+from jaxloco.analysis import Analysis, Metric, Summary
 from jaxloco.robots.titan import gait, plots
 from jaxloco.robots.titan import params as titan_params
 
 NESM_TOL = 1e-9  # [m] rounding allowance of nesm_ok's min_nesm >= S_NE^c
 TITAN_PARAMS = ("l_std", "w_std", "s_ne_c", "tether")  # fields of `TitanParams` set per row
 
-PARAMS = (
-    Param(
-        "l_std",
-        titan_params.L_STD,
-        "L_std: standard COG longitudinal shift per half cycle (stroke 2 L_std)",
-        "m",
-        lo=0.0,
-        hi=1.0,
-        lo_open=True,
-    ),
-    Param(
-        "w_std",
-        titan_params.W_STD,
-        "W_std: standard COG lateral shift per half cycle (zigzag +-W_std / 2)",
-        "m",
-        lo=0.0,
-        hi=2.0,
-    ),
-    Param(
-        "s_ne_c", titan_params.S_NE_C, "S_NE^c: critical NE stability margin of every planned step", "m", lo=0.0, hi=0.3
-    ),
-    Param(
-        "frame_size",
-        titan_params.FRAME_SMALL,
-        "square section (width = height) of the frames; 0 = flat ground",
-        "m",
-        lo=0.0,
-        hi=0.3,
-    ),
-    Param(
-        "frame_interval",
-        titan_params.GRID_SMALL,
-        "frame grid spacing (centre lines at (k + 1/2) interval in x and y)",
-        "m",
-        lo=1.0,
-        hi=5.0,
-    ),
-    Param("frame_size_b", 0.0, "second field's frame section in a mixed field (mix_block > 0)", "m", lo=0.0, hi=0.3),
-    Param(
-        "frame_interval_b",
-        titan_params.GRID_LARGE,
-        "second field's frame grid spacing in a mixed field",
-        "m",
-        lo=1.0,
-        hi=5.0,
-    ),
-    Param(
-        "mix_block",
-        0.0,
-        "side of the checkerboard blocks alternating the two fields (maps.mixed_frame_map); 0 = one field",
-        "m",
-        lo=0.0,
-        hi=50.0,
-    ),
-    Param(
-        "slope", 0.0, "slope angle of the map frame about the world y axis (Sec. 8.4: 30 deg)", "rad", lo=0.0, hi=0.7
-    ),
-    Param(
-        "direction",
-        0.0,
-        "map-frame walking direction (0 = +x, up the fall line on a slope); "
-        "every heading plans (gait.directional_stride); start_x and the map must leave room for the walk",
-        "rad",
-        lo=-2 * math.pi,
-        hi=2 * math.pi,
-    ),
-    Param("start_x", gait.SWEEP_START_X, "map x of the start COG (y: the map's centre line)", "m", lo=0.0, hi=100.0),
-    Param("tether", 1.0, "fraction of the slope-parallel gravity the tethers cancel (Sec. 8.1)", "", lo=0.0, hi=1.0),
-    Param(
-        "softmin_tau",
-        0.005,
-        "temperature tau of the soft-min NESM (log-sum-exp) and of the objective's sigmoid",
-        "m",
-        lo=0.0,
-        hi=0.1,
-        lo_open=True,
-    ),
-    Param("n_cycles", 4, "gait cycles planned per row (6 steps each)", "", kind="int", lo=1, hi=64, sweepable=False),
-    Param("map_nx", 160, "grid map cells along x", "", kind="int", lo=60, hi=1000, sweepable=False),
-    Param(
-        "map_ny",
-        100,
-        "grid map cells along y (the start COG is at y = map_ny cell / 2)",
-        "",
-        kind="int",
-        lo=60,
-        hi=1000,
-        sweepable=False,
-    ),
-    Param("cell", titan_params.CELL, "grid map cell size", "m", lo=0.02, hi=0.2, sweepable=False),
+PARAMS = titan_params.PARAMETERS.select(
+    "l_std", "w_std", "s_ne_c", "frame_size", "frame_interval", "frame_size_b", "frame_interval_b", "mix_block",
+    "slope", "direction", "start_x", "tether", "softmin_tau", "n_cycles", "map_nx", "map_ny", "cell",
 )
 
 METRICS = (

@@ -765,7 +765,8 @@ def plan_cycles(
     )
 
 
-SWEEP_START_X = 3.0  # [m] map x of the start COG of a sweep point
+SWEEP_START_X = titan_params.PARAMETERS.default("start_x")  # [m] map x of the start COG of a sweep point
+SWEEP_SHAPE = (titan_params.PARAMETERS.default("map_nx"), titan_params.PARAMETERS.default("map_ny"))  # its map cells
 
 
 def sweep_setup(
@@ -774,7 +775,7 @@ def sweep_setup(
     frame_interval: Array,
     slope: Array,
     direction: Array,
-    shape: tuple[int, int] = (160, 100),
+    shape: tuple[int, int] = SWEEP_SHAPE,
     cell: float = titan_params.CELL,
     start_x: Array = SWEEP_START_X,
     field_b: tuple[Array, Array] = (0.0, 1.0),
@@ -810,7 +811,7 @@ def sweep_plan(
     slope: Array,
     direction: Array,
     n_cycles: int,
-    shape: tuple[int, int] = (160, 100),
+    shape: tuple[int, int] = SWEEP_SHAPE,
     cell: float = titan_params.CELL,
     **field,
 ) -> GaitPlan:

@@ -49,6 +49,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxloco.analysis import Param
+from jaxloco.parameters import ParamTable
+
 G = 9.81  # [m/s^2]
 
 LEG_NAMES = ("LF", "RF", "LR", "RR")
@@ -123,15 +126,95 @@ SLOPE_FRAME = 0.2
 SLOPE_GRID = 1.5
 
 
+# Every parameter a user sets (the sweep analyses `titan.stride` and `titan.walk`, the
+# `titan.stride` tune objective, the footstep executor scenario's params dict
+# `scenarios.PARAM_DEFAULTS` and `TitanParams`), each stated once; the paper's and the
+# chosen values above are their defaults. The ranges are the grid-map planner's
+# (`titan.stride`); the simulated walk and the tuning narrow some of them.
+PARAMETERS = ParamTable("titan", (
+    # --- the gait (Sections 4-6)
+    Param("l_std", L_STD, "L_std: standard COG longitudinal shift per half cycle (stroke 2 L_std)", "m",
+          lo=0.0, hi=1.0, lo_open=True),
+    Param("w_std", W_STD, "W_std: standard COG lateral shift per half cycle (zigzag +-W_std / 2)", "m",
+          lo=0.0, hi=2.0),
+    Param("s_ne_c", S_NE_C, "S_NE^c: critical NE stability margin of every planned step", "m", lo=0.0, hi=0.3),
+    # --- terrain (Sec. 7, 8.3, 8.4)
+    Param("frame_size", FRAME_SMALL, "square section (width = height) of the frames; 0 = flat ground", "m",
+          lo=0.0, hi=0.3),
+    Param("frame_interval", GRID_SMALL, "frame grid spacing (centre lines at (k + 1/2) interval in x and y)", "m",
+          lo=1.0, hi=5.0),
+    Param("frame_size_b", 0.0, "second field's frame section in a mixed field (mix_block > 0)", "m", lo=0.0, hi=0.3),
+    Param("frame_interval_b", GRID_LARGE, "second field's frame grid spacing in a mixed field", "m", lo=1.0, hi=5.0),
+    Param("mix_block", 0.0, "side of the checkerboard blocks alternating the two fields (maps.mixed_frame_map); "
+          "0 = one field", "m", lo=0.0, hi=50.0),
+    Param("slope", 0.0, "slope angle of the map frame about the world y axis (Sec. 8.4: 30 deg)", "rad",
+          lo=0.0, hi=0.7),
+    Param("direction", 0.0, "map-frame walking direction (0 = +x, up the fall line on a slope); every heading plans "
+          "(gait.directional_stride); start_x and the map must leave room for the walk", "rad",
+          lo=-2 * math.pi, hi=2 * math.pi),
+    Param("start_x", 3.0, "map x of the start COG (y: the map's centre line)", "m", lo=0.0, hi=100.0),
+    Param("tether", 1.0, "fraction of the slope-parallel gravity the tethers cancel (Sec. 8.1)", "", lo=0.0, hi=1.0),
+    Param("mu", 0.6, "friction coefficient of the terrain", "", lo=0.05, hi=2.0),
+    # --- the grid-map planner's sweep rows and their smooth objective
+    Param("softmin_tau", 0.005, "temperature tau of the soft-min NESM (log-sum-exp) and of the objective's sigmoid",
+          "m", lo=0.0, hi=0.1, lo_open=True),
+    Param("n_cycles", 4, "gait cycles planned per row (6 steps each)", "", kind="int", lo=1, hi=64, sweepable=False),
+    Param("map_nx", 160, "grid map cells along x", "", kind="int", lo=60, hi=1000, sweepable=False),
+    Param("map_ny", 100, "grid map cells along y (the start COG is at y = map_ny cell / 2)", "", kind="int",
+          lo=60, hi=1000, sweepable=False),
+    Param("cell", CELL, "grid map cell size", "m", lo=0.02, hi=0.2, sweepable=False),
+    # --- the tuning's loss (`tuning.py`)
+    Param("w_margin", 1.0, "weight of the margin term: reference distances (1 m/cycle) per softmin_tau of "
+          "soft-min NESM below S_NE^c", "", lo=0.0, hi=1e3),
+    Param("n_offsets", 1, "frame-grid phases the loss averages over (1: the sweep row alone; flat ground: 1)",
+          "", kind="int", lo=1, hi=16, sweepable=False),
+    # --- the simulated walk (`sim_analysis.py`)
+    Param("field", "grid", "terrain: 'grid' (Sec. 7 / 8.4 frame grids, frame_size / frame_interval / slope) or "
+          "'long' (the Sec. 8.3 dummy-frame field walk.LONG_FIELD, 0.2 m beams every 1.5 m, walked along +x)",
+          kind="str", choices=("grid", "long")),
+    Param("map", "survey", "planning map: 'survey' (a total-station survey with survey_noise, Sec. 8.2.1) or "
+          "'exact' (the true beams; grid field only)", kind="str", choices=("survey", "exact")),
+    Param("survey_noise", 0.005, "std of each surveyed coordinate (Sec. 8.2.1: +-5 mm), from the row's seed", "m",
+          lo=0.0, hi=0.05),
+    Param("start_jitter", 0.5, "perturbed trials: the start COG moves by U(-1, 1) x this in x and y, from the row's "
+          "seed", "m", lo=0.0, hi=2.0),
+    Param("nesm_tol", 0.0, "success allowance of the simulated min NESM below S_NE^c (0: the paper's criterion as it "
+          "stands)", "m", lo=0.0, hi=0.05),
+    Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
+    # --- the footstep executor scenario's params dict (`scenarios.PARAM_DEFAULTS`, one
+    # value per simulation; no analysis sweeps them, so no range is stated)
+    Param("theta", 0.0, "scenario: inclination of the terrain plane (the analyses' slope)", "rad"),
+    Param("spacing", 2.0, "scenario: frame grid spacing (the analyses' frame_interval)", "m"),
+    Param("beam_height", 0.0, "scenario: frame protrusion (0: plain ground)", "m"),
+    Param("heading", 0.0, "scenario: body yaw about the plane normal", "rad"),
+    Param("step_time", 3.0, "scenario: duration of each step (swing or body shift)", "s"),
+    Param("settle_time", 1.0, "scenario: standing before the first step", "s"),
+    Param("swing_height", SWING_HEIGHT, "scenario: the executor's foot lift above the higher of lift-off and "
+          "touchdown, default (ours)", "m"),
+    Param("contact_force", 0.05, "scenario: a touch above this fraction of M g is a contact"),
+    Param("body_gain", 3.0, "scenario: integral gain of the body position correction", "1/s"),
+    Param("anchor_feet", 1.0, "scenario: 1 re-references the foot targets to the measured feet at each step "
+          "(control.anchor_to_feet)"),
+    Param("support_relative", 1.0, "scenario: 1 lets the COG target follow the supporting feet's slip "
+          "(control.support_shift)"),
+    Param("load_feedforward", 1.0, "scenario: 1 pre-deflects the servos by the static foot loads "
+          "(control.load_feedforward)"),
+    Param("mass_feedforward", 1.0, "scenario: 1 moves the body against the legs' mass (control.body_for_com); "
+          "0: integral correction only"),
+    Param("touchdown_tol", 0.1, "scenario: success needs every touchdown error below this", "m"),
+    Param("path_tol", 0.1, "scenario: success needs every path deviation at a cycle end below this", "m"),
+))
+
+
 @jax.tree_util.register_dataclass
 @dataclass(frozen=True)
 class TitanParams:
     """Gait constants as a pytree: every field is a leaf (traceable, sweepable,
     vmappable). Geometry arrays are in Sigma_b; SI units."""
 
-    l_std: jax.Array = L_STD  # [m]
-    w_std: jax.Array = W_STD  # [m]
-    s_ne_c: jax.Array = S_NE_C  # [m]
+    l_std: jax.Array = PARAMETERS.default("l_std")  # [m]
+    w_std: jax.Array = PARAMETERS.default("w_std")  # [m]
+    s_ne_c: jax.Array = PARAMETERS.default("s_ne_c")  # [m]
     h_g: jax.Array = H_G  # [m]
     dw: jax.Array = DW  # [m]
     r_in: jax.Array = R_IN  # [m]
@@ -142,9 +225,7 @@ class TitanParams:
     swing_min_lift: jax.Array = SWING_MIN_LIFT  # [m]
     search_step: jax.Array = SEARCH_STEP  # [m]
     stride_exponent: jax.Array = STRIDE_EXPONENT  # L_std(psi) = L_std / m^k (gait.directional_stride)
-    tether: jax.Array = (
-        1.0  # fraction of the slope-parallel gravity offset by the tethers
-    )
+    tether: jax.Array = PARAMETERS.default("tether")  # fraction of the slope-parallel gravity offset by the tethers
 
     def pivots(self) -> jax.Array:
         """Leg pivots in Sigma_b, (4, 3)."""

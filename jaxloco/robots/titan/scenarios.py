@@ -92,27 +92,16 @@ FELL_TILT = 0.3  # [rad]
 FELL_DROP = 0.5  # [m]
 STATUSES = ("ok", "failed")
 
+# one value per simulation (`titan_params.PARAMETERS`); "direction" here is the slope's
+# uphill azimuth, not the analyses' walking direction (whose default is also 0)
 PARAM_DEFAULTS: dict[str, float] = {
-    "theta": 0.0,  # [rad] slope inclination
-    "direction": 0.0,  # [rad] uphill azimuth
-    "spacing": 2.0,  # [m] frame grid
-    "beam_height": 0.0,  # [m] frame protrusion (0: plain ground)
-    "mu": 0.6,  # terrain friction
-    "tether": 1.0,  # tether force / (M g sin(theta)), up the fall line
-    "heading": 0.0,  # [rad] body yaw about the plane normal
-    "step_time": 3.0,  # [s] per step (swing or body shift)
-    "settle_time": 1.0,  # [s] standing before the first step
-    "swing_height": titan_params.SWING_HEIGHT,  # [m] lift above the higher of start and target
-    "contact_force": 0.05,  # touch above this fraction of M g = contact
-    "body_gain": 3.0,  # [1/s] integral gain of the body position correction
-    "anchor_feet": 1.0,  # 1: foot targets re-referenced to the measured feet at each step (control.anchor_to_feet)
-    "support_relative": 1.0,  # 1: the COG target follows the supporting feet's slip (control.support_shift)
-    "load_feedforward": 1.0,  # 1: the servos pre-deflected by the static foot loads (control.load_feedforward)
-    "mass_feedforward": 1.0,  # 1: the body moves against the legs' mass (control.body_for_com); 0: integral only
-    "s_ne_c": float(titan_params.S_NE_C),  # [m] critical NE stability margin
-    "nesm_tol": 0.0,  # [m] success: min_nesm >= s_ne_c - nesm_tol (0: the paper's criterion as it stands)
-    "touchdown_tol": 0.1,  # [m] success: largest touchdown error
-    "path_tol": 0.1,  # [m] success: largest path deviation at cycle ends
+    "theta": titan_params.PARAMETERS.default("theta"),
+    "direction": 0.0,  # [rad] uphill azimuth of the slope
+    **titan_params.PARAMETERS.defaults((
+        "spacing", "beam_height", "mu", "tether", "heading", "step_time", "settle_time", "swing_height",
+        "contact_force", "body_gain", "anchor_feet", "support_relative", "load_feedforward", "mass_feedforward",
+        "s_ne_c", "nesm_tol", "touchdown_tol", "path_tol",
+    )),
 }
 
 

@@ -40,91 +40,28 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Param, Summary, mean_worst
+from jaxloco.analysis import Analysis, Metric, Summary, mean_worst
 from jaxloco.errors import SpecError
 from jaxloco.robots.titan import params as titan_params
 from jaxloco.robots.titan import scenarios, walk
 from jaxloco.sim.rollout import Simulator
 from jaxloco.sim.scenario import seed_jitter
 
-FIELDS = ("grid", "long")
-MAP_SOURCES = ("survey", "exact")
 GRID_HALF = 12.0  # [m] the grid field's beams cover at least +-GRID_HALF
 WALK_PER_CYCLE = 1.0  # [m] a generous distance per cycle: sizes the map and centres the walk
 ROBOT_REACH = 3.0  # [m] the feet's farthest reach from the COG, with room to spare
 JITTER_SALT = 0x717A  # the start jitter's draws differ from the survey noise's
 
-PARAMS = (
-    Param(
-        "field",
-        "grid",
-        "terrain: 'grid' (Sec. 7 / 8.4 frame grids, frame_size / frame_interval / slope) or "
-        "'long' (the Sec. 8.3 dummy-frame field walk.LONG_FIELD, 0.2 m beams every 1.5 m, walked along +x)",
-        kind="str",
-        choices=FIELDS,
-    ),
-    Param(
-        "map",
-        "survey",
-        "planning map: 'survey' (a total-station survey with survey_noise, Sec. 8.2.1) or "
-        "'exact' (the true beams; grid field only)",
-        kind="str",
-        choices=MAP_SOURCES,
-    ),
-    Param(
-        "survey_noise",
-        0.005,
-        "std of each surveyed coordinate (Sec. 8.2.1: +-5 mm), from the row's seed",
-        "m",
-        lo=0.0,
-        hi=0.05,
-    ),
-    Param(
-        "frame_size", titan_params.FRAME_SMALL, "beam section (width = height); 0 = flat ground", "m", lo=0.0, hi=0.3
-    ),
-    Param(
-        "frame_interval", titan_params.GRID_SMALL, "grid field: beam spacing (long field: 1.5 m)", "m", lo=1.0, hi=3.0
-    ),
-    Param(
-        "slope", 0.0, "slope of the terrain plane (Sec. 8.4: 30 deg, 0.2 m frames every 1.5 m)", "rad", lo=0.0, hi=0.6
-    ),
-    Param(
-        "direction",
-        0.0,
-        "grid field: map-frame walking direction (0 = +x, up the fall line on a slope)",
-        "rad",
-        lo=-2 * math.pi,
-        hi=2 * math.pi,
-    ),
-    Param("tether", 1.0, "fraction of the slope-parallel gravity the tethers cancel (Sec. 8.1)", "", lo=0.0, hi=1.0),
-    Param("mu", scenarios.PARAM_DEFAULTS["mu"], "friction coefficient of the terrain", "", lo=0.05, hi=2.0),
-    Param(
-        "start_jitter",
-        0.5,
-        "perturbed trials: the start COG moves by U(-1, 1) x this in x and y, from the row's seed",
-        "m",
-        lo=0.0,
-        hi=2.0,
-    ),
-    Param(
-        "nesm_tol",
-        scenarios.PARAM_DEFAULTS["nesm_tol"],
-        "success allowance of the simulated min NESM below S_NE^c (0: the paper's criterion as it stands)",
-        "m",
-        lo=0.0,
-        hi=0.05,
-    ),
-    Param(
-        "n_cycles",
-        4,
-        "gait cycles per walk (6 steps, 18 s each); the long field needs ~52 to cross it",
-        "",
-        kind="int",
-        lo=1,
-        hi=80,
-        sweepable=False,
-    ),
-    Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
+# the simulated fields: the grid field's beams (frame_size, frame_interval) and slope within
+# what the simulated terrain holds (`scenarios.MAX_SPACING`, `MAX_BEAM_HEIGHT`)
+PARAMS = titan_params.PARAMETERS.select(
+    "field", "map", "survey_noise", "frame_size", "frame_interval", "slope", "direction", "tether", "mu",
+    "start_jitter", "nesm_tol", "n_cycles", "nthread",
+    frame_size={"doc": "beam section (width = height); 0 = flat ground"},
+    frame_interval={"doc": "grid field: beam spacing (long field: 1.5 m)", "hi": 3.0},
+    slope={"doc": "slope of the terrain plane (Sec. 8.4: 30 deg, 0.2 m frames every 1.5 m)", "hi": 0.6},
+    direction={"doc": "grid field: map-frame walking direction (0 = +x, up the fall line on a slope)"},
+    n_cycles={"doc": "gait cycles per walk (6 steps, 18 s each); the long field needs ~52 to cross it", "hi": 80},
 )
 
 METRICS = (

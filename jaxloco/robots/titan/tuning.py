@@ -95,11 +95,10 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from jaxloco.analysis import Param
 from jaxloco.errors import SpecError
 from jaxloco.robots.titan import analysis, gait
 from jaxloco.robots.titan import params as titan_params
-from jaxloco.tune.objective import Objective, Tunable
+from jaxloco.tune.objective import Objective
 
 D_REF = 2.0 * titan_params.L_STD  # [m] progress per cycle of the default standard gait on flat ground
 PHI = 0.5 * (math.sqrt(5.0) - 1.0)  # y phase step of the frame-grid offsets
@@ -110,13 +109,12 @@ W_LO, W_HI = 0.4, 1.8  # [m] bounds of w_std (flat ground: at 0.4 the standard g
 FOOT_REACH = max(titan_params.PIVOT_X, titan_params.PIVOT_Y) + titan_params.R_OUT + titan_params.FOOT_RADIUS
 MAX_DIRECTION = math.pi / 4  # [rad] beyond it the rear pair changes (`gait.leg_roles`)
 
+# the optimiser's bounds are tighter than the sweep's (L_LO .. W_HI above)
 TUNABLES = (
-    Tunable("l_std", titan_params.L_STD, "L_std: standard COG longitudinal shift per half cycle (stroke 2 L_std)", "m",
-            lo=L_LO, hi=L_HI),
-    Tunable("w_std", titan_params.W_STD, "W_std: standard COG lateral shift per half cycle (zigzag +-W_std / 2)", "m",
-            lo=W_LO, hi=W_HI),
+    titan_params.PARAMETERS.tunable("l_std", lo=L_LO, hi=L_HI),
+    titan_params.PARAMETERS.tunable("w_std", lo=W_LO, hi=W_HI),
 )
-DEFAULT_STRIDE = {"l_std": titan_params.L_STD, "w_std": titan_params.W_STD}  # default (ours): not in the paper
+DEFAULT_STRIDE = titan_params.PARAMETERS.defaults(("l_std", "w_std"))  # default (ours): not in the paper
 
 # default case (module doc): the Sec. 8.4 slope angle, 75 % tether, no frames (frame_interval:
 # the Sec. 8.4 grid, used when frame_size > 0)
@@ -130,12 +128,7 @@ _DEFAULTS = {
 _TUNED = {t.name for t in TUNABLES}
 SETTINGS = tuple(
     dataclasses.replace(p, default=_DEFAULTS.get(p.name, p.default)) for p in analysis.PARAMS if p.name not in _TUNED
-) + (
-    Param("w_margin", 1.0, "weight of the margin term: reference distances (1 m/cycle) per softmin_tau of "
-          "soft-min NESM below S_NE^c", "", lo=0.0, hi=1e3),
-    Param("n_offsets", 1, "frame-grid phases the loss averages over (1: the sweep row alone; flat ground: 1)",
-          "", kind="int", lo=1, hi=16, sweepable=False),
-)
+) + titan_params.PARAMETERS.select("w_margin", "n_offsets")
 AUX = ("distance_per_cycle", "min_nesm", "softmin_nesm", "margin_penalty", "objective", "n_failures",
        "steps_below", "n_modifications", "path_deviation")
 
