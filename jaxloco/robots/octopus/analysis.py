@@ -65,7 +65,6 @@ ground truth "up" can be taken from that analysis instead of these constants.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -73,16 +72,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Param, Summary
+from jaxloco.analysis import Analysis, Metric, Summary
 from jaxloco.robots.octopus import kinematics
 from jaxloco.robots.octopus.params import (
     BASE_HEIGHT,
+    PARAMETERS,
     ROLLER_RADIUS,
     TABLE2_TARGET,
+    TERRAINS,
     default_params,
 )
 
-TERRAINS = ("flat", "step_up", "step_down", "slope_up", "slope_down", "rough")
 FLAT, STEP_UP, STEP_DOWN, SLOPE_UP, SLOPE_DOWN, ROUGH = range(len(TERRAINS))
 # classes in kinematics.CASE_* order (0 undetectable, 1 flat, 2 up, 3 down)
 CLASSES = ("undetectable", "flat", "up", "down")
@@ -93,28 +93,12 @@ FRONT_X = float(TABLE2_TARGET[0, 0])
 _SHORT = ("flat", "up", "down", "slope+", "slope-", "rough")  # summary column headers
 _CODES = ", ".join(f"{i} {n}" for i, n in enumerate(TERRAINS))
 
-PARAMS = (
-    Param("sigma1", 0.05, "sigma_1: |z1 - z4|, |z2 - z3| below it is flat (Case 1)", "m", lo=0.0, hi=2.0, lo_open=True),
-    Param("sigma2", 0.45, "sigma_2: upper bound of an upward step (Case 2)", "m", lo=0.0, hi=2.0, lo_open=True),
-    Param("sigma3", 0.45, "sigma_3: upper bound of a downward step (Case 3)", "m", lo=0.0, hi=2.0, lo_open=True),
-    Param("terrain", STEP_UP, f"terrain type in front of the robot: {_CODES}", "", kind="int",
-          choices=tuple(range(len(TERRAINS)))),
-    Param("height", 0.3, "step height; slope: rise from the rear to the front endpoints (0.739 m apart); "
-          "rough: amplitude of the per-endpoint bumps", "m", lo=0.0, hi=0.7),
-    Param("edge", 0.45, f"x in {{R}} of the step edge (front endpoints at x = {FRONT_X:g}; crawler front at 0.25)",
-          "m", lo=0.25, hi=1.0),
-    Param("noise", 0.005, "std of the sensed endpoint positions (per coordinate)", "m", lo=0.0, hi=0.1),
-    Param("imu_noise", 0.0, "std of the sensed pitch and roll", "rad", lo=0.0, hi=0.2),
-    Param("flat_tol", 0.02, "ground truth: a true height difference below this is flat", "m", lo=0.0, hi=0.5),
-    Param("step_min", 0.05, "ground truth: a true height difference of this or more is an obstacle "
-          "(between flat_tol and step_min both answers count)", "m", lo=0.0, hi=0.5),
-    Param("climb_max", 0.45, "ground truth: highest step the robot can climb (paper: 0.40 m climbed in CLM)", "m",
-          lo=0.0, hi=2.0),
-    Param("descend_max", 0.45, "ground truth: deepest step the robot can descend", "m", lo=0.0, hi=2.0),
-    Param("slope_max", math.radians(30.0), "ground truth: steepest slope the robot can climb (Table 3: 30 deg)",
-          "rad", lo=0.0, hi=0.5 * math.pi),
-    Param("samples", 64, "Monte-Carlo samples per row (terrain draws and sensing noise)", "", kind="int",
-          lo=1, hi=4096, sweepable=False),
+PARAMS = PARAMETERS.select(
+    "sigma1", "sigma2", "sigma3", "terrain", "height", "edge", "noise", "imu_noise", "flat_tol", "step_min",
+    "climb_max", "descend_max", "slope_max", "samples",
+    # sensed terrain in front of the robot, not octopus.step_climb's MuJoCo step
+    height={"default": 0.3, "doc": "step height; slope: rise from the rear to the front endpoints (0.739 m apart); "
+            "rough: amplitude of the per-endpoint bumps", "hi": 0.7},
 )
 
 METRICS = (

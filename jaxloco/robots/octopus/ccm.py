@@ -64,7 +64,7 @@ ARMS_STOWED = np.array([
 ])
 
 PARAM_DEFAULTS: dict[str, float] = {
-    "speed": params.CRAWLER_MAX_SPEED,  # [m/s] commanded track speed
+    "speed": params.PARAMETERS.default("speed"),  # [m/s] commanded track speed (CRAWLER_MAX_SPEED)
     "front_up": 1.2,  # [rad] front flipper angle while approaching
     "front_down": 0.0,  # [rad] front flipper target once on the edge
     "rear_push": -0.6,  # [rad] rear flipper target while pushing

@@ -174,13 +174,14 @@ CRAWL_ORDER = np.array(clm_rules.CRAWL_ORDER)
 N_PREPARE = 2
 PREPARE_ORDER = np.array([3, 2])  # PREPARE transfers the rear arms only (RR, then LR)
 
+_P = params.PARAMETERS  # the user parameters among these (a sweep may set them)
 PARAM_DEFAULTS: dict[str, float] = {
-    "clm_speed": 0.03,  # [m/s] crawler speed in CLM (slower than CCM: the arms must follow)
+    "clm_speed": _P.default("clm_speed"),  # [m/s] crawler speed in CLM (slower than CCM: the arms must follow)
     # front flipper torque rule (Cases 1-3)
-    "T0": 15.0,  # [N m] torque threshold
-    "flip_delta_a": 0.02,  # [rad/period] Delta_A
+    "T0": _P.default("T0"),  # [N m] torque threshold
+    "flip_delta_a": _P.default("flip_delta_a"),  # [rad/period] Delta_A
     "A0": math.radians(82.0),  # [rad] flipper limit A0 (just below the 85 deg joint limit)
-    "flip_delta_b": 0.01,  # [rad/period] Delta_B
+    "flip_delta_b": _P.default("flip_delta_b"),  # [rad/period] Delta_B
     "stop_on_touch": 1.0,  # 1: a confirmed step stops the crawlers at the first front flipper touch
     # (Case 2) instead of waiting for Case 3; the flippers are then raised to A0 in PREPARE
     "touch_rise": 0.15,  # [rad] flipper yield that counts as touching the riser
@@ -215,26 +216,31 @@ PARAM_DEFAULTS: dict[str, float] = {
     "delta_c": 0.08,  # [m]
     "delta_d": 0.05,  # [m]
     # terrain exploration
-    "sigma1": 0.05,  # [m]
+    "sigma1": _P.default("sigma1"),  # [m]
     "stall_s": 1.0,  # [s] crawlers below a third of the command this long = stalled
     # climbing (Eqs. 28-29)
-    "delta_e": 0.006,  # [rad/period] boom step (the EPRA moves Delta_E l1 per period)
-    "delta_f": 0.01,  # [rad/period] flipper step
+    "delta_e": _P.default("delta_e"),  # [rad/period] boom step (the EPRA moves Delta_E l1 per period)
+    "delta_f": _P.default("delta_f"),  # [rad/period] flipper step
     "settle_distance": 0.3,  # [m] L = 0.6 x 500 mm
-    "climb_paper": 0.0,  # 1: CLIMB by Eqs. 28-29 as printed (the paper's; not yet climbing in our
-    # simulation, see the module docstring); 0: our level lift (the default until the paper's works)
-    "prepare_rear_init": 1.0,  # 1: PREPARE places the rear arms at their Table 2 start points (ours, the
-    # level lift's choice); 0: at their Table 2 targets (near under the rear boom axes)
-    "flip_encoder": 1.0,  # paper climb: 1 = A' of Eq. 29 is the measured flipper angle ("obtained"); 0 = the
-    # last command
-    "climb_yield": 1.0,  # paper climb: 1 = the front flippers' torque rule (Case 2) keeps running in CLIMB
-    "s_from_touch": 0.0,  # paper climb: 1 = S (Eq. 18) starts when the front flippers touch down on the
-    # step top (the level lift's reading); 0 = at the CLIMB start
-    "climb_rear_flippers": 0.0,  # paper climb: 1 = Eq. 29 turns the rear flippers too; 0 = the front ones
-    # (A is the front flipper command of "Crawler controls")
+    # 1: CLIMB by Eqs. 28-29 as printed (the paper's; not yet climbing in our simulation, see the module
+    # docstring); 0: our level lift (the default until the paper's works)
+    "climb_paper": _P.default("climb_paper"),
+    # 1: PREPARE places the rear arms at their Table 2 start points (ours, the level lift's choice); 0: at
+    # their Table 2 targets (near under the rear boom axes)
+    "prepare_rear_init": _P.default("prepare_rear_init"),
+    # paper climb: 1 = A' of Eq. 29 is the measured flipper angle ("obtained"); 0 = the last command
+    "flip_encoder": _P.default("flip_encoder"),
+    # paper climb: 1 = the front flippers' torque rule (Case 2) keeps running in CLIMB
+    "climb_yield": _P.default("climb_yield"),
+    # paper climb: 1 = S (Eq. 18) starts when the front flippers touch down on the step top (the level lift's
+    # reading); 0 = at the CLIMB start
+    "s_from_touch": _P.default("s_from_touch"),
+    # paper climb: 1 = Eq. 29 turns the rear flippers too; 0 = the front ones (A is the front flipper command
+    # of "Crawler controls")
+    "climb_rear_flippers": _P.default("climb_rear_flippers"),
     # CRAWL (an addition, see the module docstring): low steps climbed by crawlers and flippers
-    "crawl_max_h": 0.25,  # [m] confirmed steps up to this height (paper: < 250 mm without arms)
-    "crawl_speed": 0.063,  # [m/s] crawler speed in CRAWL (the CCM baseline's)
+    "crawl_max_h": _P.default("crawl_max_h"),  # [m] confirmed steps up to this height (paper: < 250 mm w/o arms)
+    "crawl_speed": _P.default("speed"),  # [m/s] crawler speed in CRAWL (the CCM baseline's)
     "crawl_front_up": 1.2,  # [rad] front flippers raised onto the edge first
     "crawl_rate": 0.3,  # [rad/s] flipper rate in CRAWL
     "crawl_rear_push": -0.6,  # [rad] rear flippers push the tail up

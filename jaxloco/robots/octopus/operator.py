@@ -19,12 +19,13 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from jaxloco.robots.octopus import params
 from jaxloco.sim.scenario import Controller
 
 Array = jax.Array
 
 PARAM_DEFAULTS: dict[str, float] = {
-    "operator_gain": 0.0,  # [m/s per rad] default (ours): 0 = no operator (the paper's rows)
+    "operator_gain": params.PARAMETERS.default("operator_gain"),  # [m/s per rad] default (ours): 0 = no operator
 }
 
 

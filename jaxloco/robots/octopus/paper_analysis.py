@@ -37,6 +37,7 @@ import numpy as np
 
 from jaxloco.analysis import Analysis, Param, Summary, mean_worst
 from jaxloco.robots.octopus import sim_analysis
+from jaxloco.robots.octopus.params import PARAMETERS
 
 
 @dataclass(frozen=True)
@@ -81,8 +82,9 @@ def _with_default(p: Param) -> Param:
 
 
 PARAMS = (
-    Param("task", "step1_clm", "the paper's experiment: " + "; ".join(f"{k}: {t.doc}" for k, t in TASKS.items()),
-          kind="str", choices=TASK_NAMES),
+    *PARAMETERS.select("task", task={
+        "doc": PARAMETERS["task"].doc + ": " + "; ".join(f"{k}: {t.doc}" for k, t in TASKS.items()),
+        "choices": TASK_NAMES}),
     *(_with_default(p) for p in sim_analysis.PARAMS if p.name not in _TASK_OWNED),
 )
 METRICS = sim_analysis.METRICS

@@ -1,6 +1,7 @@
 """The e-OCTOPUS of Chen et al. (ROBOMECH J. 2018): four arms on a two-crawler,
 four-flipper base. Dimensions and constants with their paper references, and every value
-the paper does not give (its figures are missing), chosen here and justified.
+the paper does not give (its figures are missing), chosen here and justified; and
+`PARAMETERS`, every parameter a user can set (`jaxloco.parameters.ParamTable`).
 
 Frames (paper, "Preparation: coordinate systems" and Fig. 4):
   * robot frame {R}: x forward, y left, z up; origin at the centre of the rectangle of
@@ -52,6 +53,9 @@ from dataclasses import dataclass, field, replace
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+from jaxloco.analysis import Param
+from jaxloco.parameters import ParamTable
 
 G = 9.81  # [m/s^2]
 
@@ -121,9 +125,110 @@ MASS_ROLLER = 0.5
 # (tests/test_octopus_model.py checks it). The paper assumes it fixed while moving.
 COG_R = np.array([-0.005, -0.002, -0.210])
 
+# ------------------------------------------------------------------ user parameters
+# Every parameter a user can set (sweep analyses, the tune objective, the simulations'
+# params dicts), each stated once: SIGMA, `clm`, `ccm`, `operator` and `scenarios` take
+# their defaults from here, the analyses select theirs (with per-analysis changes where one
+# needs another default, range or doc).
+MAX_HEIGHT = 0.6  # [m] highest step the terrain boxes allow (`scenarios`)
+TERRAINS = ("flat", "step_up", "step_down", "slope_up", "slope_down", "rough")  # `analysis`
+_CODES = ", ".join(f"{i} {n}" for i, n in enumerate(TERRAINS))
+PARAMETERS = ParamTable("octopus", (
+    # terrain exploration (`kinematics.terrain_case`, `octopus.terrain_classification`, `octopus.sigma`)
+    Param("sigma1", 0.05, "sigma_1: |z1 - z4|, |z2 - z3| below it is flat (Case 1)", "m", lo=0.0, hi=2.0, lo_open=True),
+    Param("sigma2", 0.45, "sigma_2: upper bound of an upward step (Case 2)", "m", lo=0.0, hi=2.0, lo_open=True),
+    Param("sigma3", 0.45, "sigma_3: upper bound of a downward step (Case 3)", "m", lo=0.0, hi=2.0, lo_open=True),
+    Param("terrain", TERRAINS.index("step_up"), f"terrain type in front of the robot: {_CODES}", "", kind="int",
+          choices=tuple(range(len(TERRAINS)))),
+    Param("edge", 0.45, f"x in {{R}} of the step edge (front endpoints at x = {float(TABLE2_TARGET[0, 0]):g}; "
+          "crawler front at 0.25)", "m", lo=0.25, hi=1.0),
+    Param("noise", 0.005, "std of the sensed endpoint positions (per coordinate)", "m", lo=0.0, hi=0.1),
+    Param("imu_noise", 0.0, "std of the sensed pitch and roll", "rad", lo=0.0, hi=0.2),
+    Param("flat_tol", 0.02, "ground truth: a true height difference below this is flat", "m", lo=0.0, hi=0.5),
+    Param("step_min", 0.05, "ground truth: a true height difference of this or more is an obstacle "
+          "(between flat_tol and step_min both answers count)", "m", lo=0.0, hi=0.5),
+    Param("climb_max", 0.45, "ground truth: highest step the robot can climb (paper: 0.40 m climbed in CLM)", "m",
+          lo=0.0, hi=2.0),
+    Param("descend_max", 0.45, "ground truth: deepest step the robot can descend", "m", lo=0.0, hi=2.0),
+    Param("slope_max", math.radians(30.0), "ground truth: steepest slope the robot can climb (Table 3: 30 deg)",
+          "rad", lo=0.0, hi=0.5 * math.pi),
+    Param("samples", 64, "Monte-Carlo samples per row (terrain draws and sensing noise)", "", kind="int",
+          lo=1, hi=4096, sweepable=False),
+    # the sigma objective's sample bank (`tuning`)
+    Param("tau", 0.005, "temperature of the sigmoid relaxation of each threshold test", "m", lo=0.0, hi=0.1,
+          lo_open=True),
+    Param("danger_weight", 4.0, "cost of a wrong autonomous class (flat, up, down) relative to a wrong "
+          "'undetectable'", "", lo=0.0, hi=1000.0, lo_open=True),
+    Param("seed", 0, "PRNG seed of the sample bank", "", kind="int", lo=0, hi=2**31 - 1),
+    Param("terrains", ",".join(TERRAINS), "comma-separated terrain types drawn uniformly (of "
+          f"{', '.join(TERRAINS)})", "", kind="str"),
+    Param("height_min", 0.0, "lowest step height / slope rise / rough amplitude drawn", "m", lo=0.0, hi=0.7),
+    Param("height_max", 0.6, "highest step height / slope rise / rough amplitude drawn", "m", lo=0.0, hi=0.7),
+    # the step climb in MuJoCo (`octopus.step_climb`, `octopus.paper`)
+    Param("kind", "step1", "terrain: one terrace, two terraces from the front, or from the side, a block "
+          "(height) beside the robot's right side, or a pit (the robot on a platform of height whose edge is at "
+          "distance, nothing beyond)", kind="str",
+          choices=("step1", "step2_front", "step2_side", "block", "pit"), sweepable=False),
+    Param("controller", "clm", "the CLM controller (crawlers, flippers and arms) or the CCM baseline (crawlers "
+          "and flippers only)", kind="str", choices=("clm", "ccm"), sweepable=False),
+    # terrain and physics
+    Param("height", 0.4, "total step height", "m", lo=0.0, hi=MAX_HEIGHT),
+    Param("distance", 0.7, "chassis origin to the first riser at t = 0", "m", lo=0.4, hi=3.0),
+    Param("yaw", 0.0, "initial heading relative to the step normal", "rad", lo=-0.8, hi=0.8),
+    Param("side_ratio", 0.5, "step2_side: right rise / left rise", "", lo=0.0, hi=1.0),
+    Param("block_gap", 0.01, "block: gap between the robot's right side and the block", "m",
+          lo=0.0, hi=1.0),
+    Param("mu", 0.8, "terrain friction coefficient", "", lo=0.1, hi=2.0),
+    Param("distance_jitter", 0.0, "distance + U(-1, 1) x this, from the row's seed (the simulation itself is "
+          "deterministic: seeds only matter through the jitters)", "m", lo=0.0, hi=0.5),
+    Param("yaw_jitter", 0.0, "yaw + U(-1, 1) x this, from the row's seed", "rad", lo=0.0, hi=0.5),
+    Param("mu_jitter", 0.0, "mu + U(-1, 1) x this, from the row's seed (mu stays >= 0.1)", "", lo=0.0, hi=1.0),
+    # CLM gains (`clm`)
+    Param("T0", 15.0, "CLM: front flipper torque threshold T0 (flipper rule Cases 1-3); default ours, the "
+          "paper gives none", "N m", lo=1.0, hi=80.0),
+    Param("flip_delta_a", 0.02, "CLM: Delta_A, front flipper step of the torque rule; default ours",
+          "rad/period", lo=0.001, hi=0.1),
+    Param("flip_delta_b", 0.01, "CLM: Delta_B, front flipper step of the torque rule; default ours",
+          "rad/period", lo=0.001, hi=0.1),
+    Param("delta_e", 0.006, "CLM: Delta_E, boom step of the climb / release (the level lift moves the "
+          "EPRAs Delta_E l1 per period); default ours", "rad/period", lo=0.0005, hi=0.05),
+    Param("delta_f", 0.01, "CLM: Delta_F, flipper step of the climb / release; default ours",
+          "rad/period", lo=0.001, hi=0.1),
+    Param("clm_speed", 0.03, "CLM: crawler speed (default ours; the crawlers reach 63 mm/s, Table 3)",
+          "m/s", lo=0.005, hi=0.063),
+    Param("climb_paper", 0.0, "CLM climb: 1 = the paper's Eqs. 28-29 (booms and front flippers "
+          "turn down, crawlers drive); 0 = our level lift (not the paper's method)", "", lo=0.0, hi=1.0),
+    Param("flip_encoder", 1.0, "paper climb reading: 1 = A' of Eq. 29 is the flipper encoder "
+          "(\"obtained\"), 0 = the last command", "", lo=0.0, hi=1.0),
+    Param("climb_yield", 1.0, "paper climb reading: 1 = the front flippers' torque rule (Case 2) keeps "
+          "running in CLIMB", "", lo=0.0, hi=1.0),
+    Param("climb_rear_flippers", 0.0, "paper climb reading: 1 = Eq. 29 turns the rear "
+          "flippers too, 0 = the front ones (A of 'Crawler controls')", "", lo=0.0, hi=1.0),
+    Param("s_from_touch", 0.0, "paper climb reading: 1 = S (Eq. 18) from the front flippers' "
+          "touch-down on the step top, 0 = from the CLIMB start", "", lo=0.0, hi=1.0),
+    Param("prepare_rear_init", 1.0, "PREPARE places the rear arms at their Table 2 start "
+          "points (1, ours) or targets (0)", "", lo=0.0, hi=1.0),
+    Param("crawl_max_h", 0.25, "CLM: steps up to this H_EST are climbed by crawlers and flippers, "
+          "arms carried (CRAWL: ours, not the paper's method; 0 = the arms climb every step)", "m", lo=0.0,
+          hi=MAX_HEIGHT),
+    Param("operator_gain", 0.0, "operator steering (not the CLM: it cannot "
+          "measure the yaw): track speed difference per rad of heading error while driving straight; 0 = no "
+          "operator, the paper's rows", "m/s per rad", lo=0.0, hi=1.0),
+    # the CCM baseline
+    Param("speed", CRAWLER_MAX_SPEED, "CCM: commanded crawler speed", "m/s", lo=0.005, hi=0.063),
+    # run
+    Param("horizon", 90.0, "simulated time", "s", lo=1.0, hi=600.0, sweepable=False),
+    Param("nthread", 0, "physics threads (0: all cores; native backend)", "", kind="int", lo=0, hi=1024,
+          sweepable=False),
+    Param("backend", "native", "simulation backend: native MuJoCo (mujoco.batch, CPU) or MJX (one jitted scan; "
+          "compiles about a minute on CPU)", kind="str", choices=("native", "mjx"), sweepable=False),
+    # the paper's experiments (`octopus.paper`)
+    Param("task", "step1_clm", "the paper's experiment", kind="str"),
+))
+
 # --- terrain exploration thresholds sigma_1..3 [m] (chosen; "can be set according to
-# actual condition")
-SIGMA = np.array([0.05, 0.45, 0.45])
+# actual condition"): PARAMETERS' sigma1..3
+SIGMA = np.array([PARAMETERS.default(f"sigma{k}") for k in (1, 2, 3)])
 
 # Table 3 envelope pose: flippers level; front arms straight up; rear arms straight,
 # raised ENVELOPE_REAR_RAISE above the horizontal and pointing backwards, splayed

@@ -88,7 +88,7 @@ from jaxloco.sim.scenario import params_batch as sim_params_batch
 
 KINDS = ("step1", "step2_front", "step2_side", "block", "flat", "pit")
 TERRACE_DEPTH = 0.8  # [m] depth of the first terrace of the two-terrace steps
-MAX_HEIGHT = 0.6  # [m] highest step the terrain boxes allow
+MAX_HEIGHT = params.MAX_HEIGHT  # [m] highest step the terrain boxes allow
 PIT_PLATFORM = 5.0  # [m] length of the platform the robot starts on in "pit" (its far edge at `distance`)
 PIT_BOTTOM = -10.0  # [m] the "height" reported beyond the pit's edge (there is no ground there)
 # the block (the paper gives its height only): a 0.5 m concrete cube
@@ -137,12 +137,12 @@ STATUSES = ("ok", "failed")
 
 PARAM_DEFAULTS: dict[str, float] = {
     # terrain and physics
-    "height": 0.4,  # [m] total step height
-    "distance": 0.7,  # [m] chassis origin to the first riser at t = 0
-    "yaw": 0.0,  # [rad] initial heading
-    "side_ratio": 0.5,  # step2_side: right rise / left rise
-    "block_gap": 0.01,  # [m] block: gap between the robot's right side and the block
-    "mu": 0.8,  # terrain friction
+    "height": params.PARAMETERS.default("height"),  # [m] total step height
+    "distance": params.PARAMETERS.default("distance"),  # [m] chassis origin to the first riser at t = 0
+    "yaw": params.PARAMETERS.default("yaw"),  # [rad] initial heading
+    "side_ratio": params.PARAMETERS.default("side_ratio"),  # step2_side: right rise / left rise
+    "block_gap": params.PARAMETERS.default("block_gap"),  # [m] block: gap between the robot's right side and the block
+    "mu": params.PARAMETERS.default("mu"),  # terrain friction
     # success test
     "pass_distance": 0.3,  # [m] the COG beyond the last riser (paper: S = 0.3 m)
     "roll_limit": 0.5,  # [rad]

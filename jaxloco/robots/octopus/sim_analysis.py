@@ -22,72 +22,23 @@ from typing import Any
 
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Param, Summary
+from jaxloco.analysis import Analysis, Metric, Summary
 from jaxloco.robots.octopus import ccm, clm, operator, scenarios
+from jaxloco.robots.octopus.params import PARAMETERS
 from jaxloco.sim.rollout import Simulator
 from jaxloco.sim.scenario import seed_jitter
 
-_CLM = clm.PARAM_DEFAULTS
-_SC = scenarios.PARAM_DEFAULTS
-
-PARAMS = (
-    Param("kind", "step1", "terrain: one terrace, two terraces from the front, or from the side, a block "
-          "(height) beside the robot's right side, or a pit (the robot on a platform of height whose edge is at "
-          "distance, nothing beyond)", kind="str",
-          choices=("step1", "step2_front", "step2_side", "block", "pit"), sweepable=False),
-    Param("controller", "clm", "the CLM controller (crawlers, flippers and arms) or the CCM baseline (crawlers "
-          "and flippers only)", kind="str", choices=("clm", "ccm"), sweepable=False),
+PARAMS = PARAMETERS.select(
+    "kind", "controller",
     # terrain and physics
-    Param("height", _SC["height"], "total step height", "m", lo=0.0, hi=scenarios.MAX_HEIGHT),
-    Param("distance", _SC["distance"], "chassis origin to the first riser at t = 0", "m", lo=0.4, hi=3.0),
-    Param("yaw", _SC["yaw"], "initial heading relative to the step normal", "rad", lo=-0.8, hi=0.8),
-    Param("side_ratio", _SC["side_ratio"], "step2_side: right rise / left rise", "", lo=0.0, hi=1.0),
-    Param("block_gap", _SC["block_gap"], "block: gap between the robot's right side and the block", "m",
-          lo=0.0, hi=1.0),
-    Param("mu", _SC["mu"], "terrain friction coefficient", "", lo=0.1, hi=2.0),
-    Param("distance_jitter", 0.0, "distance + U(-1, 1) x this, from the row's seed (the simulation itself is "
-          "deterministic: seeds only matter through the jitters)", "m", lo=0.0, hi=0.5),
-    Param("yaw_jitter", 0.0, "yaw + U(-1, 1) x this, from the row's seed", "rad", lo=0.0, hi=0.5),
-    Param("mu_jitter", 0.0, "mu + U(-1, 1) x this, from the row's seed (mu stays >= 0.1)", "", lo=0.0, hi=1.0),
+    "height", "distance", "yaw", "side_ratio", "block_gap", "mu", "distance_jitter", "yaw_jitter", "mu_jitter",
     # CLM gains (clm.PARAM_DEFAULTS)
-    Param("T0", _CLM["T0"], "CLM: front flipper torque threshold T0 (flipper rule Cases 1-3); default ours, the "
-          "paper gives none", "N m", lo=1.0, hi=80.0),
-    Param("flip_delta_a", _CLM["flip_delta_a"], "CLM: Delta_A, front flipper step of the torque rule; default ours",
-          "rad/period", lo=0.001, hi=0.1),
-    Param("flip_delta_b", _CLM["flip_delta_b"], "CLM: Delta_B, front flipper step of the torque rule; default ours",
-          "rad/period", lo=0.001, hi=0.1),
-    Param("delta_e", _CLM["delta_e"], "CLM: Delta_E, boom step of the climb / release (the level lift moves the "
-          "EPRAs Delta_E l1 per period); default ours", "rad/period", lo=0.0005, hi=0.05),
-    Param("delta_f", _CLM["delta_f"], "CLM: Delta_F, flipper step of the climb / release; default ours",
-          "rad/period", lo=0.001, hi=0.1),
-    Param("clm_speed", _CLM["clm_speed"], "CLM: crawler speed (default ours; the crawlers reach 63 mm/s, Table 3)",
-          "m/s", lo=0.005, hi=0.063),
-    Param("climb_paper", _CLM["climb_paper"], "CLM climb: 1 = the paper's Eqs. 28-29 (booms and front flippers "
-          "turn down, crawlers drive); 0 = our level lift (not the paper's method)", "", lo=0.0, hi=1.0),
-    Param("flip_encoder", _CLM["flip_encoder"], "paper climb reading: 1 = A' of Eq. 29 is the flipper encoder "
-          "(\"obtained\"), 0 = the last command", "", lo=0.0, hi=1.0),
-    Param("climb_yield", _CLM["climb_yield"], "paper climb reading: 1 = the front flippers' torque rule (Case 2) keeps "
-          "running in CLIMB", "", lo=0.0, hi=1.0),
-    Param("climb_rear_flippers", _CLM["climb_rear_flippers"], "paper climb reading: 1 = Eq. 29 turns the rear "
-          "flippers too, 0 = the front ones (A of 'Crawler controls')", "", lo=0.0, hi=1.0),
-    Param("s_from_touch", _CLM["s_from_touch"], "paper climb reading: 1 = S (Eq. 18) from the front flippers' "
-          "touch-down on the step top, 0 = from the CLIMB start", "", lo=0.0, hi=1.0),
-    Param("prepare_rear_init", _CLM["prepare_rear_init"], "PREPARE places the rear arms at their Table 2 start "
-          "points (1, ours) or targets (0)", "", lo=0.0, hi=1.0),
-    Param("crawl_max_h", _CLM["crawl_max_h"], "CLM: steps up to this H_EST are climbed by crawlers and flippers, "
-          "arms carried (CRAWL: ours, not the paper's method; 0 = the arms climb every step)", "m", lo=0.0,
-          hi=scenarios.MAX_HEIGHT),
-    Param("operator_gain", operator.PARAM_DEFAULTS["operator_gain"], "operator steering (not the CLM: it cannot "
-          "measure the yaw): track speed difference per rad of heading error while driving straight; 0 = no "
-          "operator, the paper's rows", "m/s per rad", lo=0.0, hi=1.0),
+    "T0", "flip_delta_a", "flip_delta_b", "delta_e", "delta_f", "clm_speed", "climb_paper", "flip_encoder",
+    "climb_yield", "climb_rear_flippers", "s_from_touch", "prepare_rear_init", "crawl_max_h", "operator_gain",
     # the CCM baseline
-    Param("speed", ccm.PARAM_DEFAULTS["speed"], "CCM: commanded crawler speed", "m/s", lo=0.005, hi=0.063),
+    "speed",
     # run
-    Param("horizon", 90.0, "simulated time", "s", lo=1.0, hi=600.0, sweepable=False),
-    Param("nthread", 0, "physics threads (0: all cores; native backend)", "", kind="int", lo=0, hi=1024,
-          sweepable=False),
-    Param("backend", "native", "simulation backend: native MuJoCo (mujoco.batch, CPU) or MJX (one jitted scan; "
-          "compiles about a minute on CPU)", kind="str", choices=("native", "mjx"), sweepable=False),
+    "horizon", "nthread", "backend",
 )
 
 METRICS = (

@@ -51,37 +51,28 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.analysis import Param
 from jaxloco.errors import SpecError
 from jaxloco.robots.octopus import analysis, kinematics
-from jaxloco.robots.octopus.params import SIGMA
-from jaxloco.tune.objective import Objective, Tunable
+from jaxloco.robots.octopus.params import PARAMETERS, SIGMA
+from jaxloco.tune.objective import Objective
 
 CLASSES = analysis.CLASSES  # 0 undetectable, 1 flat, 2 up, 3 down (kinematics.CASE_* order)
 DEFAULT_SIGMA = {"sigma1": float(SIGMA[0]), "sigma2": float(SIGMA[1]), "sigma3": float(SIGMA[2])}
 
+# the optimiser's bounds: narrower than the sweep's (0, 2] m, around plausible thresholds
 TUNABLES = (
-    Tunable("sigma1", DEFAULT_SIGMA["sigma1"], "sigma_1: |z1 - z4|, |z2 - z3| below it is flat (Case 1)", "m",
-            lo=0.005, hi=0.2),
-    Tunable("sigma2", DEFAULT_SIGMA["sigma2"], "sigma_2: upper bound of an upward step (Case 2)", "m", lo=0.1, hi=0.8),
-    Tunable("sigma3", DEFAULT_SIGMA["sigma3"], "sigma_3: upper bound of a downward step (Case 3)", "m", lo=0.1, hi=0.8),
+    PARAMETERS.tunable("sigma1", lo=0.005, hi=0.2),
+    PARAMETERS.tunable("sigma2", lo=0.1, hi=0.8),
+    PARAMETERS.tunable("sigma3", lo=0.1, hi=0.8),
 )
 
-# settings shared with the analysis (same names, defaults and ranges)
+# the sample bank's settings, then those shared with the analysis (same names, defaults and ranges)
 _SHARED = ("edge", "noise", "imu_noise", "flat_tol", "step_min", "climb_max", "descend_max", "slope_max")
-_ANALYSIS = {p.name: p for p in analysis.PARAMS}
-SETTINGS = (
-    Param("tau", 0.005, "temperature of the sigmoid relaxation of each threshold test", "m", lo=0.0, hi=0.1,
-          lo_open=True),
-    Param("danger_weight", 4.0, "cost of a wrong autonomous class (flat, up, down) relative to a wrong "
-          "'undetectable'", "", lo=0.0, hi=1000.0, lo_open=True),
-    Param("samples", 4096, "size of the fixed sample bank", "", kind="int", lo=16, hi=1 << 17),
-    Param("seed", 0, "PRNG seed of the sample bank", "", kind="int", lo=0, hi=2**31 - 1),
-    Param("terrains", ",".join(analysis.TERRAINS), "comma-separated terrain types drawn uniformly (of "
-          f"{', '.join(analysis.TERRAINS)})", "", kind="str"),
-    Param("height_min", 0.0, "lowest step height / slope rise / rough amplitude drawn", "m", lo=0.0, hi=0.7),
-    Param("height_max", 0.6, "highest step height / slope rise / rough amplitude drawn", "m", lo=0.0, hi=0.7),
-    *(_ANALYSIS[name] for name in _SHARED),
+SETTINGS = PARAMETERS.select(
+    "tau", "danger_weight", "samples", "seed", "terrains", "height_min", "height_max",
+    *_SHARED,
+    # one fixed bank for the whole run (the analysis' samples are per row)
+    samples={"default": 4096, "doc": "size of the fixed sample bank", "lo": 16, "hi": 1 << 17, "sweepable": True},
 )
 AUX = ("accuracy", "danger_rate", "undetectable_rate", "hard_cost", "soft_danger", "soft_undetectable",
        "soft_accuracy", "reachable")

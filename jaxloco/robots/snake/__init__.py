@@ -2,7 +2,8 @@
 al., "Task-Space Control of Articulated Mobile Robots With a Soft Gripper for
 Operations", IEEE T-RO 35(1), 2019.
 
-Modules: `params` (Table I and the dimensions chosen where the paper is silent),
+Modules: `params` (Table I, the dimensions chosen where the paper is silent and
+`PARAMETERS`, every user parameter stated once),
 `kinematics` (forward kinematics of the chain, the wheel contact points, the centre of
 mass, the velocity constraints of Eqs. 2-8 per mode of Table II and the augmented model
 of Eqs. 9-11), `control` (the control law of Eqs. 12-20 and the mode switching of Sec.

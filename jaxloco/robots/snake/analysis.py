@@ -33,42 +33,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco import geometry as geo
-from jaxloco.analysis import Analysis, Metric, Param, Summary
+from jaxloco.analysis import Analysis, Metric, Summary
 from jaxloco.robots.snake import control, experiments, kinematics, kinsim, params
 
 MODE_ORDERS = control.MODE_ORDERS
 POS_TOL, ATT_TOL = experiments.PAPER_HEAD_ERROR  # 0.03 m, 0.1 rad
 
-PARAMS = (
-    Param("kv_head_yaw", control.PAPER_KV_HEAD_YAW, "K_V weight of the head yaw joints theta_1..theta_3", "",
-          lo=0.0, hi=1e4),
-    Param("kv_head_pitch", control.PAPER_KV_HEAD_PITCH, "K_V weight of the head pitch joints psi_1..psi_3", "",
-          lo=0.0, hi=1e4),
-    Param("kv_base", control.PAPER_KV_BASE, "K_V weight of theta_4, the head end of the base part", "", lo=0.0, hi=1e4),
-    Param("kv_ratio", control.PAPER_KV_RATIO, "K_V ratio from one base joint to the next towards the tail "
-          "(0.5: the weights double from the tail to the head, as the paper's)", "", lo=0.0, hi=4.0, lo_open=True),
-    Param("k_eta", 0.1, "null-space gain k_eta of Eq. 14", "", lo=0.0, hi=100.0),
-    Param("gain", 1.0, "task gain K (the same on the 7 controlled variables) of Eq. 13", "1/s",
-          lo=0.0, hi=50.0, lo_open=True),
-    Param("delta_t", 1.0, "Delta T: period of the mode switching", "s", lo=0.02, hi=30.0),
-    Param("mode_order", 0, "switching order: 0 = 2,3,4,5,6 (paper, tail to head), 1 = 6,5,4,3,2, "
-          "2 = 2,4,6,3,5", kind="int", choices=(0, 1, 2)),
-    Param("switch_at", experiments.SWITCH_AT, "operator's command of the switching state (fixing state before)", "s",
-          lo=0.0, hi=1e3),
-    Param("a2", 0.0, "Eq. 20 weight of 1/||d|| (distances of P_G from the support polygon's sides); 0 = Eq. 19",
-          "m", lo=0.0, hi=1e3),
-    Param("amplitude", experiments.ZIGZAG_AMPLITUDE, "zigzag amplitude of the base yaw joints at t = 0 (limit 1.134)",
-          "rad", lo=0.0, hi=params.YAW_LIMIT),
-    Param("joint_speed_max", kinsim.JOINT_SPEED_MAX, "servo speed limit of the joints", "rad/s", lo=0.0, hi=100.0,
-          lo_open=True),
-    Param("recover_ratio", 0.7, "recovered once every base joint is below this fraction of its limit", "",
-          lo=0.0, hi=1.0, lo_open=True, hi_open=True),
-    Param("w_limit", 1.0, "loss weight of the time near the limits against the head error", "", lo=0.0, hi=1e3),
-    Param("horizon", 30.0, "simulated time", "s", lo=0.1, hi=600.0, sweepable=False),
-    Param("dt", 0.02, "control period (explicit Euler step of the kinematic plant)", "s", lo=1e-4, hi=0.2,
-          sweepable=False),
-    Param("feedback", False, "use the plant's w and phi (true) or the paper's feedforward estimate (false)",
-          kind="bool", sweepable=False),
+PARAMS = params.PARAMETERS.select(
+    "kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio", "k_eta", "gain", "delta_t", "mode_order", "switch_at",
+    "a2", "amplitude", "joint_speed_max", "recover_ratio", "w_limit", "horizon", "dt", "feedback",
 )
 
 METRICS = (
@@ -177,17 +150,7 @@ def summarize(table) -> Summary:
         for i in range(n)
         if all(
             np.isclose(cols[k][i], d)
-            for k, d in zip(
-                _KV_NAMES + ("k_eta",),
-                (
-                    control.PAPER_KV_HEAD_YAW,
-                    control.PAPER_KV_HEAD_PITCH,
-                    control.PAPER_KV_BASE,
-                    control.PAPER_KV_RATIO,
-                    0.1,
-                ),
-                strict=True,
-            )
+            for k, d in params.PARAMETERS.defaults(_KV_NAMES + ("k_eta",)).items()
         )
     ]
     shown = order[:10] + [i for i in paper[:1] if i not in order[:10]]

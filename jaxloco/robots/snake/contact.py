@@ -46,7 +46,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Param, Summary
+from jaxloco.analysis import Analysis, Metric, Summary
 from jaxloco.errors import SpecError
 from jaxloco.robots.snake import control, experiments, kinematics, kinsim, scenarios, sim_control, trials
 from jaxloco.robots.snake import params as snake_params
@@ -94,17 +94,12 @@ GRIPPER_MID = (
     snake_params.GRIPPER_TIP - 0.5 * snake_params.GRIPPER_LENGTH
 )  # [m] the gripper's centre ahead of the head frame
 
-PARAMS = (
-    Param("posture", "ii", "the paper's posture (Tables IV-V): " + "; ".join(
-        f"{k}: z_h {z:g} m, y_h {y:g} m, {b}" for k, (z, y, b) in POSTURES.items()), kind="str",
-        choices=POSTURE_NAMES),
-    Param("press", 0.1, "how far the head target moves into the plate (default (ours))", "m", lo=0.0, hi=0.5),
-    *trials.trial_params(FLOOR_MU),
-    Param("ramp", 4.0, "duration of the head target's move into the plate (default (ours))", "s", lo=0.5,
-          hi=30.0, sweepable=False),
-    Param("hold", 3.0, "time the target is held in the plate after the ramp", "s", lo=0.0, hi=30.0,
-          sweepable=False),
-    *trials.RUN_PARAMS,
+PARAMS = snake_params.PARAMETERS.select(
+    "posture", "press", "mu", "mu_jitter", "heading_jitter", "ramp", "hold", "settle", "nthread",
+    posture={"doc": snake_params.PARAMETERS["posture"].doc + ": " + "; ".join(
+        f"{k}: z_h {z:g} m, y_h {y:g} m, {b}" for k, (z, y, b) in POSTURES.items()), "choices": POSTURE_NAMES},
+    mu={"default": FLOOR_MU},  # the floor of Table IV's evidence (FLOOR_MU)
+    ramp={"doc": "duration of the head target's move into the plate (default (ours))"},
 )
 METRICS = (
     Metric("fx", "largest normal force of the head on the plate, pushing along +x", "N"),

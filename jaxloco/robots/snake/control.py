@@ -72,11 +72,12 @@ MODE_ORDERS = np.array(
     ]
 )  # switching orders (rows), `ControlParams.mode_order` takes one
 
-# Sec. V-B, Figs. 8-10: K_V = diag(15, 0.015, 15, 0.015, 15, 0.015, 9.6, ..., 0.3)
-PAPER_KV_HEAD_YAW = 15.0
-PAPER_KV_HEAD_PITCH = 0.015
-PAPER_KV_BASE = 9.6  # theta_4, the head end of the base part
-PAPER_KV_RATIO = 0.5  # each base weight is half the one ahead of it (tail-wards)
+# Sec. V-B, Figs. 8-10: K_V = diag(15, 0.015, 15, 0.015, 15, 0.015, 9.6, ..., 0.3) (params.PARAMETERS)
+_P = snake_params.PARAMETERS
+PAPER_KV_HEAD_YAW = _P.default("kv_head_yaw")
+PAPER_KV_HEAD_PITCH = _P.default("kv_head_pitch")
+PAPER_KV_BASE = _P.default("kv_base")  # theta_4, the head end of the base part
+PAPER_KV_RATIO = _P.default("kv_ratio")  # each base weight is half the one ahead of it (tail-wards)
 
 
 def kv_diagonal(
@@ -112,11 +113,11 @@ class ControlParams:
 
     gain: Array = field(default_factory=lambda: jnp.ones(N_TASK))  # K (7,) [1/s]
     weights: Array = field(default_factory=default_weights)  # W (19,)
-    k_eta: Array = 0.1  # k_eta
+    k_eta: Array = _P.default("k_eta")  # k_eta
     kv: Array = field(default_factory=kv_diagonal)  # diag K_V (12,)
     a1: Array = 1.0  # Eq. 20 weight of phi^T K_V phi
-    a2: Array = 0.0  # Eq. 20 weight of 1 / ||d|| [m]; 0 gives Eq. 19
-    delta_t: Array = 1.0  # Delta T [s], switching period
+    a2: Array = _P.default("a2")  # Eq. 20 weight of 1 / ||d|| [m]; 0 gives Eq. 19
+    delta_t: Array = _P.default("delta_t")  # Delta T [s], switching period
     mode_order: Array = field(default_factory=lambda: jnp.arange(2, snake_params.N_MODES + 1))  # (5,) sigma values
     fixed_mode: Array = 1  # sigma of the fixing state
     switch_at: Array = jnp.inf  # [s] operator's command of the switching state

@@ -33,7 +33,7 @@ from jaxloco.robots.snake import control, kinsim, params
 Array = jax.Array
 
 # --- Sec. V-A, Table III
-RAMP = 4.0  # [s] our duration of each target change (not in the paper)
+RAMP = params.PARAMETERS.default("ramp")  # [s] our duration of each target change (not in the paper)
 T_START = 1.0  # [s] the target begins to change at t = 1
 ACCURACY_HORIZON = T_START + RAMP + 5.0  # [s] t_e + 5
 ACCURACY_NAMES = ("x", "y", "z", "alpha", "beta", "gamma")
@@ -66,8 +66,8 @@ PAPER_ACCURACY_SD = np.array(
 )
 
 # --- Sec. V-B, Figs. 8-10
-ZIGZAG_AMPLITUDE = 1.1  # [rad]
-SWITCH_AT = 2.0  # [s]
+ZIGZAG_AMPLITUDE = params.PARAMETERS.default("amplitude")  # [rad]
+SWITCH_AT = params.PARAMETERS.default("switch_at")  # [s]
 LIMIT_HORIZON = 30.0  # [s] our run length (Fig. 9's time axis is not in the text)
 PAPER_HEAD_ERROR = (0.030, 0.1)  # [m], [rad] "about 30 mm and 0.1 rad"
 

@@ -42,7 +42,7 @@ from jaxloco.robots.snake import control, kinematics
 from jaxloco.robots.snake import params as snake_params
 
 Array = jax.Array
-JOINT_SPEED_MAX = 4.7  # [rad/s] Dynamixel MX-106R, 45 rpm at 12 V
+JOINT_SPEED_MAX = snake_params.PARAMETERS.default("joint_speed_max")  # [rad/s] Dynamixel MX-106R, 45 rpm at 12 V
 WHEEL_SPEED_MAX = 6.0  # [rad/s] MX-28AR (55 rpm), as `model.WHEEL_SPEED`
 
 

@@ -35,49 +35,40 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 
-from jaxloco.analysis import Param
+from jaxloco.robots.snake import params as snake_params
 from jaxloco.robots.snake import sim_analysis
-from jaxloco.tune.objective import Objective, Tunable
+from jaxloco.tune.objective import Objective
 
 GROUND = "plane"  # the MJX-compatible model (sim_analysis.build_model)
 
+_P = snake_params.PARAMETERS
+# log scale, bounds for the optimiser (tighter than the sweep's K, wider than its k_eta)
 TUNABLES = (
-    Tunable("gain_k", 1.0, "task-space gain K of Eq. 13 (the same on the 7 controlled variables)", unit="1/s",
-            lo=0.05, hi=50.0, scale="log"),
-    Tunable("k_eta", 0.1, "null-space gain k_eta of Eq. 14", lo=1e-4, hi=100.0, scale="log"),
+    _P.tunable("gain_k", lo=0.05, hi=50.0, scale="log"),
+    _P.tunable("k_eta", lo=1e-4, hi=100.0, scale="log"),
 )
 _A = {p.name: p for p in sim_analysis.PARAMS}
+# the snake.reach parameters; an MJX rollout is short (at most 10 s) and compiled per horizon and settle,
+# which the runner passes as settings (sweepable: a tune setting, not a sweep axis)
 SETTINGS = (
-    Param(
-        "horizon",
-        3.0,
-        "simulated time of the reach (after the settling): the MJX rollout's length",
-        "s",
-        lo=0.1,
-        hi=10.0,
-    ),
-    Param("t_start", 0.1, "the target starts to move at this time", "s", lo=0.0, hi=10.0),
-    Param("ramp", 0.8, "duration of the target's smooth step", "s", lo=0.0, hi=10.0, lo_open=True),
-    Param("d_x", 0.0, _A["d_x"].doc, "m", lo=-0.3, hi=0.3),
-    Param("d_y", 0.0, _A["d_y"].doc, "m", lo=-0.3, hi=0.3),
-    Param("d_z", 0.03, _A["d_z"].doc, "m", lo=-0.3, hi=0.3),
-    Param("w_effort", 1e-3, _A["w_effort"].doc, "", lo=0.0, hi=1e3),
-    Param(
-        "settle",
-        sim_analysis.SETTLE,
-        "settling before the reach (MuJoCo C, once, outside the gradient)",
-        "s",
-        lo=0.0,
-        hi=20.0,
-    ),
+    replace(_A["horizon"], doc="simulated time of the reach (after the settling): the MJX rollout's length",
+            hi=10.0, sweepable=True),
+    replace(_A["t_start"], doc="the target starts to move at this time", hi=10.0),
+    replace(_A["ramp"], hi=10.0),
+    _A["d_x"],
+    _A["d_y"],
+    _A["d_z"],
+    _A["w_effort"],
+    replace(_A["settle"], doc="settling before the reach (MuJoCo C, once, outside the gradient)", sweepable=True),
 )
 AUX = ("rms_error", "final_error", "max_error", "effort")
-PAPER = {"gain_k": 1.0, "k_eta": 0.1}
+PAPER = {t.name: t.default for t in TUNABLES}  # K = 1 /s (ControlParams' default), k_eta = 0.1
 
 
 @functools.cache

@@ -28,9 +28,10 @@ from typing import Any
 
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Param, Summary, mean_worst
-from jaxloco.robots.snake import operations, scenarios, trials
+from jaxloco.analysis import Analysis, Metric, Summary, mean_worst
+from jaxloco.robots.snake import operations, trials
 from jaxloco.robots.snake import operator as snake_operator
+from jaxloco.robots.snake import params as snake_params
 from jaxloco.sim.rollout import Simulator
 from jaxloco.sim.scenario import seed_jitter
 
@@ -40,65 +41,10 @@ PICK_LIFT_MIN = 0.05  # [m] success: half the script's 0.1 m lift, ours
 VALVE_TURN_MIN = 0.75 * np.pi / 2  # [rad] success: 75 % of the 90 deg roll, ours
 DOOR_OPEN_MIN = 1.0  # [rad] success: of the 1.2 rad the operator pulls for, ours
 
-PARAMS = (
-    Param(
-        "operation",
-        "pick",
-        "the operation (Sec. V-D): pick (a T-joint pipe), valve (a gate valve), door (a door with a knob)",
-        kind="str",
-        choices=NAMES,
-    ),
-    Param(
-        "operator_gain",
-        1.0,
-        "the operator's joystick correction of the seen tip position error, 0: none (default (ours))",
-        "1/s",
-        lo=0.0,
-        hi=20.0,
-    ),
-    Param(
-        "operator_enter",
-        0.97,
-        "a base yaw joint at this fraction of its limit: the operator stops the script and "
-        "commands the switching state (> 1: never; default (ours))",
-        "",
-        lo=0.5,
-        hi=2.0,
-    ),
-    Param(
-        "operator_exit",
-        snake_operator.PARAM_DEFAULTS["operator_exit"],
-        "... until every base yaw joint is below this fraction (default (ours))",
-        "",
-        lo=0.0,
-        hi=1.0,
-    ),
-    Param(
-        "operator_min_switch",
-        snake_operator.PARAM_DEFAULTS["operator_min_switch"],
-        "... and at least this long (default (ours))",
-        "s",
-        lo=0.0,
-        hi=60.0,
-    ),
-    Param(
-        "mu",
-        scenarios.PARAM_DEFAULTS["mu"],
-        "floor friction coefficient (default (ours))",
-        "",
-        lo=trials.MU_MIN,
-        hi=3.0,
-    ),
-    Param("mu_jitter", 0.1, "mu + U(-1, 1) x this, from the row's seed (default (ours))", "", lo=0.0, hi=1.0),
-    Param(
-        "place_jitter",
-        0.005,
-        "the robot's start shifted by U(-1, 1) x this in x and y, from the row's seed (default (ours))",
-        "m",
-        lo=0.0,
-        hi=0.05,
-    ),
-    trials.RUN_PARAMS[1],
+PARAMS = snake_params.PARAMETERS.select(
+    "operation", "operator_gain", "operator_enter", "operator_exit", "operator_min_switch", "mu", "mu_jitter",
+    "place_jitter", "nthread",
+    operation={"choices": NAMES},
 )
 
 METRICS = (

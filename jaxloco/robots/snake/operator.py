@@ -41,12 +41,13 @@ from jaxloco.robots.snake import control, kinsim, params
 Array = jax.Array
 
 # the operator's parameters in a simulation's params dict (defaults ours; 0 gain and enter 2.0: no operator)
+# (gain and enter here are "off", not the parameters' defaults of `snake.operations`)
 PARAM_DEFAULTS: dict[str, float] = {
     "operator_gain": 0.0,  # [1/s] joystick correction of the position error
     "operator_limit": 0.1,  # [m] the largest correction per axis
     "operator_enter": 2.0,  # a joint at this fraction of its limit: the operator switches modes (> 1: never)
-    "operator_exit": 0.8,  # ... until every joint is below this fraction
-    "operator_min_switch": 5.0,  # [s] ... and at least this long (one cycle of the modes 2..6 at Delta T = 1 s)
+    # ... until every joint is below this fraction, and at least this long [s]
+    **params.PARAMETERS.defaults(("operator_exit", "operator_min_switch")),
 }
 
 

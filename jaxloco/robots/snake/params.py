@@ -1,6 +1,7 @@
 """T² Snake-3 with the Omni-gripper (Tanaka et al., IEEE T-RO 35(1), 2019): Table I
 dimensions, the joint / wheel layout of Sec. II-A and IV-A, the modes of Table II and
-the values the paper does not give, each with the reason for the chosen value.
+the values the paper does not give, each with the reason for the chosen value; and
+`PARAMETERS`, every parameter a user can set (`jaxloco.parameters.ParamTable`).
 
 Frames and units: SI, radians. The world is the paper's O-xyz with the ground the
 plane z = 0. Every link frame has x forward (towards the head), y left (along the
@@ -74,6 +75,9 @@ from dataclasses import dataclass, field, replace
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+from jaxloco.analysis import Param
+from jaxloco.parameters import ParamTable
 
 G = 9.81  # [m/s^2]
 
@@ -183,3 +187,92 @@ class SnakeParams:
 
 def default_params() -> SnakeParams:
     return SnakeParams()
+
+
+# ------------------------------------------------------------------ user parameters
+# Every parameter a user can set (sweep analyses, tune objectives, the simulations'
+# params dicts), each stated once: `control`, `kinsim`, `experiments`, `sim_control`,
+# `scenarios` and `operator` take their defaults from here, the analyses select theirs
+# (with per-analysis changes where one needs another default, range or doc).
+# Categorical parameters take their choices from the analysis' own data at the select.
+PARAMETERS = ParamTable("snake", (
+    # joint-limit avoidance (`control`, `snake.kv`); K_V of Sec. V-B, Figs. 8-10:
+    # diag(15, 0.015, 15, 0.015, 15, 0.015, 9.6, ..., 0.3)
+    Param("kv_head_yaw", 15.0, "K_V weight of the head yaw joints theta_1..theta_3", "", lo=0.0, hi=1e4),
+    Param("kv_head_pitch", 0.015, "K_V weight of the head pitch joints psi_1..psi_3", "", lo=0.0, hi=1e4),
+    Param("kv_base", 9.6, "K_V weight of theta_4, the head end of the base part", "", lo=0.0, hi=1e4),
+    # each base weight is half the one ahead of it (tail-wards)
+    Param("kv_ratio", 0.5, "K_V ratio from one base joint to the next towards the tail "
+          "(0.5: the weights double from the tail to the head, as the paper's)", "", lo=0.0, hi=4.0, lo_open=True),
+    Param("k_eta", 0.1, "null-space gain k_eta of Eq. 14", "", lo=0.0, hi=100.0),
+    Param("gain", 1.0, "task gain K (the same on the 7 controlled variables) of Eq. 13", "1/s",
+          lo=0.0, hi=50.0, lo_open=True),
+    Param("delta_t", 1.0, "Delta T: period of the mode switching", "s", lo=0.02, hi=30.0),
+    Param("mode_order", 0, "switching order: 0 = 2,3,4,5,6 (paper, tail to head), 1 = 6,5,4,3,2, "
+          "2 = 2,4,6,3,5", kind="int", choices=(0, 1, 2)),
+    Param("switch_at", 2.0, "operator's command of the switching state (fixing state before)", "s",
+          lo=0.0, hi=1e3),
+    Param("a2", 0.0, "Eq. 20 weight of 1/||d|| (distances of P_G from the support polygon's sides); 0 = Eq. 19",
+          "m", lo=0.0, hi=1e3),
+    Param("amplitude", 1.1, "zigzag amplitude of the base yaw joints at t = 0 (limit 1.134)",
+          "rad", lo=0.0, hi=YAW_LIMIT),
+    # Dynamixel MX-106R, 45 rpm at 12 V
+    Param("joint_speed_max", 4.7, "servo speed limit of the joints", "rad/s", lo=0.0, hi=100.0, lo_open=True),
+    Param("recover_ratio", 0.7, "recovered once every base joint is below this fraction of its limit", "",
+          lo=0.0, hi=1.0, lo_open=True, hi_open=True),
+    Param("w_limit", 1.0, "loss weight of the time near the limits against the head error", "", lo=0.0, hi=1e3),
+    Param("horizon", 30.0, "simulated time", "s", lo=0.1, hi=600.0, sweepable=False),
+    Param("dt", 0.02, "control period (explicit Euler step of the kinematic plant)", "s", lo=1e-4, hi=0.2,
+          sweepable=False),
+    Param("feedback", False, "use the plant's w and phi (true) or the paper's feedforward estimate (false)",
+          kind="bool", sweepable=False),
+    # the reach (`snake.reach`, `snake.reach_gain`)
+    Param("gain_k", 1.0, "task-space gain K of Eq. 13 (the same on the 7 controlled variables)", "1/s",
+          lo=0.0, hi=100.0, lo_open=True),
+    Param("d_x", 0.0, "target displacement of the gripper tip along world x", "m", lo=-0.3, hi=0.3),
+    Param("d_y", 0.0, "target displacement of the gripper tip along world y", "m", lo=-0.3, hi=0.3),
+    Param("d_z", 0.03, "target displacement of the gripper tip along world z", "m", lo=-0.3, hi=0.3),
+    Param("t_start", 0.1, "the target starts to move at this time (after the settling)", "s", lo=0.0, hi=60.0),
+    Param("settle_tol", 0.005, "settle_time: the tip error must stay within this", "m", lo=0.0, hi=1.0,
+          lo_open=True),
+    Param("w_effort", 1e-3, "loss weight of the mean squared commanded joint speed [per rad^2/s^2]", "",
+          lo=0.0, hi=1e3),
+    Param("ground", "box", "box: the snake scenario's ground (every geom collides); plane: the MJX tuning's "
+          "model (plane ground, wheels collide)", kind="str", sweepable=False),
+    # the MuJoCo experiments (`snake.table3`, `snake.contact`, `snake.operations`)
+    Param("target", "x", "the component of w_h changed (Table III row): x 0.2 m, y 0.1 m, z -0.1 m, "
+          "alpha pi/2, beta -pi/6, gamma pi/4", kind="str"),
+    Param("ramp", 4.0, "duration of the target's change (default (ours): the paper gives none)", "s",
+          lo=0.5, hi=30.0, sweepable=False),
+    Param("posture", "ii", "the paper's posture (Tables IV-V)", kind="str"),
+    Param("press", 0.1, "how far the head target moves into the plate (default (ours))", "m", lo=0.0, hi=0.5),
+    Param("hold", 3.0, "time the target is held in the plate after the ramp", "s", lo=0.0, hi=30.0,
+          sweepable=False),
+    Param("operation", "pick", "the operation (Sec. V-D): pick (a T-joint pipe), valve (a gate valve), door (a "
+          "door with a knob)", kind="str"),
+    # the teleoperator (`operator`; off in a simulation's params dict unless set)
+    Param("operator_gain", 1.0, "the operator's joystick correction of the seen tip position error, 0: none "
+          "(default (ours))", "1/s", lo=0.0, hi=20.0),
+    Param("operator_enter", 0.97, "a base yaw joint at this fraction of its limit: the operator stops the script "
+          "and commands the switching state (> 1: never; default (ours))", "", lo=0.5, hi=2.0),
+    Param("operator_exit", 0.8, "... until every base yaw joint is below this fraction (default (ours))", "",
+          lo=0.0, hi=1.0),
+    # one cycle of the modes 2..6 at Delta T = 1 s
+    Param("operator_min_switch", 5.0, "... and at least this long (default (ours))", "s", lo=0.0, hi=60.0),
+    # perturbed trials (`trials`) and the scenario
+    Param("mu", 1.0, "floor friction coefficient (default (ours))", "", lo=0.05, hi=3.0),
+    Param("mu_jitter", 0.1, "mu + U(-1, 1) x this, from the row's seed (default (ours))", "", lo=0.0, hi=1.0),
+    Param("heading_jitter", 0.05, "initial heading U(-1, 1) x this, from the row's seed (default (ours))", "rad",
+          lo=0.0, hi=3.2),
+    Param("place_jitter", 0.005, "the robot's start shifted by U(-1, 1) x this in x and y, from the row's seed "
+          "(default (ours))", "m", lo=0.0, hi=0.05),
+    # the head part's servos: default the model's (`model.KP`, `model.KV`, set at the select: this module
+    # cannot import the MuJoCo model)
+    Param("head_kp", None, "stiffness of the head part's six servos (model.py: chosen from Table III)",
+          "N m/rad", lo=1.0, hi=1e4),
+    Param("head_kv", None, "damping of the head part's six servos", "N m s/rad", lo=0.0, hi=1e3),
+    # run
+    Param("settle", 2.0, "settling on the servos before the paper's clock starts", "s", lo=0.0, hi=20.0,
+          sweepable=False),
+    Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
+))

@@ -122,7 +122,7 @@ CONTROL_DT = 0.02  # [s] default control period (50 Hz)
 STATUSES = ("ok", "fell")
 
 PARAM_DEFAULTS: dict[str, float] = {
-    "mu": 1.0,  # ground friction
+    "mu": snake_params.PARAMETERS.default("mu"),  # ground friction
     "lift_height": LIFT_HEIGHT,  # [m]
     "mode": 1,  # Table II mode at t = 0 (and of constant_controller)
     "rho_dot": 0.0,  # [rad/s] constant_controller's base wheel speed

@@ -44,15 +44,10 @@ Array = jax.Array
 DELTA_KEYS = ("d_x", "d_y", "d_z", "d_roll", "d_pitch", "d_yaw", "d_psi3")
 
 PARAM_DEFAULTS: dict[str, float] = {
-    "k_eta": 0.1,
-    "kv_head_yaw": control.PAPER_KV_HEAD_YAW,
-    "kv_head_pitch": control.PAPER_KV_HEAD_PITCH,
-    "kv_base": control.PAPER_KV_BASE,
-    "kv_ratio": control.PAPER_KV_RATIO,
-    "gain": 1.0,  # K [1/s]
-    "a2": 0.0,  # Eq. 20 weight
-    "delta_t": 1.0,  # [s]
-    "mode_order": 0,  # row of control.MODE_ORDERS
+    # K_V (control.kv_diagonal), K [1/s], Eq. 20 weight, Delta T [s], row of control.MODE_ORDERS
+    **snake_params.PARAMETERS.defaults(
+        ("k_eta", "kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio", "gain", "a2", "delta_t", "mode_order")
+    ),
     "fixed_mode": 1,
     "switch_at": float("inf"),  # [s]
     "enter_ratio": 2.0,  # automatic switching off
@@ -172,7 +167,8 @@ def params_batch(n: int = 1, **overrides) -> dict[str, Array]:
 
 
 # ---------------------------------------------------------------- Table III in MuJoCo
-SETTLE = 2.0  # [s] settling before the experiment's clock starts (the head part sags under its servos)
+# [s] settling before the experiment's clock starts (the head part sags under its servos)
+SETTLE = snake_params.PARAMETERS.default("settle")
 
 
 def run_accuracy(feedback: bool = False, mu: float = 1.0, control_dt: float = 0.02, settle: float = SETTLE,

@@ -32,9 +32,10 @@ from typing import Any
 
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Param, Summary
+from jaxloco.analysis import Analysis, Metric, Summary
 from jaxloco.robots.snake import experiments, scenarios, sim_control, trials
 from jaxloco.robots.snake import model as snake_model
+from jaxloco.robots.snake import params as snake_params
 from jaxloco.sim.rollout import Simulator
 from jaxloco.sim.scenario import Scenario
 
@@ -43,18 +44,14 @@ COMPONENTS = ("dx", "dy", "dz", "dalpha", "dbeta", "dgamma")
 UNITS = ("m", "m", "m", "rad", "rad", "rad")
 CONTROL_DT = 0.02  # [s]
 
-PARAMS = (
-    Param("target", "x", "the component of w_h changed (Table III row): x 0.2 m, y 0.1 m, z -0.1 m, "
-          "alpha pi/2, beta -pi/6, gamma pi/4", kind="str", choices=TARGETS),
-    *trials.trial_params(scenarios.PARAM_DEFAULTS["mu"]),
-    Param("head_kp", snake_model.KP, "stiffness of the head part's six servos (model.py: chosen from Table III)",
-          "N m/rad", lo=1.0, hi=1e4),
-    Param("head_kv", snake_model.KV, "damping of the head part's six servos", "N m s/rad", lo=0.0, hi=1e3),
-    Param("ramp", experiments.RAMP, "duration of the target's change (default (ours): the paper gives none)", "s",
-          lo=0.5, hi=30.0, sweepable=False),
-    Param("feedback", 0, "0: the paper's feedforward control (Sec. IV-C2); 1: the simulated head pose fed back "
-          "(Fig. 7(b))", "", kind="int", lo=0, hi=1, sweepable=False),
-    *trials.RUN_PARAMS,
+PARAMS = snake_params.PARAMETERS.select(
+    "target", "mu", "mu_jitter", "heading_jitter", "head_kp", "head_kv", "ramp", "feedback", "settle", "nthread",
+    target={"choices": TARGETS},
+    head_kp={"default": snake_model.KP},  # the model's servos
+    head_kv={"default": snake_model.KV},
+    # here an int of the host analysis (0/1), not snake.kv's traced bool
+    feedback={"default": 0, "doc": "0: the paper's feedforward control (Sec. IV-C2); 1: the simulated head pose "
+              "fed back (Fig. 7(b))", "kind": "int", "lo": 0, "hi": 1},
 )
 
 METRICS = (

@@ -23,32 +23,18 @@ from typing import Any
 
 import jax.numpy as jnp
 
-from jaxloco.robots.snake import analysis, control
-from jaxloco.tune.objective import Objective, Tunable
+from jaxloco.robots.snake import analysis, params
+from jaxloco.tune.objective import Objective
 
-TUNABLES = (
-    Tunable(
-        "kv_head_yaw", control.PAPER_KV_HEAD_YAW, "K_V weight of the head yaw joints theta_1..theta_3", scale="log"
-    ),
-    Tunable(
-        "kv_head_pitch", control.PAPER_KV_HEAD_PITCH, "K_V weight of the head pitch joints psi_1..psi_3", scale="log"
-    ),
-    Tunable("kv_base", control.PAPER_KV_BASE, "K_V weight of theta_4 (head end of the base part)", scale="log"),
-    Tunable(
-        "kv_ratio", control.PAPER_KV_RATIO, "K_V ratio from one base joint to the next towards the tail", scale="log"
-    ),
-    Tunable("k_eta", 0.1, "null-space gain k_eta of Eq. 14", scale="log"),
+# unbounded in log scale (the optimiser's steps are not clipped to the sweep ranges)
+TUNABLES = tuple(
+    params.PARAMETERS.tunable(name, lo=None, hi=None, scale="log")
+    for name in ("kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio", "k_eta")
 )
 _TUNED = {t.name for t in TUNABLES}
 SETTINGS = tuple(p for p in analysis.PARAMS if p.name not in _TUNED)
 AUX = ("recovery_time", "max_pos_error", "max_att_error", "final_V", "min_margin", "time_near_limit")
-PAPER = {
-    "kv_head_yaw": control.PAPER_KV_HEAD_YAW,
-    "kv_head_pitch": control.PAPER_KV_HEAD_PITCH,
-    "kv_base": control.PAPER_KV_BASE,
-    "kv_ratio": control.PAPER_KV_RATIO,
-    "k_eta": 0.1,
-}
+PAPER = {t.name: t.default for t in TUNABLES}  # the paper's K_V, k_eta = 0.1 (ours: the paper gives none)
 
 
 def make_loss(settings: Mapping[str, Any]):
