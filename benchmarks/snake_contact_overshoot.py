@@ -5,7 +5,7 @@
 The paper measured the head's contact forces "by controlling the position of the head"
 (Sec. V-C): the push is a position command, and the force is the servos' stiffness
 times how far the target runs past the plate. That distance is not in the paper. For
-each overshoot [mm] (default 10 12.5 15 17.5 20) this runs the Table IV postures (y_h
+each overshoot [mm] (default 10 12.5 15 17.5) this runs the Table IV postures (y_h
 = 0; one trial each, no jitter) and prints f_x, f_y, f_z beside the paper's with the
 RMS log error over the 18 means (`contact.log_error`) and how many are within 25 %;
 then the Table V postures (y_h = 0.1, 0.2 m) at the best overshoot, the out-of-sample
@@ -27,7 +27,7 @@ from jaxloco.robots.snake import contact
 
 TABLE_IV = ("i", "ii", "iii", "iv", "v", "vi")
 TABLE_V = ("vii", "viii", "ix", "x")
-DEFAULT_MM = (10.0, 12.5, 15.0, 17.5, 20.0)
+DEFAULT_MM = (10.0, 12.5, 15.0, 17.5)
 
 
 def run(fn, postures, overshoot_m):
