@@ -100,7 +100,7 @@ POSTURE_RAMP = 4.0  # [s] the head's move from the Sec. V-A posture to a contact
 PLATE_GAP = 0.03  # [m] from the settled gripper (`settled_heads`) to the plate's face at the start, ours
 TOUCH_MARGIN = 0.01  # [m] the touch site is the plate grown by this
 # [-] floor friction, default (ours): the scenarios' 1.0 (rubber wheels on a floor). With the push a position command
-# (OVERSHOOT) the wheels hold (in posture (ii) they slip at 52 mu N, twice the largest force below).
+# (OVERSHOOT) the wheels hold: in posture (ii) they slip at 52 mu N, above the largest f_x (31 N, posture (iii)).
 FLOOR_MU = 1.0
 # [m] how far past the plate's face the head target is driven, default (ours) fitted to Table IV: the paper measured
 # "by controlling the position of the head" (Sec. V-C) under its feedforward control, so the largest force is the
