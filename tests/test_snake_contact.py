@@ -9,6 +9,7 @@ import pytest
 
 from jaxloco import analysis
 from jaxloco.robots.snake import contact, params, scenarios
+from jaxloco.sim.rollout import Simulator
 
 
 def test_push_force_keeps_the_first_contact_and_ignores_impacts():
@@ -24,7 +25,7 @@ def test_push_force_keeps_the_first_contact_and_ignores_impacts():
 
 def test_postures_put_the_head_where_the_paper_says():
     """The no-skid controller's postures: the head frame at (y_h, z_h), level, facing
-    +x; psi_3 at its SCP target; the L-shaped base bent by about 90 deg in all."""
+    +x; psi_3 at its SCP target; the base part straight or L_SHAPE exactly."""
     import jax.numpy as jnp
 
     from jaxloco.robots.snake import kinematics
@@ -35,33 +36,45 @@ def test_postures_put_the_head_where_the_paper_says():
         assert w[2] == pytest.approx(z, abs=0.005) and w[1] - 0.0 == pytest.approx(y, abs=0.005)
         assert np.abs(w[3:]).max() < 0.02
         assert phi[params.SCP_INDEX] == pytest.approx(params.SCP_TARGET, abs=0.02)
-        if base == "L":
-            assert 1.2 < phi[params.N_H:].sum() < 1.9
+        # the base part exactly straight or L-shaped, as the paper's
+        np.testing.assert_array_equal(phi[params.N_H:], contact.L_SHAPE if base == "L" else 0.0)
     with pytest.raises(analysis.SpecError, match="base"):
         contact.head_posture(0.35, 0.0, "U")
 
 
 def test_plate_sits_beyond_the_gripper_square_to_the_push():
     """In the model: the plate's thin axis along each push and PLATE_GAP between the
-    gripper's surface and the plate's face."""
+    gripper capsule's farthest point along the push (from MuJoCo's geom) and the
+    plate's face, for the kinematic head and for a sagging one (lower, nose down)."""
+    from jaxloco.robots.snake import model as snake_model
     phi, base = contact.head_posture(*contact.POSTURES["ii"])
     m = scenarios.build_model(contact.PLATE)[0]
     d = mujoco.MjData(m)
-    import jax.numpy as jnp
-
-    from jaxloco.robots.snake import kinematics
-    w = np.asarray(kinematics.base_frame_pose(jnp.asarray(base), jnp.asarray(phi)))
-    tip, mid = w[:3] + [params.GRIPPER_TIP, 0, 0], w[:3] + [contact.GRIPPER_MID, 0, 0]
-    for direction, push in enumerate(contact.PUSH):
-        pos, quat = contact.plate_pose(phi, base, direction)
-        d.mocap_pos[m.body_mocapid[m.body("plate").id]] = pos
-        d.mocap_quat[m.body_mocapid[m.body("plate").id]] = quat
+    kin = contact.kinematic_head(phi, base)
+    qpos, _ = snake_model.pose_qpos_ctrl(m, phi, base)
+    for head in (kin, kin + np.array([0.0, 0.0, -0.01, 0.0, 0.05, 0.0])):
+        d.qpos[:] = qpos
+        d.qpos[:3], d.qpos[3:7] = head[:3], snake_model.rpy_to_quat(head[3:])
         mujoco.mj_kinematics(m, d)
-        R = d.geom_xmat[m.geom("plate").id].reshape(3, 3)
-        assert abs(R[:, 0] @ push) == pytest.approx(1.0, abs=1e-9)  # thin side along the push
-        face = pos - push * contact.PLATE_HALF[0]
-        surface = tip if direction == 0 else mid + push * params.GRIPPER_RADIUS
-        assert (face - surface) @ push == pytest.approx(contact.PLATE_GAP, abs=1e-9)
+        g = m.geom("gripper").id
+        centre, axis, (radius, half) = d.geom_xpos[g], d.geom_xmat[g].reshape(3, 3)[:, 2], m.geom_size[g][:2]
+        for direction, push in enumerate(contact.PUSH):
+            pos, quat = contact.plate_pose(head, direction)
+            d.mocap_pos[m.body_mocapid[m.body("plate").id]] = pos
+            d.mocap_quat[m.body_mocapid[m.body("plate").id]] = quat
+            mujoco.mj_kinematics(m, d)
+            R = d.geom_xmat[m.geom("plate").id].reshape(3, 3)
+            assert abs(R[:, 0] @ push) == pytest.approx(1.0, abs=1e-9)  # thin side along the push
+            face = pos - push * contact.PLATE_HALF[0]
+            reach = centre @ push + half * abs(axis @ push) + radius
+            assert face @ push - reach == pytest.approx(contact.PLATE_GAP, abs=1e-9)
+
+
+def test_log_error_is_zero_on_the_papers_means_and_log_2_at_twice():
+    paper = {k: np.array([m for m, _ in contact.PAPER_FORCES[k]]) for k in ("i", "v", "x")}
+    assert contact.log_error(paper) == pytest.approx(0.0, abs=1e-12)
+    assert contact.log_error({k: 2.0 * v for k, v in paper.items()}) == pytest.approx(np.log(2.0))
+    assert contact.log_error({"i": np.array([1.0, 0.0, 1.0])}) == np.inf
 
 
 @pytest.fixture(scope="module")
@@ -82,6 +95,27 @@ def test_each_row_pushes_the_plate_three_ways(rows):
     for f in ("fx", "fy", "fz"):
         assert np.all((out[f] > 1.0) & (out[f] < 200.0)), (f, out[f])  # touched, no impact spike
     np.testing.assert_array_equal(out["z_h"], 0.30)
+
+
+def test_the_plate_is_placed_at_the_sagging_robot(rows):
+    """The settled head (from the fixture's settling run, cached) is below the
+    kinematic posture's: the head part's servos sag under its weight (Sec. IV-C2)."""
+    fixed = {p.name: p.default for p in contact.PARAMS} | {"ramp": 2.0, "hold": 1.0, "settle": 1.0}
+    settled = contact.settled_heads(np.array(["iii"]), fixed["ramp"], fixed["hold"], fixed["settle"],
+                                    Simulator(nthread=2))[0]
+    kin = contact.kinematic_head(*contact.head_posture(*contact.POSTURES["iii"]))
+    assert 0.002 < kin[2] - settled[2] < 0.03
+    assert np.abs(settled[:2] - kin[:2]).max() < 0.02
+
+
+def test_the_push_is_a_position_command(rows):
+    """The force is the servos' stiffness times the command: a third of the default
+    overshoot gives well under half the force along x and -z (a friction or torque
+    limit would give about the same)."""
+    fn, swept, keys, out = rows
+    small = fn({"posture": swept["posture"][:1], "overshoot": np.array([contact.OVERSHOOT / 3])}, keys[:1])
+    for f in ("fx", "fz"):
+        assert 0.0 < small[f][0] < 0.5 * out[f][0], (f, small[f][0], out[f][0])
 
 
 def test_a_row_alone_equals_the_row_in_a_batch(rows):

@@ -84,7 +84,9 @@ MODEL_PATH = mjcf.MODELS_DIR / "t2snake3.xml"
 TIMESTEP = 0.002  # [s]
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 2  # = jaxloco.sim.terrain.ROBOT_* (tested)
 
-KP, KV, TAU = 200.0, 1.3, 8.4  # head part servos [N m/rad], [N m s/rad], [N m] (evidence: module docstring)
+# head part servos [N m/rad], [N m s/rad] (the user parameters head_kp, head_kv), [N m] (evidence: module docstring)
+KP, KV = params.PARAMETERS.default("head_kp"), params.PARAMETERS.default("head_kv")
+TAU = 8.4
 KP_BASE, KV_BASE = 300.0, 3.0  # base part joints theta_4 .. theta_9, psi_4 .. psi_8
 WHEEL_KV, WHEEL_TAU, WHEEL_SPEED = 5.0, 2.5, 6.0  # [N m s/rad], [N m], [rad/s]
 WHEEL_ARMATURE = 0.001  # [kg m^2] active wheels: reflected rotor inertia of the motor

@@ -34,7 +34,6 @@ import numpy as np
 
 from jaxloco.analysis import Analysis, Metric, Summary
 from jaxloco.robots.snake import experiments, scenarios, sim_control, trials
-from jaxloco.robots.snake import model as snake_model
 from jaxloco.robots.snake import params as snake_params
 from jaxloco.sim.rollout import Simulator
 from jaxloco.sim.scenario import Scenario
@@ -47,8 +46,6 @@ CONTROL_DT = 0.02  # [s]
 PARAMS = snake_params.PARAMETERS.select(
     "target", "mu", "mu_jitter", "heading_jitter", "head_kp", "head_kv", "ramp", "feedback", "settle", "nthread",
     target={"choices": TARGETS},
-    head_kp={"default": snake_model.KP},  # the model's servos
-    head_kv={"default": snake_model.KV},
     # here an int of the host analysis (0/1), not snake.kv's traced bool
     feedback={"default": 0, "doc": "0: the paper's feedforward control (Sec. IV-C2); 1: the simulated head pose "
               "fed back (Fig. 7(b))", "kind": "int", "lo": 0, "hi": 1},
