@@ -13,6 +13,7 @@ import contextlib
 from collections.abc import Iterator
 
 import jax
+from tables import check_table
 
 LOWERING_EVENT = "/jax/core/compile/jaxpr_to_mlir_module_duration"
 
@@ -52,8 +53,10 @@ class LoweringsPerChunk:
 
 def run_counting(run, spec, **kwargs):
     """`run(spec, on_chunk=..., **kwargs)` (a sweep) with its lowerings counted per chunk:
-    (result, counter)."""
+    (result, counter). Its table must also match the pinned one (`tables.check_table`):
+    these small sweeps are the suite's check that a change keeps every analysis' results."""
     with compile_events() as events:
         counter = LoweringsPerChunk(events)
         result = run(spec, on_chunk=counter.on_chunk, **kwargs)
+    check_table(result.table)
     return result, counter

@@ -2,7 +2,8 @@
 next chunk of the same shape (no tracing or lowering after chunk 0). The analyses whose
 own test modules already run a two-chunk sweep check it there (leggrope.slope_cycle,
 leggrope.fragile_walk, octopus.terrain_classification, octopus.step_climb,
-octopus.paper); the others run here on tiny settings: two rows, one per chunk."""
+octopus.paper); the others run here on tiny settings: two rows, one per chunk. Every
+one of these sweeps' tables is also pinned (`tables.check_table`, via `run_counting`)."""
 
 from __future__ import annotations
 
