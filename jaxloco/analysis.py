@@ -16,7 +16,10 @@ computes the metrics of parameter values in one of two ways:
     batch of B rows: `values` as above but every sweepable parameter a (B,) numpy
     column (a string one: a numpy unicode array of its choices), `keys` (B, 2) uint32.
     It builds its scenarios and per-simulation parameters and runs them with
-    `simulator.run(scenario, params)` (`jaxloco.sim.rollout.Simulator`); the framework
+    `simulator.run(scenario, params)` (`jaxloco.sim.rollout.Simulator`). The common case,
+    one scenario per sweep and one simulation per row, is data: `Simulation(scenario,
+    params, metrics)`, whose scenario the framework builds once per set of plain values
+    and caches by value. The framework
     owns the simulator: the backend (the analysis' `backend` parameter, else native
     MuJoCo), the physics threads (its `nthread` parameter) and, for a replay, the
     recording of every simulated state. It returns (B,) numpy arrays, one per metric,
@@ -31,6 +34,7 @@ simulated analysis (JAX arrays cannot hold strings); see `sweep_problem`.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -298,6 +302,40 @@ def _simulated_batch(analysis: Analysis, fixed: Mapping[str, Any], simulator: An
         return dict(simulate({**static, **values}, np.asarray(keys, np.uint32), sim))
 
     return batch
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """A simulated analysis as data, for the common case of one scenario per sweep:
+    `Analysis(simulate=Simulation(scenario, params, metrics))`.
+
+      * scenario(plain) -> Scenario, from the plain values only (horizons, kinds: not the
+        per-row columns); the framework keeps one per set of plain values (cached by
+        value), so its compiled rollout serves every chunk and every replay;
+      * params(values, keys) -> the per-simulation params dict (one simulation per row,
+        the rows' (B, 2) PRNG keys added as "key" unless given);
+      * metrics(values, result) -> metrics and "status" from the `RolloutResult`.
+
+    An analysis whose rows need several simulations, several scenarios or host-side
+    planning writes `simulate` itself (e.g. `snake.contact`, `titan.walk`)."""
+
+    scenario: Callable[[Mapping[str, Any]], Any]
+    params: Callable[[Mapping[str, Any], Any], Mapping[str, Any]]
+    metrics: Callable[[Mapping[str, Any], Any], Mapping[str, Any]]
+
+    def __call__(self, values: Mapping[str, Any], keys: Any, simulator: Any) -> dict[str, Any]:
+        import numpy as np
+
+        plain = tuple(sorted((k, v) for k, v in values.items() if not isinstance(v, np.ndarray)))
+        params = dict(self.params(values, keys))
+        params.setdefault("key", keys)
+        return dict(self.metrics(values, simulator.run(_scenario_by_value(self.scenario, plain), params)))
+
+
+@functools.lru_cache(maxsize=16)
+def _scenario_by_value(make: Callable[[Mapping[str, Any]], Any], plain: tuple[tuple[str, Any], ...]) -> Any:
+    """`make(plain values)`, one scenario per set of plain values (the 16 most recent)."""
+    return make(dict(plain))
 
 
 # Built-in analyses come from the robots' entries modules (jaxloco.registry).

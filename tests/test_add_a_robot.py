@@ -87,7 +87,7 @@ def test_states_recorded_on_mjx_match_the_native_ones(namespace):
 
     from jaxloco.sim.rollout import rollout
 
-    scenario = namespace["stance_scenario"](0.3)
+    scenario = namespace["stance_scenario"]({"slope": 0.3})
     params = {"mu": np.array([0.2, 0.4])}
     native = rollout(scenario, params, record_state=True)
     mjx = rollout(scenario, params, backend="mjx", record_state=True)

@@ -525,3 +525,28 @@ def test_simulate_gets_merged_columns_and_the_frameworks_simulator():
     assert seen["simulator"] is mine
     made = simulator_for({"backend": "mjx", "nthread": 2}, record_state=True)
     assert (made.backend, made.nthread, made.record_state, made.runs) == ("mjx", 2, True, [])
+
+
+def test_a_simulation_builds_its_scenario_once_per_set_of_plain_values():
+    from jaxloco.analysis import Simulation
+
+    made, ran = [], []
+
+    def scenario(plain):
+        made.append(dict(plain))
+        return f"scenario {len(made)}"
+
+    class Recorder:  # a simulator that returns what it was given
+        def run(self, scenario, params):
+            ran.append((scenario, params))
+            return params
+
+    sim = Simulation(scenario, lambda values, keys: {"speed": values["speed"]},
+                     lambda values, result: {"y": result["speed"], "status": np.zeros(len(result["speed"]), int)})
+    keys = np.zeros((2, 2), np.uint32)
+    for horizon in (1.0, 1.0, 2.0, 1.0):
+        out = sim({"speed": np.array([1.0, 2.0]), "horizon": horizon, "mode": "a"}, keys, Recorder())
+        assert out["y"].tolist() == [1.0, 2.0]
+    assert made == [{"horizon": 1.0, "mode": "a"}, {"horizon": 2.0, "mode": "a"}]  # columns never reach it
+    assert [s for s, _ in ran] == ["scenario 1", "scenario 1", "scenario 2", "scenario 1"]
+    assert all(p["key"] is keys for _, p in ran)  # the rows' keys, added by the framework

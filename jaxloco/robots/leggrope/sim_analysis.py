@@ -11,15 +11,14 @@ stay below R_ref outside the leg-grope step (so that probed footholds hold)?
 from __future__ import annotations
 
 from collections.abc import Mapping
-from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Summary, mean_worst
+from jaxloco.analysis import Analysis, Metric, Simulation, Summary, mean_worst
 from jaxloco.robots.leggrope import scenarios
 from jaxloco.robots.leggrope.params import PARAMETERS
-from jaxloco.sim.rollout import Simulator
+from jaxloco.sim.rollout import RolloutResult
 from jaxloco.sim.scenario import seed_jitter
 
 # the simulated robot and terrain: narrower ranges than the force-distribution model's
@@ -89,22 +88,22 @@ JITTER_SALT = 0x5EED
 _SCENARIO_STATUS = {"ok": 0, "no_foothold": 1, "timeout": 2, "stopped_on_collapse": 5}
 
 
-@lru_cache(maxsize=4)
-def _scenario(horizon: float, numbering: str):
-    return scenarios.make_scenario(horizon_s=horizon, record_every=5, numbering=numbering)
+def scenario(plain: Mapping[str, Any]):
+    """The fragile-slope scenario of a sweep (horizon and numbering)."""
+    return scenarios.make_scenario(horizon_s=float(plain["horizon"]), record_every=5, numbering=str(plain["numbering"]))
 
 
-def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) -> dict[str, np.ndarray]:
-    """`Analysis.simulate`: one simulated cycle per row (values: (B,) columns of the
-    sweepable parameters, horizon and numbering plain)."""
-    scenario = _scenario(float(values["horizon"]), str(values["numbering"]))
+def params(values: Mapping[str, Any], keys: np.ndarray) -> dict[str, Any]:
+    """One simulation per row: its parameters, mu and theta jittered from the row's key."""
     columns = {p.name: np.asarray(values[p.name]) for p in PARAMS if p.sweepable}
     u = seed_jitter(keys ^ np.uint32(JITTER_SALT), 2)  # mu, theta
     columns["mu"] = np.maximum(columns["mu"] + u[:, 0] * columns.pop("mu_jitter"), 0.05)
     columns["theta"] = columns["theta"] + u[:, 1] * columns.pop("theta_jitter")
-    params = scenarios.params_batch(keys.shape[0], **columns)
-    params["key"] = keys
-    result = simulator.run(scenario, params)
+    return scenarios.params_batch(keys.shape[0], **columns)
+
+
+def metrics(values: Mapping[str, Any], result: RolloutResult) -> dict[str, np.ndarray]:
+    """The metrics and status of each row's simulated cycle."""
     out = {m.name: np.asarray(result.metrics[m.name]) for m in METRICS if m.name in result.metrics}
     out["t_diverged"] = result.t_diverged
     out["tilt_change"] = np.degrees(out["max_attitude_change"])
@@ -185,7 +184,7 @@ FRAGILE_WALK = Analysis(
     doc="The simulated leg-grope walk (position control, toe force sensors) over fragile footholds on a slope.",
     params=PARAMS,
     metrics=METRICS,
-    simulate=simulate,
+    simulate=Simulation(scenario, params, metrics),
     statuses=STATUSES,
     summarize=summarize,
     x64=True,

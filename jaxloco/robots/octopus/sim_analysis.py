@@ -17,15 +17,14 @@ simulation.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Summary
+from jaxloco.analysis import Analysis, Metric, Simulation, Summary
 from jaxloco.robots.octopus import ccm, clm, operator, scenarios
 from jaxloco.robots.octopus.params import PARAMETERS
-from jaxloco.sim.rollout import Simulator
+from jaxloco.sim.rollout import RolloutResult
 from jaxloco.sim.scenario import seed_jitter
 
 PARAMS = PARAMETERS.select(
@@ -62,24 +61,26 @@ _SCENARIO_STATUS = {"ok": 0, "failed": 1}
 RECORD_EVERY = 5  # control periods (0.1 s) between records
 
 
-@lru_cache(maxsize=4)
-def _scenario(kind: str, controller: str, horizon: float):
+def scenario(plain: Mapping[str, Any]):
+    """The climb scenario of a sweep: terrain kind, controller (with the operator) and horizon."""
+    controller = str(plain["controller"])
     ctrl = operator.with_operator(clm.make_controller() if controller == "clm" else ccm.make_controller())
-    return scenarios.make_scenario(kind, ctrl, horizon_s=horizon, record_every=RECORD_EVERY)
+    return scenarios.make_scenario(str(plain["kind"]), ctrl, horizon_s=float(plain["horizon"]),
+                                   record_every=RECORD_EVERY)
 
 
-def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) -> dict[str, np.ndarray]:
-    """`Analysis.simulate`: one climb per row (values: (B,) columns of the sweepable
-    parameters; kind, controller and horizon plain) on the simulator's backend."""
-    scenario = _scenario(str(values["kind"]), str(values["controller"]), float(values["horizon"]))
+def params(values: Mapping[str, Any], keys: np.ndarray) -> dict[str, Any]:
+    """One climb per row: its parameters, start distance, yaw and mu jittered from its key."""
     columns = {p.name: np.asarray(values[p.name]) for p in PARAMS if p.sweepable}
     u = seed_jitter(keys, 3)  # distance, yaw, mu
     columns["distance"] = columns["distance"] + u[:, 0] * columns.pop("distance_jitter")
     columns["yaw"] = columns["yaw"] + u[:, 1] * columns.pop("yaw_jitter")
     columns["mu"] = np.maximum(columns["mu"] + u[:, 2] * columns.pop("mu_jitter"), 0.1)
-    params = scenarios.params_batch(keys.shape[0], **columns)
-    params["key"] = keys
-    result = simulator.run(scenario, params)
+    return scenarios.params_batch(keys.shape[0], **columns)
+
+
+def metrics(values: Mapping[str, Any], result: RolloutResult) -> dict[str, np.ndarray]:
+    """The metrics and status of each row's climb."""
     out = {m.name: np.asarray(result.metrics[m.name]) for m in METRICS if m.name in result.metrics}
     out["t_diverged"] = result.t_diverged
     out["final_phase"] = np.asarray(result.records["phase"])[:, -1].astype(np.int64)
@@ -91,6 +92,11 @@ def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) 
     out["success"] = np.asarray(out["success"], bool) & ~diverged
     out["status"] = code
     return out
+
+
+# `Analysis.simulate`: one climb per row on the simulator's backend (also run by
+# `octopus.paper` for each task's rows)
+simulate = Simulation(scenario, params, metrics)
 
 
 def _median(x: np.ndarray) -> float:

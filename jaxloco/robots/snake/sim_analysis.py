@@ -51,13 +51,13 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Summary
+from jaxloco.analysis import Analysis, Metric, Simulation, Summary
 from jaxloco.errors import SpecError
 from jaxloco.robots.snake import kinsim, scenarios, sim_control, trials
 from jaxloco.robots.snake import model as snake_model
 from jaxloco.robots.snake import params as snake_params
 from jaxloco.sim import terrain as tr
-from jaxloco.sim.rollout import Simulator
+from jaxloco.sim.rollout import RolloutResult
 from jaxloco.sim.scenario import Controller, InitialState, Scenario
 
 Array = jax.Array
@@ -237,14 +237,15 @@ def reach_metrics(tip: Array, phi_cmd: Array, delta: Array, t_start: Array, ramp
 _batched_metrics = jax.jit(jax.vmap(reach_metrics, in_axes=(0, 0, 0, 0, 0, 0, 0)))
 
 
-def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) -> dict[str, np.ndarray]:
-    """`Analysis.simulate`: the rows from the settled state (values: (B,) columns of the
-    sweepable parameters; ground, horizon and settle plain)."""
-    scenario = reach_scenario(str(values["ground"]), float(values["horizon"]), float(values["settle"]))
-    v = {p.name: np.asarray(values[p.name], float) for p in PARAMS if p.sweepable}
-    params = reach_params(keys.shape[0], **{k: v[k] for k in ("gain_k", "k_eta", *DELTA_POS, "t_start", "ramp")})
-    params["key"] = keys
-    result = simulator.run(scenario, params)
+def params(values: Mapping[str, Any], keys: np.ndarray) -> dict[str, Any]:
+    """One reach per row from the settled state: its gains and target."""
+    v = {k: np.asarray(values[k], float) for k in ("gain_k", "k_eta", *DELTA_POS, "t_start", "ramp")}
+    return reach_params(keys.shape[0], **v)
+
+
+def metrics(values: Mapping[str, Any], result: RolloutResult) -> dict[str, np.ndarray]:
+    """Each row's tracking metrics (`reach_metrics`), slip and status."""
+    v = {k: np.asarray(values[k], float) for k in (*DELTA_POS, "t_start", "ramp", "settle_tol", "w_effort")}
     delta = np.stack([v[k] for k in DELTA_POS], -1)
     m = _batched_metrics(jnp.asarray(result.records["tip"]), jnp.asarray(result.records["phi_cmd"]),
                          jnp.asarray(delta), jnp.asarray(v["t_start"]), jnp.asarray(v["ramp"]),
@@ -255,6 +256,9 @@ def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) 
     out["status"] = trials.status(result.diverged, result.metrics["fell"])
     return out
 
+
+def _reach_scenario(plain: Mapping[str, Any]) -> Scenario:
+    return reach_scenario(str(plain["ground"]), float(plain["horizon"]), float(plain["settle"]))
 
 
 def summarize(table) -> Summary:
@@ -299,7 +303,7 @@ REACH = Analysis(
     "tip errors, settle time and overshoot against the task gain K.",
     params=PARAMS,
     metrics=METRICS,
-    simulate=simulate,
+    simulate=Simulation(_reach_scenario, params, metrics),
     statuses=STATUSES,
     summarize=summarize,
     x64=True,

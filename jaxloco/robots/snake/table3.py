@@ -32,10 +32,10 @@ from typing import Any
 
 import numpy as np
 
-from jaxloco.analysis import Analysis, Metric, Summary
+from jaxloco.analysis import Analysis, Metric, Simulation, Summary
 from jaxloco.robots.snake import experiments, scenarios, sim_control, trials
 from jaxloco.robots.snake import params as snake_params
-from jaxloco.sim.rollout import Simulator
+from jaxloco.sim.rollout import RolloutResult
 from jaxloco.sim.scenario import Scenario
 
 TARGETS = experiments.ACCURACY_NAMES  # ("x", "y", "z", "alpha", "beta", "gamma")
@@ -81,32 +81,41 @@ def target_deltas(targets: np.ndarray) -> dict[str, np.ndarray]:
     return out
 
 
-def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) -> dict[str, np.ndarray]:
-    """`Analysis.simulate`: every row one run of its target (values: (B,) columns of the
-    sweepable parameters; ramp, settle and feedback plain)."""
-    ramp, settle = float(values["ramp"]), float(values["settle"])
-    scenario = table3_scenario(ramp, settle, bool(values["feedback"]))
-    t0 = settle + experiments.T_START
-    n = keys.shape[0]
+def _scenario(plain: Mapping[str, Any]) -> Scenario:
+    return table3_scenario(float(plain["ramp"]), float(plain["settle"]), bool(plain["feedback"]))
+
+
+def params(values: Mapping[str, Any], keys: np.ndarray) -> dict[str, Any]:
+    """One run per row: its target's displacement over `ramp` s from t0, its servos, the
+    trial's floor friction and heading."""
     v = {p.name: np.asarray(values[p.name]) for p in PARAMS if p.sweepable}
     mu, heading = trials.perturbed(v, keys)
-    params = sim_control.params_batch(n, mu=mu, heading0=heading, t0=t0, duration=ramp,
-                                      head_kp=v["head_kp"].astype(float), head_kv=v["head_kv"].astype(float),
-                                      **target_deltas(v["target"]))
-    params["key"] = keys
-    res = simulator.run(scenario, params)
-    disp = experiments.relative_displacement(res.times, np.asarray(res.records["head"]), t0 + ramp, t0)
-    index = np.array([TARGETS.index(str(t)) for t in v["target"]])
-    changed = disp[np.arange(n), index]
+    return sim_control.params_batch(keys.shape[0], mu=mu, heading0=heading, t0=_t0(values),
+                                    duration=float(values["ramp"]), head_kp=v["head_kp"].astype(float),
+                                    head_kv=v["head_kv"].astype(float), **target_deltas(v["target"]))
+
+
+def metrics(values: Mapping[str, Any], result: RolloutResult) -> dict[str, np.ndarray]:
+    """The six relative displacements of the head, the changed component's error [%],
+    slip and status of each row."""
+    t0, ramp = _t0(values), float(values["ramp"])
+    disp = experiments.relative_displacement(result.times, np.asarray(result.records["head"]), t0 + ramp, t0)
+    index = np.array([TARGETS.index(str(t)) for t in np.asarray(values["target"])])
+    changed = disp[np.arange(index.size), index]
     out = {c: disp[:, j] for j, c in enumerate(COMPONENTS)}
     out["error"] = (
         100.0 * np.abs(changed - experiments.ACCURACY_DELTAS[index]) / np.abs(experiments.ACCURACY_DELTAS[index])
     )
-    out["max_slip"] = np.asarray(res.metrics["max_slip"], float)
-    out["max_roll_slip"] = np.asarray(res.metrics["max_roll_slip"], float)
-    out["t_diverged"] = res.t_diverged
-    out["status"] = trials.status(res.diverged, res.metrics["fell"])
+    out["max_slip"] = np.asarray(result.metrics["max_slip"], float)
+    out["max_roll_slip"] = np.asarray(result.metrics["max_roll_slip"], float)
+    out["t_diverged"] = result.t_diverged
+    out["status"] = trials.status(result.diverged, result.metrics["fell"])
     return out
+
+
+def _t0(values: Mapping[str, Any]) -> float:
+    """The paper's clock start [s] after the settling."""
+    return float(values["settle"]) + experiments.T_START
 
 
 def _cell(mean: float, sd: float, unit: str) -> str:
@@ -169,7 +178,7 @@ TABLE3 = Analysis(
         "(target, perturbed trial), the six displacement components, the paper's beside.",
     params=PARAMS,
     metrics=METRICS,
-    simulate=simulate,
+    simulate=Simulation(_scenario, params, metrics),
     statuses=STATUSES,
     summarize=summarize,
     x64=True,
