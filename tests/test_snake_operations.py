@@ -149,3 +149,57 @@ def test_the_operations_analysis_rows_and_summary():
     table = pa.table({**swept, **{k: out[k] for k in out if k != "status"}})
     summary = operations_analysis.summarize(table)
     assert [r[:3] for r in summary.rows] == [("pick", "1", "1/1"), ("valve", "0", "1/1")]
+
+
+# The door's second stall (Fig. 14 f-g), diagnosed on the controller's feedforward
+# estimate: postures (phi, link 7's x, y, heading; rounded) of a reconstruction of the
+# estimate of the default sweep's gain-0 door trial 0 (Eq. 12 integrated with the
+# recorded modes and script pauses; within 0.14 rad of the recorded joint targets up
+# to 10.4 s). A the Sec. V-A posture; B after the first switching state (t = 9.0 s):
+# the base straightened (theta_4 -1.13 -> -0.32) while the tip held the knob, so the
+# tip's sideways offset from the base sits in an S of the head part (theta_2 =
+# -theta_3 = 0.75) and the head has folded (psi_2 -1.10 -> -0.63); C 2 s into the
+# resumed pull (t = 11.0 s): psi_2 = 0.04, links 2 and 3 in line, where the head part
+# can hardly move the tip sideways.
+DOOR_POSTURES = {
+    "A": ([0.0, -0.8, 0.0, -1.1, 0.0, 1.9, 0, 0, 0, 0, 0, 0], [0.0, 0.0, 0.0]),
+    "B": ([-0.07, -1.442, 0.749, -0.629, -0.795, 1.9, -0.32, -0.089, 0.533, 0.061, -0.263, -0.141],
+          [0.02, 0.014, -0.105]),
+    "C": ([0.206, -1.919, 0.717, 0.041, -0.714, 1.9, 0.315, -0.544, 0.435, 0.384, -0.294, -0.329],
+          [0.052, 0.013, 0.188]),
+}
+
+
+def _sideways(name):
+    """Eq. 13 (k_eta = 0, mode 1) for the tip moving 0.1 m/s to the right (the door's
+    arc), and the smallest singular value of B~ W^-1/2 (the kept rows)."""
+    from jaxloco.robots.snake import control, kinematics
+
+    phi, base = (jnp.asarray(x, float) for x in DOOR_POSTURES[name])
+    est = kinsim.SnakeState(base, phi, jnp.zeros(7))
+    w = kinsim.point_pose(est)
+    g = control.grounded_of(1)
+    cp = control.ControlParams(k_eta=0.0)
+    At, Bt = kinematics.augmented_matrices(w, phi, g)
+    wd_dot = jnp.zeros(7).at[1].set(-0.1)
+    u = control.control_terms(w, phi, control.controlled_variable(w, phi), wd_dot, g, cp, None, "tip", (At, Bt)).u
+    keep = np.asarray(control.keep_rows(g))
+    s = np.linalg.svd(np.asarray(Bt)[keep] / np.sqrt(np.asarray(cp.weights))[None], compute_uv=False)
+    return np.asarray(u), s[-1]
+
+
+def test_the_doors_sideways_pull_folds_the_head_part_into_a_singular_pose():
+    """Why the second recovery fails (docs/snake.md, "Opening the door"): in the Sec.
+    V-A posture the tip moves sideways by the yaw joints alone (no head pitch motion);
+    after the first switching state the same sideways motion folds the head part (psi_2
+    towards 0, measured +0.70 rad/s per 0.1 m/s), and at the folded posture of the
+    blow-up B~ W^-1 B~^T is near singular (smallest singular value of B~ W^-1/2 a
+    quarter of the start's: measured 0.06 against 0.25), so Eq. 13 asks for several
+    rad/s (measured 3.3 on psi_2)."""
+    u_a, s_a = _sideways("A")
+    u_b, s_b = _sideways("B")
+    u_c, s_c = _sideways("C")
+    assert np.abs(u_a[[1, 3]]).max() < 0.01
+    assert u_b[3] > 0.5 and u_b[1] < -0.4  # psi_2 up towards 0, psi_1 down: the head folds
+    assert s_b > 0.8 * s_a and s_c < 0.35 * s_a
+    assert np.abs(u_c[:12]).max() > 2.5 * np.abs(u_a[:12]).max()
