@@ -31,9 +31,13 @@ ours).
 Opening the door (`door_script`): the tip holds the knob of a door (hinge 0.35 m to its
 right, opening towards the robot only, ours) and pulls it along the arc it would follow
 held rigidly to the door, in four 3 s steps to 1.2 rad, yawing with the door (Sec. V-D
-3). theta_4 and theta_5 reach their limits at about 4 s (Fig. 14 d); the teleoperator
-model (`operator`, `operator_enter` < 1) then pauses the script and commands the
-switching state (Fig. 14 e).
+3). The robot stands turned DOOR_APPROACH off the door's normal (`door_start`) so that
+it backs away along its own heading as the door opens (the paper's robot moves
+backward; square to the door the arc pulls the base sideways, which no wheel can, and
+the head part folds into a singular pose: docs/snake.md). The tail's theta_9 reaches
+its limit at about 9 s (Fig. 14 d); the teleoperator model (`operator`,
+`operator_enter` < 1) then pauses the script and commands the switching state (Fig. 14
+e), and again at the next stall (f, g).
 
 The measured results (5 perturbed trials each, `operations_analysis`, `jaxloco sweep
 snake_operations`) are in docs/snake.md.
@@ -44,7 +48,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import jax
@@ -94,6 +98,14 @@ DOOR_HALF = (0.01, 0.25, 0.3)
 DOOR_ANGLES = (0.3, 0.6, 0.9, 1.2)
 DOOR_GRIP_AT = 1.5  # [s]
 DOOR_TIP_BEHIND = 2 * KNOB_RADIUS + 0.002 + DOOR_HALF[0]  # [m] the gripper tip's distance in front of the hinge line
+# [m] the tip's horizontal distance ahead of link 7's psi_3 axle in the Sec. V-A posture
+TIP_AHEAD = 0.349  # (`initial_tip()[0]`: link 7 at the origin)
+# [rad] how the robot stands at the door (default (ours): the paper gives no layout; its robot "could not move
+# backward" and "resume[d] moving backward", Sec. V-D 3): link 7 turned this far to the hinge's other side of the
+# door's normal, the head's theta_1 turned back by as much so the gripper faces the door. Then, held rigidly to the
+# door, link 7's axle would move straight backward as the door opens (its path's tangent is its heading:
+# atan((tip behind the hinge line + tip ahead of link 7) / knob radius)), instead of sideways, which no wheel can.
+DOOR_APPROACH = math.atan2(DOOR_TIP_BEHIND + TIP_AHEAD, DOOR_RADIUS)
 VALVE_HORIZON = 10.0  # [s]
 
 
@@ -189,6 +201,22 @@ def door_script(angles=DOOR_ANGLES, t_start: float = 2.0, duration: float = 3.0)
     return tuple(steps)
 
 
+def door_start(approach: float = DOOR_APPROACH) -> dict[str, Any]:
+    """The robot's start at the door (`DOOR_APPROACH`): params overrides phi0 (12,)
+    (the Sec. V-A posture with theta_1 = -approach), heading0 = approach and the base
+    placement x0, y0 [m] that put the gripper tip where `initial_tip` is, facing the
+    door (+x)."""
+    phi0 = np.asarray(snake_params.INITIAL_PHI, float).copy()
+    phi0[0] = -approach
+    with jax.enable_x64(True):
+        def tip(x0, y0):
+            base = jnp.asarray([x0, y0, approach], float)
+            return np.asarray(kinematics.tip_from_head(kinematics.base_frame_pose(base, jnp.asarray(phi0))))
+
+        shift = initial_tip()[:2] - tip(0.0, 0.0)[:2]
+    return {"phi0": phi0, "heading0": float(approach), "x0": float(shift[0]), "y0": float(shift[1])}
+
+
 def _grip(p: Any, t: Any) -> Any:
     return jnp.atleast_1d(jnp.where(t >= p["grip_at"], 1.0, 0.0))
 
@@ -220,8 +248,12 @@ def operation_scenario(
 
 
 def script_params(script=PICK_SCRIPT, grip_at: float = PICK_GRIP_AT, n: int = 1, **overrides) -> dict[str, Any]:
-    """Simulation params of n runs of an operator's script (module docstring)."""
+    """Simulation params of n runs of an operator's script (module docstring); a
+    "phi0" override (12,) or (n, 12) is the start posture (`scenarios.snake_scenario`)."""
+    phi0 = overrides.pop("phi0", None)
     params = sim_control.params_batch(n, **overrides)
+    if phi0 is not None:
+        params["phi0"] = np.broadcast_to(np.asarray(phi0, float), (n, snake_params.N_PHI)).copy()
     params["script_t0"] = np.tile([s[0] for s in script], (n, 1))
     params["script_duration"] = np.tile([s[1] for s in script], (n, 1))
     params["script_delta"] = np.tile(np.array([s[2] for s in script], float), (n, 1, 1))
@@ -290,6 +322,12 @@ class Operation:
     script: tuple
     grip_at: float
     measures: Callable[[RolloutResult], dict[str, np.ndarray]]
+    start: Mapping[str, Any] = field(default_factory=dict)  # params overrides: how the robot stands at the object
+
+    def start_params(self, n: int) -> dict[str, np.ndarray]:
+        """`start` as params of n runs (x0, y0 are added to any placement jitter)."""
+        return {k: np.tile(np.asarray(v, float), (n, 1)) if np.ndim(v) else np.full(n, float(v))
+                for k, v in self.start.items()}
 
 
 DOOR_HORIZON = 40.0  # [s] the script's 14 s and the operator's pauses at the stalls
@@ -297,7 +335,7 @@ DOOR_HORIZON = 40.0  # [s] the script's 14 s and the operator's pauses at the st
 OPERATIONS: dict[str, Operation] = {
     "pick": Operation("pick", PIPE, PICK_HORIZON, PICK_SCRIPT, PICK_GRIP_AT, _pick_measures),
     "valve": Operation("valve", VALVE, VALVE_HORIZON, VALVE_SCRIPT, VALVE_GRIP_AT, _valve_measures),
-    "door": Operation("door", DOOR, DOOR_HORIZON, door_script(), DOOR_GRIP_AT, _door_measures),
+    "door": Operation("door", DOOR, DOOR_HORIZON, door_script(), DOOR_GRIP_AT, _door_measures, door_start()),
 }
 
 
@@ -314,14 +352,22 @@ def run_operation(
     grip_at: Any = None,
     horizon: float | None = None,
     prediction: predictive.Prediction | None = None,
+    start: Mapping[str, Any] | None = None,
     **overrides,
 ) -> tuple[RolloutResult, dict[str, np.ndarray]]:
-    """n runs of operation `name` (OPERATIONS) on native MuJoCo, its script and grip time
-    unless given, params `overrides` (scalars or (n,)), the switching state's modes
+    """n runs of operation `name` (OPERATIONS) on native MuJoCo, its script, grip time and
+    start (`Operation.start`; {}: the Sec. V-A posture at the origin) unless given, params
+    `overrides` (scalars or (n,); x0, y0 shift the start), the switching state's modes
     predicted if `prediction` is given: the rollout and `measure`."""
     op = OPERATIONS[name]
+    if start is not None:
+        op = replace(op, start=start)
+    start = op.start_params(n)
+    for k in ("x0", "y0"):
+        if k in start and k in overrides:
+            start[k] = start[k] + np.asarray(overrides.pop(k), float)
     params = script_params(op.script if script is None else script, op.grip_at if grip_at is None else grip_at, n,
-                           **overrides)
+                           **{**start, **overrides})
     res = rollout(operation_scenario(op.fixture, op.horizon if horizon is None else horizon, prediction), params,
                   backend="native")
     return res, measure(op, res)

@@ -73,7 +73,9 @@ def trial_params(operation: str, values: Mapping[str, np.ndarray], keys: np.ndar
     mu = np.maximum(np.asarray(values["mu"], float) + u[:, 0] * np.asarray(values["mu_jitter"], float), trials.MU_MIN)
     shift = u[:, 1:] * np.asarray(values["place_jitter"], float)[:, None]
     operator = {k: np.asarray(values[k], float) for k in snake_operator.PARAM_DEFAULTS if k in values}
-    params = operations.script_params(op.script, op.grip_at, n, mu=mu, x0=shift[:, 0], y0=shift[:, 1], **operator)
+    start = op.start_params(n)  # how the robot stands at the object; the jitter shifts it
+    x0, y0 = start.pop("x0", 0.0) + shift[:, 0], start.pop("y0", 0.0) + shift[:, 1]
+    params = operations.script_params(op.script, op.grip_at, n, mu=mu, x0=x0, y0=y0, **start, **operator)
     params["key"] = np.asarray(keys, np.uint32)
     return params
 
