@@ -26,10 +26,9 @@ import mujoco.batch
 import numpy as np
 
 from jaxloco.sim import data as simdata
-from jaxloco.sim.scenario import Final, Scenario, init_fn, initial_activation, per_scenario, tick_fn
+from jaxloco.sim.scenario import STATE_KEYS, Final, Scenario, init_fn, initial_activation, per_scenario, tick_fn
 
 # warnings that mean the simulation can no longer be trusted
-STATE_KEYS = ("qpos", "mocap_pos", "mocap_quat", "time")  # what record_state keeps
 DIVERGENCE_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQPOS,
     mujoco.mjtWarning.mjWARN_BADQVEL,

@@ -27,11 +27,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.sim.scenario import Final, Scenario, per_scenario
+from jaxloco.sim.scenario import STATE_KEYS, Final, Scenario, per_scenario
 
 Backend = Literal["native", "mjx"]
 DIVERGED = "diverged"
-STATE_KEYS = ("qpos", "mocap_pos", "mocap_quat", "time")  # RolloutResult.states with record_state (native.STATE_KEYS)
 _STATE_PREFIX = "_state_"
 
 
@@ -182,8 +181,7 @@ def recording_scenario(scenario: Scenario) -> Scenario:
 
     def recorded(p, data, obs, ctrl_state, env_state):
         out = dict(record(p, data, obs, ctrl_state, env_state))
-        out.update({_STATE_PREFIX + "qpos": data.qpos, _STATE_PREFIX + "mocap_pos": data.mocap_pos,
-                    _STATE_PREFIX + "mocap_quat": data.mocap_quat, _STATE_PREFIX + "time": data.time})
+        out.update({_STATE_PREFIX + key: getattr(data, key) for key in STATE_KEYS})
         return out
 
     return per_scenario(_RECORDING, scenario, lambda: scenario.with_(record=recorded))

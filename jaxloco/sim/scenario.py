@@ -32,6 +32,9 @@ from jaxloco.sim.data import SimData
 Array = jax.Array
 Params = Mapping[str, Any]
 
+# the MuJoCo state a rollout records with `record_state` (replays): RolloutResult.states
+STATE_KEYS = ("qpos", "mocap_pos", "mocap_quat", "time")
+
 # model fields that mj_setConst reads: changing them per simulation needs the derived
 # constants (subtree masses, invweight0, ...) recomputed
 MASS_FIELDS = frozenset(
