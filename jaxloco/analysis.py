@@ -289,8 +289,10 @@ def _simulated_batch(analysis: Analysis, fixed: Mapping[str, Any], simulator: An
     """`analysis.simulate` on numpy columns of the rows (fixed values broadcast)."""
     import numpy as np
 
+    from jaxloco.sim.backend import resolved
     from jaxloco.sim.rollout import simulator_for
 
+    fixed = resolved(fixed)  # "auto" -> the backend that runs, as the simulate function sees it
     static = static_values(analysis, fixed)
     columns = [p.name for p in analysis.params if _is_column(p)]
     sim = simulator if simulator is not None else simulator_for(fixed)

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 from jaxloco.analysis import Param
+from jaxloco.sim.backend import CHOICES, PARAM
 
 if TYPE_CHECKING:
     from jaxloco.tune.objective import Tunable
@@ -80,3 +81,15 @@ class ParamTable:
             raise ValueError(f"{self.robot} parameters: '{name}' is {p.kind}; only a float can be tuned")
         base = {"default": float(p.default), "doc": p.doc, "unit": p.unit, "lo": p.lo, "hi": p.hi}
         return Tunable(name=name, **{**base, **changes})
+
+
+def simulation_params(default: str = "auto") -> tuple[Param, Param]:
+    """The `backend` and `nthread` parameters every simulated analysis has (the same in
+    every robot's table; `jaxloco.sim.backend`)."""
+    return (
+        Param(PARAM, default, "simulator: native MuJoCo (mujoco.batch on the CPU cores), MJX (one jitted scan over "
+              "the JAX devices; differentiable) or auto (MJX on a GPU or TPU, else native); the table records the "
+              "one that ran", kind="str", choices=CHOICES, sweepable=False),
+        Param("nthread", 0, "physics threads of the native simulator (0: all cores)", "", kind="int", lo=0, hi=1024,
+              sweepable=False),
+    )

@@ -2,7 +2,7 @@
 next chunk of the same shape (no tracing or lowering after chunk 0). The analyses whose
 own test modules already run a two-chunk sweep check it there (leggrope.slope_cycle,
 leggrope.fragile_walk, octopus.terrain_classification, octopus.step_climb,
-octopus.paper); the others run here on tiny settings: two rows, one per chunk. Every
+octopus.paper, snake.operations); the others run here on tiny settings: two rows, one per chunk. Every
 one of these sweeps' tables is also pinned (`tables.check_table`, via `run_counting`)."""
 
 from __future__ import annotations
@@ -10,7 +10,12 @@ from __future__ import annotations
 import pytest
 from compile_count import run_counting
 
+from jaxloco import analysis
 from jaxloco.sweep import run
+
+# checked in their own test modules (see the docstring)
+ELSEWHERE = {"leggrope.slope_cycle", "leggrope.fragile_walk", "octopus.terrain_classification",
+             "octopus.step_climb", "octopus.paper", "snake.operations"}
 
 TINY = {
     "titan.stride": ({"n_cycles": 1, "map_nx": 60, "map_ny": 60}, {"l_std": [0.5, 0.6]}),
@@ -30,3 +35,8 @@ def test_the_second_chunk_compiles_nothing(name, tmp_path):
     result, compiles = run_counting(run, spec, output=tmp_path / "out", progress=False)
     assert result.table.num_rows == 2
     compiles.assert_compiled_once()
+
+
+def test_every_analysis_has_a_compile_once_check():
+    assert ELSEWHERE.isdisjoint(TINY)
+    assert set(TINY) | ELSEWHERE == set(analysis.ANALYSES.builtin), "add the new analysis to TINY (or to ELSEWHERE)"

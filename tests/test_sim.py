@@ -250,3 +250,29 @@ def test_mujoco_warnings_stay_out_of_the_working_directory(tmp_path, monkeypatch
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
     logfile = mujoco.MjLogConfig.get().logfile
     assert os.path.isabs(logfile) and "Nan, Inf or huge value in QVEL" in open(logfile).read()
+
+
+def test_auto_backend_is_native_on_cpus_and_mjx_on_accelerators():
+    from jaxloco.sim import backend
+
+    assert backend.resolve("auto", on="cpu") == "native"
+    assert backend.resolve("auto", on="gpu") == "mjx" and backend.resolve("auto", on="tpu") == "mjx"
+    assert backend.resolve("mjx", on="cpu") == "mjx" and backend.resolve("native", on="gpu") == "native"
+    assert backend.resolve("auto") == ("native" if jax.default_backend() == "cpu" else "mjx")
+    with pytest.raises(ValueError, match="backend: expected one of native, mjx, auto, got 'warp'"):
+        backend.resolve("warp")
+    assert backend.resolved({"x": 1}) == {"x": 1}
+
+
+def test_a_sweep_records_the_backend_auto_picked(tmp_path):
+    """The spec's "auto" is resolved when the spec is read: the table's `backend` column,
+    and the simulator the analysis runs on, say which backend ran; a bad name is a one-line
+    spec error."""
+    from jaxloco.sim import backend
+    from jaxloco.sweep.spec import spec_from_dict
+
+    spec = {"sweep": {"analysis": "octopus.step_climb", "name": "auto"}, "fixed": {"backend": "auto"},
+            "params": {"mu": [0.8]}}
+    assert spec_from_dict(spec).fixed["backend"] == backend.resolve("auto")
+    with pytest.raises(SpecError, match=r"fixed\.backend: .*'warp'"):
+        spec_from_dict({**spec, "fixed": {"backend": "warp"}})

@@ -157,29 +157,31 @@ def test_the_operator_switches_modes_at_the_stall_and_the_pull_resumes(door):
     assert np.sum(switching[1:] & ~switching[:-1]) >= 2
 
 
-def test_the_operations_analysis_rows_and_summary():
-    """`snake.operations`: a pick row with the operator's correction and a valve row
-    without, in one call: each operation's measure in its own column (NaN elsewhere),
-    success by the module's thresholds, the tip bound, no stalls; the summary has one
-    line per (operation, gain)."""
-    import pyarrow as pa
+def test_the_operations_analysis_rows_summary_and_one_compile(tmp_path):
+    """`snake.operations` as a sweep of two one-row chunks (a pick with the operator's
+    correction, then one without): each operation's measure in its own column (NaN
+    elsewhere), success by the module's thresholds, the tip bound, no stalls; nothing is
+    compiled for the second chunk (each operation is a scenario of its own, so both rows
+    pick); the table is the pinned one; the summary has one line per (operation, gain)."""
+    from compile_count import run_counting
 
     from jaxloco import analysis
     from jaxloco.robots.snake import operations_analysis
+    from jaxloco.sweep import run
 
     assert analysis.get("snake.operations") is operations_analysis.OPERATIONS
-    fixed = {p.name: p.default for p in operations_analysis.PARAMS} | {"nthread": 2}
-    swept = {"operation": np.array(["pick", "valve"]), "operator_gain": np.array([1.0, 0.0])}
-    out = operations_analysis.OPERATIONS.batch_fn(fixed)(swept, np.array([[0, 0], [0, 1]], np.uint32))
-    assert set(out) == {m.name for m in operations_analysis.METRICS} | {"status"}
-    assert list(out["status"]) == [0, 0] and list(out["success"]) == [True, True]
-    assert out["pipe_lift"][0] > 0.08 and np.isnan(out["pipe_lift"][1])
-    assert out["valve_turn"][1] > operations_analysis.VALVE_TURN_MIN and np.isnan(out["valve_turn"][0])
-    assert np.isnan(out["door_max"]).all() and list(out["stalls"]) == [0, 0]
-    assert out["tip_ok"][0] and out["max_tip_error"][0] < 0.03
-    table = pa.table({**swept, **{k: out[k] for k in out if k != "status"}})
-    summary = operations_analysis.summarize(table)
-    assert [r[:3] for r in summary.rows] == [("pick", "1", "1/1"), ("valve", "0", "1/1")]
+    spec = {"sweep": {"analysis": "snake.operations", "name": "once", "chunk_size": 1, "formats": ["parquet"],
+                      "combine": "zip"},
+            "fixed": {"nthread": 1}, "params": {"operation": ["pick", "pick"], "operator_gain": [1.0, 0.0]}}
+    result, compiles = run_counting(run, spec, output=tmp_path / "out", progress=False)
+    compiles.assert_compiled_once()
+    out = result.table.to_pydict()
+    assert out["status"] == ["ok", "ok"] and out["success"] == [True, True]
+    assert out["pipe_lift"][0] > 0.08 and out["pipe_lift"][1] > 0.05
+    assert np.isnan(out["valve_turn"] + out["door_max"] + out["door_angle"]).all() and out["stalls"] == [0, 0]
+    assert out["tip_ok"] == [True, False] and out["max_tip_error"][0] < 0.03 < out["max_tip_error"][1]
+    summary = operations_analysis.summarize(result.table)
+    assert [r[:3] for r in summary.rows] == [("pick", "0", "1/1"), ("pick", "1", "1/1")]
 
 
 # The door's second stall (Fig. 14 f-g), diagnosed on the controller's feedforward

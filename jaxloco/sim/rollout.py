@@ -21,15 +21,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxloco.sim.backend import Backend, resolve
 from jaxloco.sim.scenario import STATE_KEYS, Final, Scenario, per_scenario
 
-Backend = Literal["native", "mjx"]
 DIVERGED = "diverged"
 _STATE_PREFIX = "_state_"
 
@@ -165,8 +165,9 @@ class Simulator:
 
 def simulator_for(values: Mapping[str, Any], record_state: bool = False) -> Simulator:
     """The simulator of an analysis' fixed values: its `backend` parameter (default
-    "native") and `nthread` (default 0: all cores)."""
-    return Simulator(backend=str(values.get("backend", "native")), nthread=int(values.get("nthread", 0)),
+    "native"; "auto" resolved, `jaxloco.sim.backend`) and `nthread` (default 0: all
+    cores)."""
+    return Simulator(backend=resolve(str(values.get("backend", "native"))), nthread=int(values.get("nthread", 0)),
                      record_state=record_state)
 
 

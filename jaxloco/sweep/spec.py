@@ -39,6 +39,7 @@ from jaxloco import analysis as registry
 from jaxloco import specs
 from jaxloco.analysis import Analysis, Param, sweep_problem
 from jaxloco.errors import SpecError
+from jaxloco.sim import backend
 from jaxloco.sweep import ranges
 from jaxloco.sweep.spec_model import (
     MAX_ROWS,
@@ -197,6 +198,7 @@ def _resolve(doc: Mapping[str, Any], source: str, default_name: str) -> SweepSpe
         else:
             fixed[param.name] = param.check(param.default, where=f"default of {analysis.name}.{param.name}")
 
+    fixed = backend.resolved(fixed)  # "auto": the table records the simulator that runs
     name = sec.name or name_from_stem(default_name, source, "sweep.name")
     spec = SweepSpec(
         analysis=analysis,

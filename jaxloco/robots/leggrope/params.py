@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco.analysis import Param
-from jaxloco.parameters import ParamTable
+from jaxloco.parameters import ParamTable, simulation_params
 
 G = 9.81  # gravitational acceleration [m/s^2]
 
@@ -103,7 +103,7 @@ PARAMETERS = ParamTable("leggrope", (
           lo=0.0, hi=0.1),
     # --- running the simulation
     Param("horizon", 30.0, "simulated time", "s", lo=1.0, hi=300.0, sweepable=False),
-    Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
+    *simulation_params(),  # backend, nthread
 ))
 
 

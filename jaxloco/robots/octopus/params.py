@@ -55,7 +55,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco.analysis import Param
-from jaxloco.parameters import ParamTable
+from jaxloco.parameters import ParamTable, simulation_params
 
 G = 9.81  # [m/s^2]
 
@@ -218,10 +218,7 @@ PARAMETERS = ParamTable("octopus", (
     Param("speed", CRAWLER_MAX_SPEED, "CCM: commanded crawler speed", "m/s", lo=0.005, hi=0.063),
     # run
     Param("horizon", 90.0, "simulated time", "s", lo=1.0, hi=600.0, sweepable=False),
-    Param("nthread", 0, "physics threads (0: all cores; native backend)", "", kind="int", lo=0, hi=1024,
-          sweepable=False),
-    Param("backend", "native", "simulation backend: native MuJoCo (mujoco.batch, CPU) or MJX (one jitted scan; "
-          "compiles about a minute on CPU)", kind="str", choices=("native", "mjx"), sweepable=False),
+    *simulation_params(),  # backend, nthread
     # the paper's experiments (`octopus.paper`)
     Param("task", "step1_clm", "the paper's experiment", kind="str"),
 ))

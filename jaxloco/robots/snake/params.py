@@ -77,7 +77,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco.analysis import Param
-from jaxloco.parameters import ParamTable
+from jaxloco.parameters import ParamTable, simulation_params
 
 G = 9.81  # [m/s^2]
 
@@ -281,5 +281,5 @@ PARAMETERS = ParamTable("snake", (
     # run
     Param("settle", 2.0, "settling on the servos before the paper's clock starts", "s", lo=0.0, hi=20.0,
           sweepable=False),
-    Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
+    *simulation_params(),  # backend, nthread
 ))

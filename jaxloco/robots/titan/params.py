@@ -50,7 +50,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco.analysis import Param
-from jaxloco.parameters import ParamTable
+from jaxloco.parameters import ParamTable, simulation_params
 
 G = 9.81  # [m/s^2]
 
@@ -180,7 +180,7 @@ PARAMETERS = ParamTable("titan", (
           "seed", "m", lo=0.0, hi=2.0),
     Param("nesm_tol", 0.0, "success allowance of the simulated min NESM below S_NE^c (0: the paper's criterion as it "
           "stands)", "m", lo=0.0, hi=0.05),
-    Param("nthread", 0, "physics threads (0: all cores)", "", kind="int", lo=0, hi=1024, sweepable=False),
+    *simulation_params(),  # backend, nthread
     # --- the footstep executor scenario's params dict (`scenarios.PARAM_DEFAULTS`, one
     # value per simulation; no analysis sweeps them, so no range is stated)
     Param("theta", 0.0, "scenario: inclination of the terrain plane (the analyses' slope)", "rad"),
