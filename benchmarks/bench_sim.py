@@ -1,13 +1,16 @@
-"""Physics steps per second of the leg-grope quadruped (12 joints, 4 toe contacts on a
+"""Physics steps per second: the leg-grope quadruped (12 joints, 4 toe contacts on a
 box), native `mujoco.batch` open loop and closed loop (jitted JAX controller every
-control period) and MJX, at several batch sizes; compile times of the MJX rollout.
+control period) and MJX, at several batch sizes; compile times of the MJX rollout; and
+each robot's own closed loop (`ROBOTS`) on both backends.
 
     python benchmarks/bench_sim.py                     # batch 1, 64, 1024
     python benchmarks/bench_sim.py --mjx-batches 1 64  # MJX is slow on CPU
+    python benchmarks/bench_sim.py --robots leggrope titan --batches 1 64 --mjx-batches 1 64
 
 Closed loop uses `scenarios.standing_scenario` (a joint-space controller, records and
-metrics: the rollout API's full per-period overhead) and, with --walk, the leg-grope
-walk controller. Run it twice to see MJX compile time with a cold and a warm JAX cache
+metrics: the rollout API's full per-period overhead); with --robots, each robot's closed
+loop as its simulated analysis runs it (`ROBOTS`: the scenario for a backend and a batch
+of its params). Run it twice to see MJX compile time with a cold and a warm JAX cache
 (`JAXLOCO_CACHE_DIR=/tmp/empty-cache python ...` for a cold one).
 """
 
@@ -56,14 +59,36 @@ def closed_loop(scenario, params, backend: str, nthread: int = 0) -> tuple[float
     return n * scenario.physics_steps / loop, first
 
 
+def leggrope_walk(horizon_s: float, backend: str):
+    """The leg-grope walk (grope controller, 15 degree slope) on `backend`."""
+    from jaxloco.robots.leggrope import scenarios
+
+    return scenarios.make_scenario(horizon_s=horizon_s, record_every=5), scenarios.params_batch
+
+
+# robot -> builder(horizon [s], backend) -> (scenario, params(n) -> a batch of n param sets)
+ROBOTS = {"leggrope": leggrope_walk}
+
+
+def robot_rows(name: str, horizon_s: float, batches: list[int], mjx_batches: list[int], nthread: int) -> None:
+    """Print the robot's closed-loop steps/s on each backend and the MJX first call."""
+    for backend, sizes in (("native", batches), ("mjx", mjx_batches)):
+        scenario, params = ROBOTS[name](horizon_s, backend)
+        for n in sizes:
+            rate, first = closed_loop(scenario, params(n), backend, nthread)
+            print(f"{name:>9} {backend:>7} {n:>6} {rate:>12,.0f} {first:>15.1f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--batches", type=int, nargs="+", default=[1, 64, 1024])
-    ap.add_argument("--mjx-batches", type=int, nargs="+", default=[1, 64])
+    ap.add_argument("--mjx-batches", type=int, nargs="*", default=[1, 64])
     ap.add_argument("--periods", type=int, default=100, help="control periods per closed-loop rollout")
     ap.add_argument("--substeps", type=int, default=10, help="physics steps per control period")
     ap.add_argument("--nthread", type=int, default=0)
-    ap.add_argument("--walk", action="store_true", help="also time the leg-grope walk controller")
+    ap.add_argument("--robots", nargs="+", choices=sorted(ROBOTS), default=[],
+                    help="time these robots' own closed loops instead of the standing quadruped")
+    ap.add_argument("--horizon", type=float, default=2.0, help="simulated seconds per robot rollout (--robots)")
     args = ap.parse_args()
 
     from jaxloco import runtime
@@ -73,6 +98,13 @@ def main() -> None:
 
     from jaxloco.robots.leggrope import scenarios
     from jaxloco.sim.rollout import stack_params
+
+    if args.robots:
+        print(f"devices: {jax.device_count()} x {jax.devices()[0].platform}; {args.horizon} s per rollout")
+        print(f"{'robot':>9} {'backend':>7} {'batch':>6} {'steps/s':>12} {'first call [s]':>15}")
+        for name in args.robots:
+            robot_rows(name, args.horizon, args.batches, args.mjx_batches, args.nthread)
+        return
 
     sc = scenarios.standing_scenario(horizon=args.periods, substeps=args.substeps, record_every=10)
     print(f"devices: {jax.device_count()} x {jax.devices()[0].platform}; physics dt {sc.model.opt.timestep} s; "
@@ -88,12 +120,6 @@ def main() -> None:
         open_ = native_open_loop(sc, params(n), sc.physics_steps, args.nthread)
         closed, _ = closed_loop(sc, params(n), "native", args.nthread)
         print(f"{n:>6} {open_:>14,.0f} {closed:>14,.0f} {closed / open_:>12.2f}")
-
-    if args.walk:
-        walk = scenarios.make_scenario(horizon_s=args.periods * 0.02, record_every=5)
-        for n in args.batches:
-            rate, first = closed_loop(walk, scenarios.params_batch(n), "native", args.nthread)
-            print(f"walk controller, batch {n}: {rate:,.0f} steps/s (first call {first:.1f} s incl. compile)")
 
     short = scenarios.standing_scenario(horizon=max(10, args.periods // 5), substeps=args.substeps, record_every=10)
     print(f"\nMJX on {jax.devices()[0].platform} ({short.physics_steps} physics steps per rollout)")
