@@ -44,7 +44,7 @@ def _doc(**changes):
     ({"params": {"delta_e": [0.0]}}, "params.delta_e[0]: 0 rad/period is outside [0.0005, 0.05]"),
     ({"fixed": {"kind": "step3"}}, "fixed.kind: 'step3' is not one of 'step1', 'step2_front', 'step2_side'"),
     ({"fixed": {"controller": "pid"}}, "fixed.controller: 'pid' is not one of 'clm', 'ccm'"),
-    ({"fixed": {"backend": "gpu"}}, "fixed.backend: 'gpu' is not one of 'native', 'mjx'"),
+    ({"fixed": {"backend": "gpu"}}, "fixed.backend: 'gpu' is not one of 'native', 'mjx', 'auto'"),
     ({"params": {"kind": ["step1"]}}, "params.kind: 'kind' cannot be swept (it changes the compiled program)"),
     ({"params": {"nthread": [1, 2]}}, "params.nthread: 'nthread' cannot be swept"),
 ])
