@@ -103,8 +103,8 @@ def make_scenario(
     mass = float(default_params().total_mass)
 
     def poses(p, key):
-        """Mocap poses (nmocap) of the slope and the intact pads, and the pads' R_break."""
-        t = control.walk_targets(p, key, design)
+        """Mocap poses (nmocap) of the slope and the intact pads, and the footholds."""
+        t = control.walk_footholds(p, key, design)
         n_slope = tr.slope_normal(p["theta"], jnp.zeros_like(p["theta"]))
         s_pos, s_quat = tr.box_pose_from_top(-PAD_THICKNESS * n_slope, n_slope, 0.0, jnp.asarray(slope_half))
         centres = jnp.concatenate([t.feet0, t.cand[:, 0], t.cand[:, 1]])
