@@ -462,8 +462,9 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
 def release_step_of(release: Array, max_step: Array) -> Array:
     """This period's part (4, 3) [m] of each toe command's remaining return `release`
     (4, 3) [m] from its grope's push: all of it, or `max_step` [m] along it if it is
-    longer (a straight return at v_release)."""
-    length = jnp.linalg.norm(release, axis=1, keepdims=True)
+    longer (a straight return at v_release). Differentiable at release = 0 (no return
+    pending: the norm's derivative there is 0/0)."""
+    length = jnp.sqrt(jnp.maximum(jnp.sum(release * release, axis=1, keepdims=True), 1e-24))
     return release * jnp.minimum(1.0, max_step / jnp.maximum(length, 1e-12))
 
 
