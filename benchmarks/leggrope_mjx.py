@@ -51,7 +51,8 @@ def agreement(horizon: float, with_mjx: bool) -> None:
         sc = scenarios.make_scenario(horizon_s=horizon, record_every=5, mjx_contacts=variant)
         t0 = time.perf_counter()
         results[label] = rollout(sc, rows(), backend=backend, nthread=1)
-        print(f"{label}: {time.perf_counter() - t0:.1f} s (first call), status {list(results[label].status)}")
+        status = ", ".join(map(str, results[label].status))
+        print(f"{label}: {time.perf_counter() - t0:.1f} s (first call), status {status}")
     for name in METRICS:
         for label, r in results.items():
             print(f"{name:>20} {label:>10} " + " ".join(f"{float(v):8.4f}" for v in r.metrics[name]))
