@@ -60,10 +60,12 @@ def closed_loop(scenario, params, backend: str, nthread: int = 0) -> tuple[float
 
 
 def leggrope_walk(horizon_s: float, backend: str):
-    """The leg-grope walk (grope controller, 15 degree slope) on `backend`."""
+    """The leg-grope walk (grope controller, 15 degree slope) as `leggrope.fragile_walk` runs it
+    on `backend` (MJX: the scenario's MJX variant, `make_scenario(mjx_contacts=True)`)."""
     from jaxloco.robots.leggrope import scenarios
 
-    return scenarios.make_scenario(horizon_s=horizon_s, record_every=5), scenarios.params_batch
+    return (scenarios.make_scenario(horizon_s=horizon_s, record_every=5, mjx_contacts=backend == "mjx"),
+            scenarios.params_batch)
 
 
 # robot -> builder(horizon [s], backend) -> (scenario, params(n) -> a batch of n param sets)

@@ -142,6 +142,20 @@ def test_foothold_offset_is_the_toes_distance_from_its_pad_in_the_slope_plane(wa
     assert r.metrics["collapses_met"][1] == 1 and not r.metrics["off_foothold"][1]
 
 
+def test_the_scene_is_built_on_the_controllers_footholds(walk):
+    """`control.walk_footholds` (the pads and the start pose, without the 16 COG plans)
+    gives the footholds, start body pose and attitude of the controller's plan
+    (`walk_targets`, in the final controller state): the same operations (bit-identical
+    in the batched program; 1e-12 m here, another program may round differently)."""
+    _, r = walk
+    fh = jax.jit(control.walk_footholds)(jax.tree.map(lambda x: x[0], scenarios.params_batch(1, theta=THETA)),
+                                         jax.random.PRNGKey(0))
+    targets = r.final.ctrl_state.targets
+    for name in ("feet0", "normals0", "cand", "cand_normals", "body0", "R_GR"):
+        np.testing.assert_allclose(np.asarray(getattr(targets, name))[0], np.asarray(getattr(fh, name)), rtol=0,
+                                   atol=1e-12, err_msg=name)
+
+
 def test_after_collapse_marks_the_window_after_each_rise_of_the_collapse_count():
     """`max_load_over_probe_steady` leaves out the records within COLLAPSE_WINDOW (here 2
     records) after a foothold collapsed: the record where the count rose and the 2 after."""

@@ -7,6 +7,7 @@ a cycle), `gait` (one leg-grope walk cycle on a slope), `forces` (the force-dist
 QP, Eqs. 15-22, over the cycle), `analysis` (the `leggrope.slope_cycle` sweep analysis),
 `results` (reading its table: status categories, critical theta), `model` (the MJCF
 `models/leggrope.xml`), `control` (the experimental walk, steps A'-D', as a controller),
-`scenarios` (the walk over fragile footholds in MuJoCo), `sim_analysis`
-(`leggrope.fragile_walk`), `plots`, `entries` (its registry entries).
+`scenarios` (the walk over fragile footholds in MuJoCo, and its MJX variant),
+`sim_analysis` (`leggrope.fragile_walk`), `mjx_tuning` (`leggrope.shear_relief`, the
+shear-relief gain tuned through MJX), `plots`, `entries` (its registry entries).
 """

@@ -221,6 +221,43 @@ def walk_targets(p: dict, key: Array, design: gait.GaitDesign = gait.DESIGNS["mi
     )
 
 
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class Footholds:
+    """The footholds of one simulation's cycle and the robot's start (world frame), the
+    fields of `WalkTargets` that need no COG plan: feet0, normals0 (4, 3); cand,
+    cand_normals (4, 2, 3) (primary, fallback); body0 (3,); R_GR (3, 3)."""
+
+    feet0: Array
+    normals0: Array
+    cand: Array
+    cand_normals: Array
+    body0: Array
+    R_GR: Array
+
+
+def walk_footholds(p: dict, key: Array, design: gait.GaitDesign = gait.DESIGNS["mirrored"]) -> Footholds:
+    """`walk_targets`' footholds, start pose and attitude without its 16 COG plans: the
+    terrain (pads) and the initial state need only these, and a rollout traced with
+    `walk_targets` three times (initial state, controller, environment) took twice as
+    long to compile for MJX. The same operations as `gait.plan_cycle`'s feet and body0."""
+    robot = robot_params(p)
+    walk = design.walk(stride=p["stride"], swing_height=p["swing_height"])
+    terrain = terrain_of(p, key)
+    dtype = jnp.asarray(p["theta"]).dtype
+    to_world = jax.vmap(lambda uv: gait.slope_to_world(terrain, jnp.concatenate([uv, jnp.zeros(1, dtype)])))
+    uv = jnp.asarray(walk.stance, dtype)
+    primary = jnp.stack([jnp.full(4, walk.stride, dtype), jnp.asarray(walk.lateral, dtype)], axis=1)
+    fallback = primary + p["fallback_distance"] * jnp.asarray(design.fallback, dtype)
+    feet0 = to_world(uv)
+    R_GR = gait.body_rotation(terrain, walk)
+    body0 = gait.place_body(robot, terrain, R_GR, feet0, gait.uv_to_world_xy(terrain, jnp.mean(uv, axis=0)),
+                            design.config().fixed_point_iters)
+    cand = jnp.stack([to_world(uv + primary), to_world(uv + fallback)], axis=1)
+    return Footholds(feet0=feet0, normals0=terrain.normals[0], cand=cand,
+                     cand_normals=jnp.stack([terrain.normals[1], terrain.normals[1]], axis=1), body0=body0, R_GR=R_GR)
+
+
 SWING_BLENDS = 17  # candidate A' blends between safe_blend and 1 (`swing_cog`)
 
 
@@ -286,7 +323,7 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
     s_ = settings
     dt = s_.control_dt
     overshoot = design.grope_overshoot if s_.grope_overshoot is None else s_.grope_overshoot
-    order = jnp.asarray(design.order)
+    order = jnp.asarray(design.order, jnp.int32)  # int32 like the state's indices (a scan keeps dtypes)
 
     def init(p, obs):
         t = walk_targets(p, p["key"], design)
@@ -425,8 +462,9 @@ def make_controller(settings: GropeSettings = GropeSettings(), design: gait.Gait
 def release_step_of(release: Array, max_step: Array) -> Array:
     """This period's part (4, 3) [m] of each toe command's remaining return `release`
     (4, 3) [m] from its grope's push: all of it, or `max_step` [m] along it if it is
-    longer (a straight return at v_release)."""
-    length = jnp.linalg.norm(release, axis=1, keepdims=True)
+    longer (a straight return at v_release). Differentiable at release = 0 (no return
+    pending: the norm's derivative there is 0/0)."""
+    length = jnp.sqrt(jnp.maximum(jnp.sum(release * release, axis=1, keepdims=True), 1e-24))
     return release * jnp.minimum(1.0, max_step / jnp.maximum(length, 1e-12))
 
 

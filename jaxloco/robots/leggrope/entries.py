@@ -11,7 +11,9 @@ ANALYSES: dict[str, str] = {
 }
 
 # tune objectives (jaxloco.tune.Objective)
-OBJECTIVES: dict[str, str] = {}
+OBJECTIVES: dict[str, str] = {
+    "leggrope.shear_relief": "jaxloco.robots.leggrope.mjx_tuning:SHEAR_RELIEF_TUNE",
+}
 
 # replays of a table row (jaxloco.render.replay): row -> Replay; other simulated analyses get the generic one
 REPLAYS: dict[str, str] = {

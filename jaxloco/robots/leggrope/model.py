@@ -16,7 +16,8 @@ the body centre in the hip plane):
   * a toe body `Li_toe` at the end of link i3 with a sphere of radius TOE_RADIUS (the
     only leg geom that collides) and a site `Li_toe` carrying the 3-axis force sensor
     `Li_force` (as the real robot's toe sensors);
-  * toe contacts: elliptic cone with MuJoCo's no-slip solver (see CONTACT_SOLREF);
+  * toe contacts: elliptic cone with MuJoCo's no-slip solver (see CONTACT_SOLREF); a
+    scenario's MJX variant switches to a pyramidal cone without it (`use_mjx_contacts`);
   * a position actuator per joint (the real robot's joints take position inputs) with
     stiffness KP, damping KV and torque limit TAU_MAX.
 Collision bits: the torso and toes use `contype 1, conaffinity 2`, terrain pieces
@@ -64,6 +65,22 @@ CONTACT_SOLREF = (0.01, 1.0)  # time constant 5 timesteps, critically damped
 CONTACT_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)
 IMPRATIO = 1.0
 NOSLIP_ITERATIONS = 5
+# The MJX-compatible toe contacts (`use_mjx_contacts`): MJX has no no-slip solver, and its
+# elliptic cone gives NaN forward-mode derivatives, so the MJX variant of a scenario uses
+# the pyramidal cone without no-slip. Plain soft friction then lets a loaded toe creep:
+# standing on the 15 degree slope, 36 mm/s at impratio 1, 12 at 3, 3.7 at 10, 1.1 at 30,
+# 0.24 at 100 (elliptic with no-slip: 0.001 mm/s; MuJoCo C, 1 s after 0.5 s of settling).
+# impratio makes the friction rows harder than the normal ones without raising mu.
+# Default (ours): 30. At 100 the walk's toe forces spiked to 1.0-1.09 R_ref in steps where
+# MuJoCo's C engine keeps them at 0.84-0.98 (30: 0.82-0.98); at 10 the stance crept 70 mm
+# in the first grope. See docs/simulation.md for what the walk still differs by.
+MJX_IMPRATIO = 30.0
+# MJX emits every contact that a geom pair's collision function can make (toes x 13
+# terrain boxes, torso x 13 boxes: 104 contacts, 428 constraint rows) and solves them all,
+# the inactive ones masked. The walk never has more than a few in touch (four toes; a
+# fallen torso on a box: 4), so the MJX variant keeps the 16 deepest (MJX's
+# `max_contact_points`): half the time per physics step on CPU. Default (ours).
+MJX_MAX_CONTACTS = 16
 JOINTS = ("yaw", "pitch", "knee")
 
 
@@ -129,6 +146,21 @@ def build_spec(params: LegGropeParams | None = None) -> mujoco.MjSpec:
     spec.add_sensor(name="imu_gyro", type=mujoco.mjtSensor.mjSENS_GYRO, objtype=mujoco.mjtObj.mjOBJ_SITE, objname="imu")
     spec.add_sensor(name="imu_acc", type=mujoco.mjtSensor.mjSENS_ACCELEROMETER, objtype=mujoco.mjtObj.mjOBJ_SITE,
                     objname="imu")
+    return spec
+
+
+def use_mjx_contacts(spec: mujoco.MjSpec, impratio: float = IMPRATIO, max_contacts: int | None = None
+                     ) -> mujoco.MjSpec:
+    """Switch `spec` (in place; returned) to contacts that MJX simulates like MuJoCo's C
+    engine: pyramidal friction cone, no no-slip post-solver, `impratio` (the friction rows'
+    impedance ratio; the robot's own IMPRATIO unless given, MJX_IMPRATIO for the walk) and,
+    if given, MJX's `max_contact_points` (the deepest `max_contacts` contacts are solved;
+    MuJoCo's C engine ignores it)."""
+    spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+    spec.option.noslip_iterations = 0
+    spec.option.impratio = float(impratio)
+    if max_contacts is not None:
+        spec.add_numeric(name="max_contact_points", data=[float(max_contacts)])
     return spec
 
 

@@ -59,9 +59,14 @@ PARAM_DEFAULTS: dict[str, float] = PARAMETERS.defaults((
 )) | {"theta": float(np.pi / 12)}
 
 
-def build_model(robot_xml: str | Path | None = None) -> tuple[mujoco.MjModel, tr.Terrain]:
-    """The robot (`models/leggrope.xml` unless given) on the slope-and-pads terrain."""
+def build_model(robot_xml: str | Path | None = None, mjx_contacts: bool = False
+                ) -> tuple[mujoco.MjModel, tr.Terrain]:
+    """The robot (`models/leggrope.xml` unless given) on the slope-and-pads terrain;
+    mjx_contacts: the MJX variant's contact options (`model.use_mjx_contacts` with
+    `model.MJX_IMPRATIO` and `model.MJX_MAX_CONTACTS`: pyramidal cone, no no-slip solver)."""
     spec = model.load_spec(robot_xml)
+    if mjx_contacts:
+        model.use_mjx_contacts(spec, model.MJX_IMPRATIO, model.MJX_MAX_CONTACTS)
     terrain = tr.combine(tr.slope(1.5, 1.0), tr.footholds(N_PADS, half_size=PAD_HALF, thickness=PAD_THICKNESS))
     terrain.add_to(spec, friction=(PARAM_DEFAULTS["mu"], 0.005, 0.0001))
     for name in terrain.body_names():
@@ -77,16 +82,19 @@ def make_scenario(
     settings: control.GropeSettings | None = None,
     robot_xml: str | Path | None = None,
     numbering: str = "mirrored",
+    mjx_contacts: bool = False,
 ) -> Scenario:
     """The fragile-slope walk scenario (control period settings.control_dt) for a leg
     numbering (`gait.DESIGNS`: "literal" walks along y_R, "mirrored" along x_R). Leg
     labels in parameters and metrics (`weak_leg`, `collapsed_leg`) are the paper's L1..L4
-    of that numbering."""
+    of that numbering. mjx_contacts: the MJX variant (`build_model`; the same controller,
+    terrain and metrics), named "leggrope.fragile_slope_mjx"; its toes creep more (no
+    no-slip solver), see docs/simulation.md."""
     settings = settings or control.GropeSettings()
     design = gait.gait_design(numbering)
     physical = jnp.asarray(design.legs)  # physical leg of the paper's L1..L4
     label = jnp.argsort(physical)  # paper label of each physical leg
-    m, terrain = build_model(robot_xml)
+    m, terrain = build_model(robot_xml, mjx_contacts)
     substeps = round(settings.control_dt / m.opt.timestep)
     horizon = round(horizon_s / settings.control_dt)
     horizon -= horizon % record_every
@@ -103,8 +111,8 @@ def make_scenario(
     mass = float(default_params().total_mass)
 
     def poses(p, key):
-        """Mocap poses (nmocap) of the slope and the intact pads, and the pads' R_break."""
-        t = control.walk_targets(p, key, design)
+        """Mocap poses (nmocap) of the slope and the intact pads, and the footholds."""
+        t = control.walk_footholds(p, key, design)
         n_slope = tr.slope_normal(p["theta"], jnp.zeros_like(p["theta"]))
         s_pos, s_quat = tr.box_pose_from_top(-PAD_THICKNESS * n_slope, n_slope, 0.0, jnp.asarray(slope_half))
         centres = jnp.concatenate([t.feet0, t.cand[:, 0], t.cand[:, 1]])
@@ -254,7 +262,7 @@ def make_scenario(
         }
 
     return Scenario(
-        name="leggrope.fragile_slope",
+        name="leggrope.fragile_slope_mjx" if mjx_contacts else "leggrope.fragile_slope",
         model=m,
         controller=Controller(init_ctrl, step_ctrl, name="leg-grope walk"),
         initial_state=initial_state,
@@ -301,8 +309,7 @@ def standing_scenario(horizon: int = 10, substeps: int = 5, record_every: int = 
     3.x); False keeps the robot model's own contact options."""
     spec = model.load_spec()
     if mjx_contacts:
-        spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
-        spec.option.noslip_iterations = 0
+        model.use_mjx_contacts(spec)
     ground = tr.flat(half_extent=2.0, half_depth=0.2)
     ground.add_to(spec)
     m = spec.compile()

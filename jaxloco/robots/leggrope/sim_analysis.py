@@ -1,6 +1,10 @@
 """`leggrope.fragile_walk`: one leg-grope walk cycle of the simulated robot over fragile
 footholds on a slope (`scenarios.make_scenario`), as a sweep analysis on the native
-MuJoCo backend (executor "host": the batch runs in `mujoco.batch` on every core).
+MuJoCo backend (executor "host": the batch runs in `mujoco.batch` on every core) or on
+MJX (fixed parameter `backend`; "auto": MJX on a GPU or TPU). MJX runs the scenario's
+MJX variant (`make_scenario(mjx_contacts=True)`: pyramidal cone, no no-slip solver), whose
+toes creep more; the same controller, terrain and metrics (docs/simulation.md: how far
+the two agree).
 
 The question it answers: for a grope reaction R_ref, a distribution of foothold
 strengths R_break, a slope and a friction coefficient, does the robot finish its cycle,
@@ -26,7 +30,7 @@ from jaxloco.sim.scenario import seed_jitter
 PARAMS = PARAMETERS.select(
     "theta", "psi", "mu", "r_ref_factor", "stride", "swing_height", "facet_spread", "fallback_distance", "safe_blend",
     "swing_margin", "twist_relief", "shear_relief", "grope_blend", "regrope", "p_weak", "r_break_lo", "r_break_hi",
-    "weak_leg", "mu_jitter", "theta_jitter", "numbering", "horizon", "nthread",
+    "weak_leg", "mu_jitter", "theta_jitter", "numbering", "horizon", "nthread", "backend",
     theta={"default": scenarios.PARAM_DEFAULTS["theta"], "doc": "slope inclination (walking direction psi = 0 climbs)",
            "lo": -0.45, "hi": 0.45, "lo_open": False, "hi_open": False},
     psi={"doc": "walking direction relative to the gradient"},
@@ -89,8 +93,10 @@ _SCENARIO_STATUS = {"ok": 0, "no_foothold": 1, "timeout": 2, "stopped_on_collaps
 
 
 def scenario(plain: Mapping[str, Any]):
-    """The fragile-slope scenario of a sweep (horizon and numbering)."""
-    return scenarios.make_scenario(horizon_s=float(plain["horizon"]), record_every=5, numbering=str(plain["numbering"]))
+    """The fragile-slope scenario of a sweep (horizon, numbering, and the backend that
+    runs it: "mjx" gets the MJX variant)."""
+    return scenarios.make_scenario(horizon_s=float(plain["horizon"]), record_every=5, numbering=str(plain["numbering"]),
+                                   mjx_contacts=str(plain["backend"]) == "mjx")
 
 
 def params(values: Mapping[str, Any], keys: np.ndarray) -> dict[str, Any]:
@@ -138,8 +144,11 @@ def summarize(table) -> Summary:
             _load_over_probe(cols, sel, "max_load_over_probe_steady"),
             _late_and_weak(cols, sel),
         ))
+    backend = cols.get("backend")
+    simulator = "MJX, toes creep more" if backend is not None and len(backend) and str(backend[0]) == "mjx" \
+        else "native MuJoCo"
     return Summary(
-        title="leg-grope walk over fragile footholds (native MuJoCo)",
+        title=f"leg-grope walk over fragile footholds ({simulator})",
         columns=("R_ref/Mg cos", "p_weak", "weak leg", "runs", "success", "max tilt change [deg]",
                  "collapse tilt [deg]", "max N/R_ref outside D'", "collapses met/survived", "min margin [mm]",
                  "load / probe", "load / probe, no impulse", "late (weak) / weak accepted"),
