@@ -43,13 +43,15 @@ The measured results (5 perturbed trials each, `operations_analysis`, `jaxloco s
 snake_operations`) are in docs/snake.md.
 
 On MJX (`operation_scenario(..., backend="mjx")`: the model's MJX variant,
-`scenarios.mjx_variant`, and each fixture's `mjx`): MJX has no adhesion (a body
-transmission) and ignores a contact's gap, so the hardened gripper is a tendon from the
-gripper's centre to the object (the pipe's centre, the handwheel's hub, the knob's
-centre) pulled with GRIP_FORCE at ctrl 1 (`_mjx_grip`), and the gripper's margin and
-gap are 0. Adhesion pulls across the contacts within GRIP_REACH of the gripper, along
-their normals; the tendon pulls along the line between the two points, whether or not
-they touch (docs/simulation.md gives the differences).
+`scenarios.mjx_variant`, and each fixture's `mjx`): MJX has no adhesion actuator (a body
+transmission), so the hardened gripper is a tendon from the gripper's centre to the
+object (the pipe's centre, the handwheel's hub, the knob's centre) pulled with
+GRIP_FORCE at ctrl 1 while the object is within about GRIP_REACH of the gripper along it
+(`_mjx_grip`). Adhesion pulls at each contact within GRIP_REACH, along its normal,
+shared among them; the tendon pulls at one point of the object along the line to the
+gripper's centre. The gripper's margin (the contacts are active GRIP_REACH out, in
+MuJoCo 4 and MJX alike: the held object rests about 9 mm off the capsule) is kept.
+docs/simulation.md gives the differences.
 """
 
 from __future__ import annotations
@@ -73,6 +75,7 @@ from jaxloco.sim.scenario import Scenario
 CONTROL_DT = 0.02  # [s]
 GRIP_FORCE = 20.0  # [N] adhesion of the hardened gripper, ours
 GRIP_REACH = 0.01  # [m] the hardened gripper holds what is within this of its surface (geom margin = gap), ours
+GRIP_RELEASE = 0.002  # [m] on MJX (`_mjx_grip`), beyond GRIP_REACH the pull fades to 0 over this, ours
 PIPE_RADIUS = 0.02  # [m], ours
 PIPE_HALF_LENGTH = (0.08, 0.03)  # [m] the main tube (across, along y) and the branch (along +x), ours
 PIPE_MASS = 0.2  # [kg], ours
@@ -195,12 +198,13 @@ def _add_door(spec: mujoco.MjSpec) -> None:
     _add_gripper(spec)
 
 
-def _mjx_grip(spec: mujoco.MjSpec, body: str, point) -> None:
+def _mjx_grip(spec: mujoco.MjSpec, body: str, point, touch: float) -> None:
     """The MJX variant's gripper (module docstring), in place: its adhesion becomes a
     tendon from the gripper's centre (GRIPPER_MID ahead of the head frame) to `point`
-    (3,) [m] in the frame of `body`, pulled with GRIP_FORCE [N] times its ctrl; no margin
-    or gap on the gripper. The actuator keeps its name and index."""
-    spec.geom("gripper").margin, spec.geom("gripper").gap = 0.0, 0.0
+    (3,) [m] in the frame of `body`, pulled with GRIP_FORCE [N] times its ctrl while the
+    tendon is shorter than `touch` (its length [m] when the two surfaces touch along it)
+    + GRIP_REACH, fading to 0 over GRIP_RELEASE beyond (an affine gain in the tendon's
+    length, clipped to [0, GRIP_FORCE]). The actuator keeps its name and index."""
     spec.body("link1").add_site(name="grip", pos=[GRIPPER_MID, 0.0, 0.0])
     spec.body(body).add_site(name="grip_object", pos=[float(x) for x in point])
     tendon = spec.add_tendon(name="grip")
@@ -208,23 +212,30 @@ def _mjx_grip(spec: mujoco.MjSpec, body: str, point) -> None:
     tendon.wrap_site("grip_object")
     grip = spec.actuator("gripper")
     grip.trntype, grip.target = mujoco.mjtTrn.mjTRN_TENDON, "grip"
-    grip.gear = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # a positive force shortens the tendon
+    grip.gear = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # a positive force shortens the tendon; actuator length = -length
+    stiffness = GRIP_FORCE / GRIP_RELEASE  # [N/m] force = stiffness (touch + GRIP_REACH + GRIP_RELEASE - length)
+    grip.gaintype = mujoco.mjtGain.mjGAIN_AFFINE
+    grip.gainprm[:3] = [stiffness * (touch + GRIP_REACH + GRIP_RELEASE), stiffness, 0.0]
+    grip.forcelimited, grip.forcerange = mujoco.mjtLimited.mjLIMITED_TRUE, [0.0, GRIP_FORCE]
+
+
+_GRIPPER_HALF = 0.5 * snake_params.GRIPPER_LENGTH  # [m] from the gripper's centre to its tip
 
 
 def _mjx_pipe(spec: mujoco.MjSpec) -> None:
-    """`PIPE` on MJX: the gripper pulls the pipe's centre."""
-    _mjx_grip(spec, "pipe", (0.0, 0.0, 0.0))
+    """`PIPE` on MJX: the gripper pulls the pipe's centre (the main tube across under it)."""
+    _mjx_grip(spec, "pipe", (0.0, 0.0, 0.0), snake_params.GRIPPER_RADIUS + PIPE_RADIUS)
 
 
 def _mjx_valve(spec: mujoco.MjSpec) -> None:
-    """`VALVE` on MJX: the gripper pulls the handwheel's hub."""
-    _mjx_grip(spec, "valve", (0.0, 0.0, 0.0))
+    """`VALVE` on MJX: the gripper's tip pulls the handwheel's hub."""
+    _mjx_grip(spec, "valve", (0.0, 0.0, 0.0), _GRIPPER_HALF + VALVE_HALF[1])
 
 
 def _mjx_door(spec: mujoco.MjSpec) -> None:
-    """`DOOR` on MJX: the gripper pulls the knob's centre."""
+    """`DOOR` on MJX: the gripper's tip pulls the knob's centre."""
     knob, hinge = _door_layout()
-    _mjx_grip(spec, "door", knob - hinge)
+    _mjx_grip(spec, "door", knob - hinge, _GRIPPER_HALF + KNOB_RADIUS)
 
 
 def door_script(angles=DOOR_ANGLES, t_start: float = 2.0, duration: float = 3.0) -> tuple:

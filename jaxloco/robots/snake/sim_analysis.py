@@ -56,6 +56,7 @@ from jaxloco.analysis import Analysis, Metric, Simulation, Summary
 from jaxloco.errors import SpecError
 from jaxloco.robots.snake import kinsim, scenarios, sim_control, trials
 from jaxloco.robots.snake import params as snake_params
+from jaxloco.sim.backend import resolve
 from jaxloco.sim.rollout import RolloutResult
 from jaxloco.sim.scenario import Controller, InitialState, Scenario
 
@@ -244,7 +245,7 @@ def metrics(values: Mapping[str, Any], result: RolloutResult) -> dict[str, np.nd
 
 def _reach_scenario(plain: Mapping[str, Any]) -> Scenario:
     """The reach of a sweep; on MJX on "plane" (its model of either ground: module docstring)."""
-    ground = "plane" if plain["backend"] == "mjx" else str(plain["ground"])
+    ground = "plane" if resolve(str(plain["backend"])) == "mjx" else str(plain["ground"])
     return reach_scenario(ground, float(plain["horizon"]), float(plain["settle"]))
 
 

@@ -38,6 +38,7 @@ import numpy as np
 from jaxloco.analysis import Analysis, Metric, Simulation, Summary
 from jaxloco.robots.snake import experiments, scenarios, sim_control, trials
 from jaxloco.robots.snake import params as snake_params
+from jaxloco.sim.backend import resolve
 from jaxloco.sim.rollout import RolloutResult
 from jaxloco.sim.scenario import Scenario
 
@@ -87,7 +88,8 @@ def target_deltas(targets: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def _scenario(plain: Mapping[str, Any]) -> Scenario:
-    return table3_scenario(float(plain["ramp"]), float(plain["settle"]), bool(plain["feedback"]), str(plain["backend"]))
+    return table3_scenario(float(plain["ramp"]), float(plain["settle"]), bool(plain["feedback"]),
+                          resolve(str(plain["backend"])))
 
 
 def params(values: Mapping[str, Any], keys: np.ndarray) -> dict[str, Any]:
