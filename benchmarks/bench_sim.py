@@ -68,8 +68,19 @@ def leggrope_walk(horizon_s: float, backend: str):
             scenarios.params_batch)
 
 
+def snake_reach(horizon_s: float, backend: str):
+    """T² Snake-3's gripper-tip reach (`snake.reach`: feedback task-space control from the
+    settled robot), on the box ground natively and on its MJX variant (the plane) on MJX;
+    the rows' gains K spread over 0.5-2 /s."""
+    from jaxloco.robots.snake import sim_analysis
+
+    scenario = sim_analysis.REACH.simulate.scenario(
+        {"ground": "box", "horizon": horizon_s, "settle": sim_analysis.SETTLE, "backend": backend})
+    return scenario, lambda n: sim_analysis.reach_params(n, gain_k=np.linspace(0.5, 2.0, n))
+
+
 # robot -> builder(horizon [s], backend) -> (scenario, params(n) -> a batch of n param sets)
-ROBOTS = {"leggrope": leggrope_walk}
+ROBOTS = {"leggrope": leggrope_walk, "snake": snake_reach}
 
 
 def robot_rows(name: str, horizon_s: float, batches: list[int], mjx_batches: list[int], nthread: int) -> None:

@@ -5,7 +5,9 @@ Oracles: reverse-mode gradients (forward mode of the runner), central finite
 differences of the same MJX loss (the gradient), MuJoCo's C code through the native
 backend (the MJX loss), one-row runs (the batched analysis), closed forms (the metrics).
 The MJX tests share one compiled forward-mode loss (a 1 s horizon, shorter than the
-shipped 3 s; compiling it is most of this file's time, JAX's persistent cache keeps it).
+shipped 3 s; compiling it is most of this file's time, JAX's persistent cache keeps it):
+the runner's own (`runner.make_evaluate` keeps one per objective and settings), so the
+short tune reuses its trace.
 """
 
 from __future__ import annotations
@@ -123,10 +125,20 @@ def test_reach_metrics_closed_form():
 
 
 # ------------------------------------------------------------------------- MJX
+def _tune_spec(**tune):
+    """The short tune of K at HORIZON (`test_a_short_tune_lowers_the_loss`)."""
+    return spec_from_dict({"tune": {"objective": "snake.reach_gain", "params": ["gain_k"], "learning_rate": 0.15,
+                                    "steps": 1, "formats": ["parquet"], **tune},
+                           "init": {"gain_k": 1.0}, "settings": {"horizon": HORIZON}})
+
+
 @pytest.fixture(scope="module")
 def mjx_loss():
-    """K -> ((loss, aux), dloss/dK) of the objective (forward mode, as the runner uses it)."""
-    f = jax.jit(runner.value_and_grad(mjx_tuning.make_loss(SETTINGS), "forward", ["gain_k"]))
+    """K -> ((loss, aux), dloss/dK) of the objective: the runner's own jitted forward-mode
+    function for the short tune's spec (the tune then reuses its trace)."""
+    spec = _tune_spec()
+    assert dict(spec.settings) == SETTINGS
+    f = runner.make_evaluate(spec)
 
     def evaluate(k: float):
         (loss, aux), g = f({"gain_k": jnp.float64(k), "k_eta": jnp.float64(0.1)})
@@ -149,10 +161,13 @@ def test_forward_gradient_matches_central_differences(mjx_loss):
     assert central == pytest.approx(grad, rel=1e-5), (central, grad)
 
 
-def test_mjx_loss_agrees_with_native_mujoco(mjx_loss):
-    """The same scenario (plane ground, settled state, controller) on MuJoCo's C code."""
+@pytest.mark.parametrize("ground", ["plane", "box"])
+def test_mjx_loss_agrees_with_native_mujoco(mjx_loss, ground):
+    """The same scenario (settled state, controller) on MuJoCo's C code: on the plane
+    ground (the model MJX runs), and on the box ground (the native model of `snake.reach`,
+    whose MJX variant the plane is; docs/simulation.md states this tolerance)."""
     gains = (1.0, 2.5)
-    sc = sim_analysis.reach_scenario(mjx_tuning.GROUND, HORIZON, SETTINGS["settle"])
+    sc = sim_analysis.reach_scenario(ground, HORIZON, SETTINGS["settle"])
     res = rollout(sc, sim_analysis.reach_params(len(gains), gain_k=np.array(gains), d_z=SETTINGS["d_z"],
                                      t_start=SETTINGS["t_start"], ramp=SETTINGS["ramp"]), backend="native")
     assert list(res.status) == ["ok", "ok"]
@@ -171,10 +186,9 @@ def test_mjx_loss_agrees_with_native_mujoco(mjx_loss):
 
 
 def test_a_short_tune_lowers_the_loss(tmp_path, mjx_loss):
-    spec = {"tune": {"objective": "snake.reach_gain", "params": ["gain_k"], "learning_rate": 0.15, "steps": 1,
-                     "formats": ["parquet"]},
-            "init": {"gain_k": 1.0}, "settings": {"horizon": HORIZON}}
-    res = runner.run(spec_from_dict(spec), progress=False, out=tmp_path / "tune", configure_jax=False)
+    spec = _tune_spec()
+    assert runner.make_evaluate(spec) is runner.make_evaluate(_tune_spec(learning_rate=0.3))  # the fixture's
+    res = runner.run(spec, progress=False, out=tmp_path / "tune", configure_jax=False)
     curve = res.curve.to_pydict()
     loss0, _, grad0 = mjx_loss(1.0)
     assert curve["loss"][0] == pytest.approx(loss0, rel=1e-12)

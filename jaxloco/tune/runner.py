@@ -132,19 +132,35 @@ def run(
     )
 
 
+_EVALUATE: dict[tuple[Any, ...], tuple[Any, Callable]] = {}  # (objective id, settings, params) -> (objective, fn)
+_EVALUATE_KEPT = 8
+
+
 def make_evaluate(spec: TuneSpec) -> Callable:
     """The jitted `values -> ((loss, aux), grads)` that `run` evaluates at every step (and
     for every reference), gradients of the tuned tunables; JAX must be configured already.
-    SpecError (naming the spec) for a combination of settings the objective refuses."""
+    One per objective, settings and tuned tunables (the 8 most recent are kept), so that
+    another run of the same objective and settings in this process (another learning
+    rate, init or step count, a probe) reuses its trace and compiled program. SpecError
+    (naming the spec) for a combination of settings the objective refuses."""
     import jax
 
     objective = spec.objective
+    key = (id(objective), tuple((k, repr(v)) for k, v in spec.settings.items()), tuple(spec.params),
+           jax.config.jax_enable_x64)
+    hit = _EVALUATE.get(key)
+    if hit is not None and hit[0] is objective:
+        return hit[1]
     try:
         loss_fn = objective.make_loss(dict(spec.settings))
     except SpecError as exc:
         message = str(exc)
         raise (exc if message.startswith(f"{spec.source}: ") else SpecError(f"{spec.source}: {message}")) from None
-    return jax.jit(value_and_grad(loss_fn, objective.grad_mode, list(spec.params)))
+    evaluate = jax.jit(value_and_grad(loss_fn, objective.grad_mode, list(spec.params)))
+    _EVALUATE[key] = (objective, evaluate)
+    while len(_EVALUATE) > _EVALUATE_KEPT:
+        _EVALUATE.pop(next(iter(_EVALUATE)))
+    return evaluate
 
 
 def value_dtype(spec: TuneSpec) -> Any:

@@ -46,6 +46,10 @@ Ours:
 
 `jaxloco sweep snake_contact`: postures (i)-(x) x 5 seeds; the summary prints mean ± SD of
 f_x, f_y, f_z beside the paper's and checks the paper's trends.
+
+Simulator (fixed parameter `backend`): native MuJoCo, or MJX on the model's MJX variant
+(`scenarios.mjx_variant`: a ground plane that only the wheels touch, the plate touched
+only by the gripper); the settling runs that place the plates run on the same one.
 """
 
 from __future__ import annotations
@@ -112,7 +116,7 @@ GRIPPER_MID = (
 )  # [m] the gripper's centre ahead of the head frame
 
 PARAMS = snake_params.PARAMETERS.select(
-    "posture", "overshoot", "mu", "mu_jitter", "heading_jitter", "ramp", "hold", "settle", "nthread",
+    "posture", "overshoot", "mu", "mu_jitter", "heading_jitter", "ramp", "hold", "settle", "nthread", "backend",
     posture={"doc": snake_params.PARAMETERS["posture"].doc + ": " + "; ".join(
         f"{k}: z_h {z:g} m, y_h {y:g} m, {b}" for k, (z, y, b) in POSTURES.items()), "choices": POSTURE_NAMES},
     mu={"default": FLOOR_MU},  # FLOOR_MU: the floor of the contact experiment
@@ -238,12 +242,13 @@ PLATE = scenarios.Fixture(add=_add_plate, bodies=("plate",), pose=_plate_pose, s
 
 
 @functools.lru_cache(maxsize=4)
-def contact_scenario(ramp: float, hold: float, settle: float) -> Scenario:
+def contact_scenario(ramp: float, hold: float, settle: float, backend: str = "native") -> Scenario:
     """The flat-ground snake scenario with the force plate, the head driven by the
-    paper's feedforward task-space control (`sim_control.task_space_controller`)."""
+    paper's feedforward task-space control (`sim_control.task_space_controller`); for
+    `backend` "mjx" on the model's MJX variant."""
     horizon = settle + experiments.T_START + ramp + hold
     return scenarios.snake_scenario(horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "head", False),
-                             fixture=PLATE)
+                                    fixture=PLATE, backend=backend)
 
 
 def _rotate_z(v: np.ndarray, heading: np.ndarray) -> np.ndarray:
@@ -307,18 +312,21 @@ def push_params(postures: np.ndarray, mu: np.ndarray, heading: np.ndarray, overs
     return _scene_params(postures, mu, heading, PLATE_GAP + np.asarray(overshoot, float), ramp, settle, plate)
 
 
-_SETTLED: dict[tuple[str, float, float, float], np.ndarray] = {}
+_SETTLED: dict[tuple[str, float, float, float, str], np.ndarray] = {}
 
 
-def settled_heads(postures: np.ndarray, ramp: float, hold: float, settle: float, simulator: Simulator) -> np.ndarray:
+def settled_heads(postures: np.ndarray, ramp: float, hold: float, settle: float, simulator: Simulator,
+                  batch: int = 0) -> np.ndarray:
     """The head pose (n, 6) = [x, y, z [m], roll, pitch, yaw [rad]] of each posture as the
     robot stands on its servos when the push starts (mean over the 0.5 s before t =
     settle + T_START; heading 0, floor friction FLOOR_MU, no plate within reach, the head
     target held): the kinematic posture less the head part's sag (Sec. IV-C2). The
     plate is placed from it, as the paper's plate is placed at the robot standing in
-    front of it. One simulation per posture on `simulator`, cached."""
+    front of it. One simulation per posture on `simulator` (its backend's model), cached;
+    `batch` > 0 pads that rollout to `batch` simulations (MJX: the pushes' batch, whose
+    compiled rollout then serves the settling too)."""
     postures = np.asarray(postures).astype(str)
-    key = (float(ramp), float(hold), float(settle))
+    key = (float(ramp), float(hold), float(settle), simulator.backend)
     todo = sorted({k for k in postures if (k, *key) not in _SETTLED})
     if todo:
         m = len(todo)
@@ -326,7 +334,9 @@ def settled_heads(postures: np.ndarray, ramp: float, hold: float, settle: float,
                                np.broadcast_to(FAR, (m, 3, 7)).copy())
         params = {k: v[::3] for k, v in params.items()}  # one run per posture: no push, no plate
         params["key"] = np.zeros((m, 2), np.uint32)  # PRNGKey(0)
-        res = simulator.run(contact_scenario(ramp, hold, settle), params)
+        if batch > m:  # copies of the last posture
+            params = {k: np.concatenate([v, np.repeat(v[-1:], batch - m, axis=0)]) for k, v in params.items()}
+        res = simulator.run(contact_scenario(ramp, hold, settle, simulator.backend), params)
         head = np.asarray(res.records["head"], float)  # (m, T, 6), one record per control period
         t = (np.arange(head.shape[1]) + 1) * CONTROL_DT
         t0 = settle + experiments.T_START
@@ -342,12 +352,13 @@ def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) 
     plates (`settled_heads`) run on the same backend and threads, but are not the row's
     rollout (a replay shows the pushes)."""
     ramp, hold, settle = float(values["ramp"]), float(values["hold"]), float(values["settle"])
-    scenario = contact_scenario(ramp, hold, settle)
+    scenario = contact_scenario(ramp, hold, settle, simulator.backend)
     n = keys.shape[0]
     v = {p.name: np.asarray(values[p.name]) for p in PARAMS if p.sweepable}
     postures = v["posture"].astype(str)
     mu, heading = trials.perturbed(v, keys)
-    heads = settled_heads(postures, ramp, hold, settle, Simulator(simulator.backend, simulator.nthread))
+    heads = settled_heads(postures, ramp, hold, settle, Simulator(simulator.backend, simulator.nthread),
+                          batch=3 * n if simulator.backend == "mjx" else 0)
     params = push_params(postures, mu, heading, v["overshoot"].astype(float), ramp, settle, heads)
     params["key"] = np.repeat(keys, 3, axis=0)
     res = simulator.run(scenario, params)

@@ -41,6 +41,17 @@ e), and again at the next stall (f, g).
 
 The measured results (5 perturbed trials each, `operations_analysis`, `jaxloco sweep
 snake_operations`) are in docs/snake.md.
+
+On MJX (`operation_scenario(..., backend="mjx")`: the model's MJX variant,
+`scenarios.mjx_variant`, and each fixture's `mjx`): MJX has no adhesion actuator (a body
+transmission), so the hardened gripper is a tendon from the gripper's centre to the
+object (the pipe's centre, the handwheel's hub, the knob's centre) pulled with
+GRIP_FORCE at ctrl 1 while the object is within about GRIP_REACH of the gripper along it
+(`_mjx_grip`). Adhesion pulls at each contact within GRIP_REACH, along its normal,
+shared among them; the tendon pulls at one point of the object along the line to the
+gripper's centre. The gripper's margin (the contacts are active GRIP_REACH out, in
+MuJoCo 4 and MJX alike: the held object rests about 9 mm off the capsule) is kept.
+docs/simulation.md gives the differences.
 """
 
 from __future__ import annotations
@@ -64,6 +75,7 @@ from jaxloco.sim.scenario import Scenario
 CONTROL_DT = 0.02  # [s]
 GRIP_FORCE = 20.0  # [N] adhesion of the hardened gripper, ours
 GRIP_REACH = 0.01  # [m] the hardened gripper holds what is within this of its surface (geom margin = gap), ours
+GRIP_RELEASE = 0.002  # [m] on MJX (`_mjx_grip`), beyond GRIP_REACH the pull fades to 0 over this, ours
 PIPE_RADIUS = 0.02  # [m], ours
 PIPE_HALF_LENGTH = (0.08, 0.03)  # [m] the main tube (across, along y) and the branch (along +x), ours
 PIPE_MASS = 0.2  # [kg], ours
@@ -162,14 +174,19 @@ def _add_valve(spec: mujoco.MjSpec) -> None:
     _add_gripper(spec)
 
 
+def _door_layout() -> tuple[np.ndarray, np.ndarray]:
+    """The door's knob centre and hinge foot (3,), (3,) [m] in the world (`_add_door`)."""
+    tip = initial_tip()
+    knob = np.array([tip[0] + KNOB_RADIUS + 0.002, tip[1], tip[2]])
+    return knob, np.array([knob[0] + KNOB_RADIUS + DOOR_HALF[0], knob[1] - DOOR_RADIUS, 0.0])
+
+
 def _add_door(spec: mujoco.MjSpec) -> None:
     """A door facing the gripper (its panel in the y-z plane beyond the tip) on a vertical
     hinge DOOR_RADIUS to the tip's right, a knob (sphere) touching the tip, the door's
     angle recorded (`door_angle`), and the gripper."""
-    tip = initial_tip()
-    knob = np.array([tip[0] + KNOB_RADIUS + 0.002, tip[1], tip[2]])
-    hinge = [float(knob[0] + KNOB_RADIUS + DOOR_HALF[0]), float(knob[1] - DOOR_RADIUS), 0.0]
-    door = spec.worldbody.add_body(name="door", pos=hinge)
+    knob, hinge = _door_layout()
+    door = spec.worldbody.add_body(name="door", pos=hinge.tolist())
     door.add_joint(name="door", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1], damping=0.2, frictionloss=0.05,
                    range=[0.0, 2.0], limited=mujoco.mjtLimited.mjLIMITED_TRUE)  # the frame: it opens towards the robot
     door.add_geom(name="door", type=mujoco.mjtGeom.mjGEOM_BOX, size=[DOOR_HALF[0], DOOR_HALF[1], DOOR_HALF[2]],
@@ -179,6 +196,46 @@ def _add_door(spec: mujoco.MjSpec) -> None:
     spec.add_sensor(name="door_angle", type=mujoco.mjtSensor.mjSENS_JOINTPOS, objtype=mujoco.mjtObj.mjOBJ_JOINT,
                     objname="door")
     _add_gripper(spec)
+
+
+def _mjx_grip(spec: mujoco.MjSpec, body: str, point, touch: float) -> None:
+    """The MJX variant's gripper (module docstring), in place: its adhesion becomes a
+    tendon from the gripper's centre (GRIPPER_MID ahead of the head frame) to `point`
+    (3,) [m] in the frame of `body`, pulled with GRIP_FORCE [N] times its ctrl while the
+    tendon is shorter than `touch` (its length [m] when the two surfaces touch along it)
+    + GRIP_REACH, fading to 0 over GRIP_RELEASE beyond (an affine gain in the tendon's
+    length, clipped to [0, GRIP_FORCE]). The actuator keeps its name and index."""
+    spec.body("link1").add_site(name="grip", pos=[GRIPPER_MID, 0.0, 0.0])
+    spec.body(body).add_site(name="grip_object", pos=[float(x) for x in point])
+    tendon = spec.add_tendon(name="grip")
+    tendon.wrap_site("grip")
+    tendon.wrap_site("grip_object")
+    grip = spec.actuator("gripper")
+    grip.trntype, grip.target = mujoco.mjtTrn.mjTRN_TENDON, "grip"
+    grip.gear = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # a positive force shortens the tendon; actuator length = -length
+    stiffness = GRIP_FORCE / GRIP_RELEASE  # [N/m] force = stiffness (touch + GRIP_REACH + GRIP_RELEASE - length)
+    grip.gaintype = mujoco.mjtGain.mjGAIN_AFFINE
+    grip.gainprm[:3] = [stiffness * (touch + GRIP_REACH + GRIP_RELEASE), stiffness, 0.0]
+    grip.forcelimited, grip.forcerange = mujoco.mjtLimited.mjLIMITED_TRUE, [0.0, GRIP_FORCE]
+
+
+_GRIPPER_HALF = 0.5 * snake_params.GRIPPER_LENGTH  # [m] from the gripper's centre to its tip
+
+
+def _mjx_pipe(spec: mujoco.MjSpec) -> None:
+    """`PIPE` on MJX: the gripper pulls the pipe's centre (the main tube across under it)."""
+    _mjx_grip(spec, "pipe", (0.0, 0.0, 0.0), snake_params.GRIPPER_RADIUS + PIPE_RADIUS)
+
+
+def _mjx_valve(spec: mujoco.MjSpec) -> None:
+    """`VALVE` on MJX: the gripper's tip pulls the handwheel's hub."""
+    _mjx_grip(spec, "valve", (0.0, 0.0, 0.0), _GRIPPER_HALF + VALVE_HALF[1])
+
+
+def _mjx_door(spec: mujoco.MjSpec) -> None:
+    """`DOOR` on MJX: the gripper's tip pulls the knob's centre."""
+    knob, hinge = _door_layout()
+    _mjx_grip(spec, "door", knob - hinge, _GRIPPER_HALF + KNOB_RADIUS)
 
 
 def door_script(angles=DOOR_ANGLES, t_start: float = 2.0, duration: float = 3.0) -> tuple:
@@ -226,24 +283,31 @@ def _no_mocap(p: Any, dtype: Any) -> tuple[Any, Any]:
 
 
 DOOR = scenarios.Fixture(
-    add=_add_door, bodies=(), pose=_no_mocap, sensors=("door_angle",), actuators=("gripper",), ctrl=_grip
+    add=_add_door, bodies=(), pose=_no_mocap, sensors=("door_angle",), actuators=("gripper",), ctrl=_grip,
+    mjx=_mjx_door,
 )
 PIPE = scenarios.Fixture(
-    add=_add_pipe, bodies=(), pose=_no_mocap, sensors=("pipe_pos",), actuators=("gripper",), ctrl=_grip
+    add=_add_pipe, bodies=(), pose=_no_mocap, sensors=("pipe_pos",), actuators=("gripper",), ctrl=_grip,
+    mjx=_mjx_pipe,
 )
-VALVE = scenarios.Fixture(add=_add_valve, bodies=(), pose=_no_mocap, sensors=("valve_angle",), actuators=("gripper",),
-                   ctrl=_grip)
+VALVE = scenarios.Fixture(
+    add=_add_valve, bodies=(), pose=_no_mocap, sensors=("valve_angle",), actuators=("gripper",), ctrl=_grip,
+    mjx=_mjx_valve,
+)
 
 
 @functools.lru_cache(maxsize=8)
 def operation_scenario(
-    fixture: scenarios.Fixture, horizon: float, prediction: predictive.Prediction | None = None
+    fixture: scenarios.Fixture, horizon: float, prediction: predictive.Prediction | None = None,
+    backend: str = "native",
 ) -> Scenario:
     """The flat-ground snake scenario with an operation's objects and the gripper, the
     tip under the paper's feedforward task-space control (`prediction`: the switching
-    state's modes chosen by look-ahead, `predictive`, instead of the fixed order)."""
+    state's modes chosen by look-ahead, `predictive`, instead of the fixed order); for
+    `backend` "mjx" on the MJX variant (module docstring)."""
     return scenarios.snake_scenario(
-        horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "tip", False, prediction), fixture=fixture
+        horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "tip", False, prediction), fixture=fixture,
+        backend=backend,
     )
 
 

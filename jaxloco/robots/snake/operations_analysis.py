@@ -19,6 +19,9 @@ so every threshold here is ours. Per row:
 Trials: floor friction mu + U(-1, 1) mu_jitter and the robot's start shifted by U(-1,
 1) place_jitter in x and y (where the operator left it in front of the object; both
 ours) from each row's seed.
+
+Simulator (fixed parameter `backend`): native MuJoCo, or MJX on the MJX variant
+(`operations`: the gripper's adhesion a pulling tendon, the ground a plane).
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ DOOR_OPEN_MIN = 1.0  # [rad] success: of the 1.2 rad the operator pulls for, our
 
 PARAMS = snake_params.PARAMETERS.select(
     "operation", "operator_gain", "operator_enter", "operator_exit", "operator_min_switch", "mu", "mu_jitter",
-    "place_jitter", "nthread",
+    "place_jitter", "nthread", "backend",
     operation={"choices": NAMES},
 )
 
@@ -109,7 +112,7 @@ def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) 
             continue
         op = operations.OPERATIONS[name]
         params = trial_params(name, {k: a[rows] for k, a in v.items()}, keys[rows])
-        res = simulator.run(operations.operation_scenario(op.fixture, op.horizon), params)
+        res = simulator.run(operations.operation_scenario(op.fixture, op.horizon, backend=simulator.backend), params)
         m = operations.measure(op, res)
         switching = operations.switching_record(res)
         for key in (*MEASURES, "max_tip_error", "final_tip_error"):

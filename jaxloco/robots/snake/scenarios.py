@@ -408,7 +408,9 @@ class Fixture:
     (k, 3) and quaternions (k, 4) per simulation (free bodies start where `add` put
     them); the MuJoCo sensors `sensors` (added by `add`) are recorded as "fixture" (their
     readings concatenated); the actuators `actuators` (added by `add`, after the robot's)
-    get `ctrl(params, time)` appended to the controller's command."""
+    get `ctrl(params, time)` appended to the controller's command. `mjx(spec)`, if
+    given, changes what `add` added into what MJX can simulate, in the MJX variant
+    (`mjx_variant`, after its own changes), keeping every index."""
 
     add: Callable[[mujoco.MjSpec], None]
     bodies: tuple[str, ...]
@@ -417,16 +419,71 @@ class Fixture:
     # actuators `add` appends after the robot's, and their ctrl (k,) from (params, time [s])
     actuators: tuple[str, ...] = ()
     ctrl: Callable[[Mapping[str, Any], Array], Array] | None = None
+    mjx: Callable[[mujoco.MjSpec], None] | None = None
 
 
-def build_model(fixture: Fixture | None = None) -> tuple[mujoco.MjModel, tr.Terrain]:
+# Collision bits of the MJX variant (`mjx_variant`): a geom's own bit is its contype, the bits of what it touches
+# its conaffinity (MuJoCo collides two geoms when either one's contype meets the other's conaffinity)
+MJX_FLOOR, MJX_WHEEL, MJX_GRIPPER, MJX_OBJECT = 4, 1, 8, 16
+
+
+@functools.cache
+def _robot_geoms() -> tuple[frozenset[str], frozenset[str]]:
+    """(names of the robot's colliding geoms, names of its wheel cylinders) in `models/t2snake3.xml`."""
+    m = snake_model.load_model()
+    colliding = [m.geom(g).name for g in range(m.ngeom) if m.geom_contype[g] == snake_model.ROBOT_CONTYPE]
+    wheels = [n for n in colliding if m.geom_type[m.geom(n).id] == mujoco.mjtGeom.mjGEOM_CYLINDER]
+    return frozenset(colliding), frozenset(wheels)
+
+
+def mjx_variant(spec: mujoco.MjSpec, floor: tuple[str, ...]) -> None:
+    """Turn the scene `spec` (robot, flat ground `floor`: the terrain's geom names, a
+    fixture) into the model MJX can simulate, in place, every index kept. MJX has no
+    cylinder-box collision (`mjx.put_model` refuses the wheels on the ground box), and
+    every geom pair that may collide costs it every step, near or not. So:
+      * the ground box becomes a plane at its top face (z = 0);
+      * only the wheel cylinders collide with it (cylinder-plane), and the gripper
+        capsule with the fixture's objects; the links' boxes and the gripper collide
+        with nothing else (in the snake's analyses only the wheels touch the ground,
+        apart from the tail link in the L-shaped postures, docs/simulation.md);
+      * a fixture's geoms collide with the gripper, and those of a free body (the pipe)
+        with the ground too (`MJX_*` collision bits).
+    Friction, masses, servos and everything else are the native model's."""
+    robot, wheels = _robot_geoms()
+    free = {geom.name for body in spec.bodies for geom in body.geoms
+            if any(j.type == mujoco.mjtJoint.mjJNT_FREE for j in body.joints)}
+    for geom in spec.geoms:
+        if geom.name in floor:
+            half = list(geom.size)
+            geom.type = mujoco.mjtGeom.mjGEOM_PLANE
+            geom.size = [half[0], half[1], 0.05]
+            geom.pos = [geom.pos[0], geom.pos[1], geom.pos[2] + half[2]]  # the box's top face
+            geom.contype, geom.conaffinity = MJX_FLOOR, 0
+        elif geom.name in wheels:
+            geom.contype, geom.conaffinity = MJX_WHEEL, MJX_FLOOR
+        elif geom.name == "gripper":
+            geom.contype, geom.conaffinity = MJX_GRIPPER, MJX_OBJECT
+        elif geom.name in robot:
+            geom.contype, geom.conaffinity = 0, 0
+        elif geom.contype or geom.conaffinity:  # a fixture's object
+            geom.contype, geom.conaffinity = MJX_OBJECT, MJX_FLOOR if geom.name in free else 0
+
+
+def build_model(fixture: Fixture | None = None, backend: str = "native") -> tuple[mujoco.MjModel, tr.Terrain]:
     """The robot (`models/t2snake3.xml`) on flat ground (top face z = 0), with the
-    fixture's bodies if given."""
+    fixture's bodies if given; for `backend` "mjx" its MJX variant (`mjx_variant`, then
+    the fixture's `mjx`), with the same indices."""
+    if backend not in ("native", "mjx"):
+        raise ValueError(f"backend: expected 'native' or 'mjx', got {backend!r}")
     spec = snake_model.load_spec()
     terrain = tr.flat(half_extent=10.0, half_depth=0.5)
     terrain.add_to(spec, friction=(PARAM_DEFAULTS["mu"], 0.005, 0.0001))
     if fixture is not None:
         fixture.add(spec)
+    if backend == "mjx":
+        mjx_variant(spec, tuple(terrain.body_names()))
+        if fixture is not None and fixture.mjx is not None:
+            fixture.mjx(spec)
     return spec.compile(), terrain
 
 
@@ -437,14 +494,16 @@ def snake_scenario(
     phi0: np.ndarray | None = None,
     record_every: int = 1,
     fixture: Fixture | None = None,
+    backend: str = "native",
 ) -> Scenario:
     """T² Snake-3 on flat ground for `horizon_s` seconds at the control period
     `control_dt` [s] (a multiple of the 2 ms physics step), recording every
     `record_every` control periods, driven by `controller` (default
     `constant_controller(phi0)`), starting in the posture phi0 (12,) (default
     params.INITIAL_PHI, Sec. V-A; a params entry "phi0" (12,) per simulation replaces
-    it) with the wheels of params["mode"] lifted; `fixture`: bodies beside the ground."""
-    m, terrain = build_model(fixture)
+    it) with the wheels of params["mode"] lifted; `fixture`: bodies beside the ground;
+    `backend` "mjx": on the MJX variant of the model (`build_model`)."""
+    m, terrain = build_model(fixture, backend)
     phi0 = np.asarray(snake_params.INITIAL_PHI if phi0 is None else phi0, float)
     controller = controller or constant_controller(phi0)
     if fixture is not None and fixture.actuators:
@@ -455,7 +514,7 @@ def snake_scenario(
     horizon -= horizon % record_every
     rows = tr.mocap_ids(m, terrain)
     ground = np.array([m.geom(n).id for n in terrain.body_names()])
-    robot = np.array([g for g in range(m.ngeom) if m.geom_contype[g] == snake_model.ROBOT_CONTYPE])
+    robot = np.array(sorted(m.geom(n).id for n in _robot_geoms()[0]))
     lay = _layout()  # of the robot-only model: the ground (a mocap body) adds no joints
     assert all(m.joint(n).qposadr[0] == a for n, a in zip(snake_params.JOINT_NAMES, lay["joint_qpos"], strict=True))
     assert all(m.actuator(n).id == a for n, a in zip(snake_params.JOINT_NAMES, _actuator_ids()[0], strict=True))
@@ -542,7 +601,7 @@ def snake_scenario(
         }
 
     return Scenario(
-        name="snake.flat",
+        name="snake.flat" if backend == "native" else "snake.flat_mjx",
         model=m,
         controller=controller,
         initial_state=initial_state,

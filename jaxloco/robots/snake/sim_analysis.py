@@ -1,9 +1,9 @@
 """`snake.reach`: T² Snake-3's gripper tip reaching a displaced target under the
 task-space controller with feedback of the measured tip pose (Eqs. 12-15; `sim_control`,
 `feedback=True`), simulated in MuJoCo, against the task gain K of Eq. 13 (`gain_k`, 1/s)
-and k_eta; a sweep analysis on the native backend (executor "host": `mujoco.batch` on
-every core) and the experiment that the MJX tuning objective `snake.reach_gain`
-(`mjx_tuning`) differentiates.
+and k_eta; a sweep analysis on native MuJoCo (`mujoco.batch` on every core) or MJX
+(fixed parameter `backend`), and the experiment that the MJX tuning objective
+`snake.reach_gain` (`mjx_tuning`) differentiates.
 
 The experiment ("reach"; a short version of the paper's Table III displacement runs,
 Sec. V-A, with the gripper tip controlled instead of the head):
@@ -37,7 +37,8 @@ simulate (`build_model`): MJX has no cylinder-box collision, so the ground is a 
 z = 0 and only the wheel cylinders collide with it (the link boxes and the gripper stay
 above the ground in this experiment: the base links' boxes are 1 cm above it, the head
 part is raised; the two grounds' losses agree to 1e-5, e.g. 0.709427 and 0.709429 at K = 1 /s).
-Same robot, masses, servos and friction otherwise.
+Same robot, masses, servos and friction otherwise. On the mjx backend the reach always
+runs on "plane" (whichever `ground`): MJX's model of the box ground.
 """
 
 from __future__ import annotations
@@ -54,9 +55,8 @@ import numpy as np
 from jaxloco.analysis import Analysis, Metric, Simulation, Summary
 from jaxloco.errors import SpecError
 from jaxloco.robots.snake import kinsim, scenarios, sim_control, trials
-from jaxloco.robots.snake import model as snake_model
 from jaxloco.robots.snake import params as snake_params
-from jaxloco.sim import terrain as tr
+from jaxloco.sim.backend import resolve
 from jaxloco.sim.rollout import RolloutResult
 from jaxloco.sim.scenario import Controller, InitialState, Scenario
 
@@ -71,7 +71,7 @@ DELTA_POS = ("d_x", "d_y", "d_z")
 
 PARAMS = snake_params.PARAMETERS.select(
     "gain_k", "k_eta", "d_x", "d_y", "d_z", "t_start", "ramp", "settle_tol", "w_effort", "horizon", "settle",
-    "ground", "nthread",
+    "ground", "nthread", "backend",
     # a MuJoCo reach: smaller gains and horizons than the kinematic snake.kv's
     k_eta={"hi": 10.0},
     horizon={"default": 3.0, "doc": "simulated time of the reach (after the settling)", "hi": 60.0},
@@ -99,26 +99,12 @@ STATUSES = ("ok", "fell", "diverged")
 # ------------------------------------------------------------------------------ model
 def build_model(ground: str = "box") -> mujoco.MjModel:
     """The robot on flat ground (top face z = 0), geoms numbered as in
-    `scenarios.build_model`: "box" is that model; "plane" replaces the ground box by a
-    plane (in the same mocap body, 0.5 m above its origin, so that the scenario's
-    placement puts it at z = 0) and turns off the ground collisions of every robot geom
-    but the wheel cylinders (module docstring)."""
+    `scenarios.build_model`: "box" is that model; "plane" is its MJX variant
+    (`scenarios.mjx_variant`: the ground box a plane at z = 0, and only the wheel
+    cylinders collide with it; module docstring)."""
     if ground not in GROUNDS:
         raise SpecError(f"ground: {ground!r} is not one of {', '.join(GROUNDS)}")
-    if ground == "box":
-        return scenarios.build_model()[0]
-    spec = snake_model.load_spec()
-    terrain = tr.flat(half_extent=10.0, half_depth=0.5)
-    terrain.add_to(spec, friction=(scenarios.PARAM_DEFAULTS["mu"], 0.005, 0.0001))
-    names = set(terrain.body_names())
-    for geom in spec.geoms:
-        if geom.name in names:
-            geom.type = mujoco.mjtGeom.mjGEOM_PLANE
-            geom.size = [10.0, 10.0, 0.05]
-            geom.pos = [0.0, 0.0, 0.5]  # the body sits half_depth below the top face
-        elif geom.type != mujoco.mjtGeom.mjGEOM_CYLINDER:
-            geom.contype, geom.conaffinity = 0, 0
-    return spec.compile()
+    return scenarios.build_model(backend="native" if ground == "box" else "mjx")[0]
 
 
 @functools.lru_cache(maxsize=8)
@@ -258,7 +244,9 @@ def metrics(values: Mapping[str, Any], result: RolloutResult) -> dict[str, np.nd
 
 
 def _reach_scenario(plain: Mapping[str, Any]) -> Scenario:
-    return reach_scenario(str(plain["ground"]), float(plain["horizon"]), float(plain["settle"]))
+    """The reach of a sweep; on MJX on "plane" (its model of either ground: module docstring)."""
+    ground = "plane" if resolve(str(plain["backend"])) == "mjx" else str(plain["ground"])
+    return reach_scenario(ground, float(plain["horizon"]), float(plain["settle"]))
 
 
 def summarize(table) -> Summary:
@@ -282,9 +270,10 @@ def summarize(table) -> Summary:
         ))
     ground = str(cols["ground"][0]) if "ground" in cols and n else "box"
     horizon = float(cols["horizon"][0]) if "horizon" in cols and n else float("nan")
+    on_mjx = "backend" in cols and n and str(cols["backend"][0]) == "mjx"
+    simulator = "MJX, plane ground" if on_mjx else f"native MuJoCo, {ground} ground"
     return Summary(
-        title=f"T² Snake-3 gripper-tip reach, feedback task-space control (native MuJoCo, {ground} ground, "
-              f"{horizon:g} s)",
+        title=f"T² Snake-3 gripper-tip reach, feedback task-space control ({simulator}, {horizon:g} s)",
         columns=("target dx,dy,dz [mm]", "K [1/s]", "k_eta", "final [mm]", "max [mm]", "rms [mm]", "settle [s]",
                  "overshoot %", "loss", "status"),
         rows=tuple(rows),
@@ -299,7 +288,7 @@ def summarize(table) -> Summary:
 
 REACH = Analysis(
     name="snake.reach",
-    doc="T² Snake-3 gripper tip reaching a displaced target under feedback task-space control (native MuJoCo): "
+    doc="T² Snake-3 gripper tip reaching a displaced target under feedback task-space control (MuJoCo or MJX): "
     "tip errors, settle time and overshoot against the task gain K.",
     params=PARAMS,
     metrics=METRICS,

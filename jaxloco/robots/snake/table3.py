@@ -22,6 +22,9 @@ the floor friction mu + U(-1, 1) mu_jitter and the initial heading U(-1, 1)
 heading_jitter (defaults 0.1 and 0.05 rad, ours). `jaxloco sweep snake_table3` runs the
 six targets x 5 seeds; the summary prints mean +- SD over the trials of every component
 with the paper's mean +- SD beside.
+
+Simulator (fixed parameter `backend`): native MuJoCo, or MJX on the MJX variant of the
+model (`scenarios.mjx_variant`: a ground plane that only the wheels touch).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ import numpy as np
 from jaxloco.analysis import Analysis, Metric, Simulation, Summary
 from jaxloco.robots.snake import experiments, scenarios, sim_control, trials
 from jaxloco.robots.snake import params as snake_params
+from jaxloco.sim.backend import resolve
 from jaxloco.sim.rollout import RolloutResult
 from jaxloco.sim.scenario import Scenario
 
@@ -45,6 +49,7 @@ CONTROL_DT = 0.02  # [s]
 
 PARAMS = snake_params.PARAMETERS.select(
     "target", "mu", "mu_jitter", "heading_jitter", "head_kp", "head_kv", "ramp", "feedback", "settle", "nthread",
+    "backend",
     target={"choices": TARGETS},
     # here an int of the host analysis (0/1), not snake.kv's traced bool
     feedback={"default": 0, "doc": "0: the paper's feedforward control (Sec. IV-C2); 1: the simulated head pose "
@@ -63,12 +68,13 @@ STATUSES = trials.STATUSES
 
 
 @functools.lru_cache(maxsize=4)
-def table3_scenario(ramp: float, settle: float, feedback: bool) -> Scenario:
+def table3_scenario(ramp: float, settle: float, feedback: bool, backend: str = "native") -> Scenario:
     """The flat-ground snake scenario driven by the task-space controller on the head
-    (`sim_control.task_space_controller`), long enough for t_e + 5 after `settle`."""
+    (`sim_control.task_space_controller`), long enough for t_e + 5 after `settle`; for
+    `backend` "mjx" on the model's MJX variant."""
     horizon = settle + experiments.T_START + ramp + 5.0 + 0.1
     return scenarios.snake_scenario(
-        horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "head", feedback)
+        horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "head", feedback), backend=backend
     )
 
 
@@ -82,7 +88,8 @@ def target_deltas(targets: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def _scenario(plain: Mapping[str, Any]) -> Scenario:
-    return table3_scenario(float(plain["ramp"]), float(plain["settle"]), bool(plain["feedback"]))
+    return table3_scenario(float(plain["ramp"]), float(plain["settle"]), bool(plain["feedback"]),
+                          resolve(str(plain["backend"])))
 
 
 def params(values: Mapping[str, Any], keys: np.ndarray) -> dict[str, Any]:
