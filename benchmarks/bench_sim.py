@@ -66,8 +66,17 @@ def leggrope_walk(horizon_s: float, backend: str):
     return scenarios.make_scenario(horizon_s=horizon_s, record_every=5), scenarios.params_batch
 
 
+def octopus_climb(horizon_s: float, backend: str):
+    """The OCTOPUS CLM getting over the 400 mm step (`octopus.step_climb`'s scenario, the
+    same model on both backends), the paper's perturbed starts (`paper_analysis.perturbations`)."""
+    from jaxloco.robots.octopus import paper_analysis, scenarios, sim_analysis
+
+    scenario = sim_analysis.scenario({"kind": "step1", "controller": "clm", "horizon": horizon_s})
+    return scenario, lambda n: scenarios.params_batch(n, **paper_analysis.perturbations(n))
+
+
 # robot -> builder(horizon [s], backend) -> (scenario, params(n) -> a batch of n param sets)
-ROBOTS = {"leggrope": leggrope_walk}
+ROBOTS = {"leggrope": leggrope_walk, "octopus": octopus_climb}
 
 
 def robot_rows(name: str, horizon_s: float, batches: list[int], mjx_batches: list[int], nthread: int) -> None:
