@@ -79,8 +79,17 @@ def snake_reach(horizon_s: float, backend: str):
     return scenario, lambda n: sim_analysis.reach_params(n, gain_k=np.linspace(0.5, 2.0, n))
 
 
+def octopus_climb(horizon_s: float, backend: str):
+    """The OCTOPUS CLM getting over the 400 mm step (`octopus.step_climb`'s scenario, the
+    same model on both backends), the paper's perturbed starts (`paper_analysis.perturbations`)."""
+    from jaxloco.robots.octopus import paper_analysis, scenarios, sim_analysis
+
+    scenario = sim_analysis.scenario({"kind": "step1", "controller": "clm", "horizon": horizon_s})
+    return scenario, lambda n: scenarios.params_batch(n, **paper_analysis.perturbations(n))
+
+
 # robot -> builder(horizon [s], backend) -> (scenario, params(n) -> a batch of n param sets)
-ROBOTS = {"leggrope": leggrope_walk, "snake": snake_reach}
+ROBOTS = {"leggrope": leggrope_walk, "snake": snake_reach, "octopus": octopus_climb}
 
 
 def robot_rows(name: str, horizon_s: float, batches: list[int], mjx_batches: list[int], nthread: int) -> None:

@@ -10,5 +10,6 @@ exploration, Cases 1-3 and Eqs. 7-9; COG height and travelled distance, Eqs. 10-
 `scenarios` (steps, terraces, block and pit in MuJoCo), `analysis`
 (`octopus.terrain_classification`), `sim_analysis` (`octopus.step_climb`),
 `paper_analysis` (`octopus.paper`: the paper's experiments), `tuning` (the
-`octopus.sigma` objective), `plots`, `entries` (its registry entries).
+`octopus.sigma` objective), `mjx_tuning` (the `octopus.climb_lift` objective: Delta_E
+through an MJX rollout of the CLIMB), `plots`, `entries` (its registry entries).
 """

@@ -14,6 +14,7 @@ ANALYSES: dict[str, str] = {
 # tune objectives (jaxloco.tune.Objective)
 OBJECTIVES: dict[str, str] = {
     "octopus.sigma": "jaxloco.robots.octopus.tuning:SIGMA_TUNE",
+    "octopus.climb_lift": "jaxloco.robots.octopus.mjx_tuning:CLIMB_LIFT_TUNE",
 }
 
 # replays of a table row (jaxloco.render.replay): row -> Replay; other simulated analyses get the generic one

@@ -194,6 +194,8 @@ PARAMETERS = ParamTable("octopus", (
           "EPRAs Delta_E l1 per period); default ours", "rad/period", lo=0.0005, hi=0.05),
     Param("delta_f", 0.01, "CLM: Delta_F, flipper step of the climb / release; default ours",
           "rad/period", lo=0.001, hi=0.1),
+    Param("lift_speed", 0.1, "octopus.climb_lift: the body's rise per second wanted in the CLIMB (the COG's); "
+          "default (ours), the paper gives none", "m/s", lo=0.01, hi=0.3),
     Param("clm_speed", 0.03, "CLM: crawler speed (default ours; the crawlers reach 63 mm/s, Table 3)",
           "m/s", lo=0.005, hi=0.063),
     Param("climb_paper", 0.0, "CLM climb: 1 = the paper's Eqs. 28-29 (booms and front flippers "
