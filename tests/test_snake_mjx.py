@@ -57,7 +57,8 @@ def _variants():
 
 def test_mjx_cannot_simulate_the_native_model():
     """Why the variant: the wheels on the ground box (and the gripper's adhesion)."""
-    with pytest.raises(NotImplementedError, match=r"\(mjtGeom.mjGEOM_CYLINDER, mjtGeom.mjGEOM_BOX\) collisions not implemented"):
+    unsupported = r"\(mjtGeom.mjGEOM_CYLINDER, mjtGeom.mjGEOM_BOX\) collisions not implemented"
+    with pytest.raises(NotImplementedError, match=unsupported):
         mjx.put_model(scenarios.build_model()[0])
     with pytest.raises(NotImplementedError, match="mjTRN_BODY"):
         m = scenarios.build_model(operations.PIPE)[0]
