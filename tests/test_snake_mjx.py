@@ -111,14 +111,14 @@ def sweeps(tmp_path_factory):
 
 def test_the_contact_sweep_runs_on_mjx_and_agrees_with_native_mujoco(sweeps):
     """The same spec on both simulators: the table records which ran; the forces agree
-    within the variant's tolerance (docs/simulation.md: 2 %, 0.3 N), the tilt within
-    1 mrad."""
+    within the tolerance of docs/simulation.md (1 %, at least 0.1 N; measured: 0.02 N), the
+    tilt within 0.1 mrad."""
     cols = {b: r.table.to_pydict() for b, r in sweeps.items()}
     assert cols["native"]["backend"] == ["native"] and cols["mjx"]["backend"] == ["mjx"]
     assert cols["mjx"]["status"] == ["ok"] == cols["native"]["status"]
     for f in ("fx", "fy", "fz"):
         native, on_mjx = cols["native"][f][0], cols["mjx"][f][0]
         assert native > 5.0, (f, native)  # a real push
-        assert on_mjx == pytest.approx(native, rel=0.02, abs=0.3), f
-    assert cols["mjx"]["max_tilt"][0] == pytest.approx(cols["native"]["max_tilt"][0], abs=1e-3)
+        assert on_mjx == pytest.approx(native, rel=0.01, abs=0.1), f
+    assert cols["mjx"]["max_tilt"][0] == pytest.approx(cols["native"]["max_tilt"][0], abs=1e-4)
     assert ("ii", RAMP, HOLD, SETTLE, "mjx") in contact._SETTLED  # the plate placed from an MJX settling

@@ -57,6 +57,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import jax
@@ -357,8 +358,8 @@ def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) 
     v = {p.name: np.asarray(values[p.name]) for p in PARAMS if p.sweepable}
     postures = v["posture"].astype(str)
     mu, heading = trials.perturbed(v, keys)
-    heads = settled_heads(postures, ramp, hold, settle, Simulator(simulator.backend, simulator.nthread),
-                          batch=3 * n if simulator.backend == "mjx" else 0)
+    settler = replace(simulator, record_state=False, runs=[])  # the same simulator, recording nothing
+    heads = settled_heads(postures, ramp, hold, settle, settler, batch=3 * n if simulator.backend == "mjx" else 0)
     params = push_params(postures, mu, heading, v["overshoot"].astype(float), ramp, settle, heads)
     params["key"] = np.repeat(keys, 3, axis=0)
     res = simulator.run(scenario, params)
