@@ -13,6 +13,7 @@ ANALYSES: dict[str, str] = {
 # tune objectives (jaxloco.tune.Objective)
 OBJECTIVES: dict[str, str] = {
     "titan.stride": "jaxloco.robots.titan.tuning:STRIDE_TUNE",
+    "titan.body_gain": "jaxloco.robots.titan.mjx_tuning:BODY_GAIN_TUNE",
 }
 
 # replays of a table row (jaxloco.render.replay): row -> Replay; other simulated analyses get the generic one

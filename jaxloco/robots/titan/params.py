@@ -168,6 +168,8 @@ PARAMETERS = ParamTable("titan", (
           "soft-min NESM below S_NE^c", "", lo=0.0, hi=1e3),
     Param("n_offsets", 1, "frame-grid phases the loss averages over (1: the sweep row alone; flat ground: 1)",
           "", kind="int", lo=1, hi=16, sweepable=False),
+    Param("horizon", 10.0, "titan.body_gain: simulated time of the MJX rollout (settle_time, then the plan's first "
+          "steps of step_time each)", "s", lo=0.5, hi=40.0),
     # --- the simulated walk (`sim_analysis.py`)
     Param("field", "grid", "terrain: 'grid' (Sec. 7 / 8.4 frame grids, frame_size / frame_interval / slope) or "
           "'long' (the Sec. 8.3 dummy-frame field walk.LONG_FIELD, 0.2 m beams every 1.5 m, walked along +x)",
@@ -182,7 +184,7 @@ PARAMETERS = ParamTable("titan", (
           "stands)", "m", lo=0.0, hi=0.05),
     *simulation_params(),  # backend, nthread
     # --- the footstep executor scenario's params dict (`scenarios.PARAM_DEFAULTS`, one
-    # value per simulation; no analysis sweeps them, so no range is stated)
+    # value per simulation; no analysis sweeps them but body_gain, so no other range is stated)
     Param("theta", 0.0, "scenario: inclination of the terrain plane (the analyses' slope)", "rad"),
     Param("spacing", 2.0, "scenario: frame grid spacing (the analyses' frame_interval)", "m"),
     Param("beam_height", 0.0, "scenario: frame protrusion (0: plain ground)", "m"),
@@ -192,7 +194,9 @@ PARAMETERS = ParamTable("titan", (
     Param("swing_height", SWING_HEIGHT, "scenario: the executor's foot lift above the higher of lift-off and "
           "touchdown, default (ours)", "m"),
     Param("contact_force", 0.05, "scenario: a touch above this fraction of M g is a contact"),
-    Param("body_gain", 3.0, "scenario: integral gain of the body position correction", "1/s"),
+    Param("body_gain", 3.0, "scenario: integral gain of the body position and attitude correction "
+          "(control.executor_step); the loop rings from ~20 /s (gain x control period ~1) and falls over at 50 /s",
+          "1/s", lo=0.0, hi=20.0),
     Param("anchor_feet", 1.0, "scenario: 1 re-references the foot targets to the measured feet at each step "
           "(control.anchor_to_feet)"),
     Param("support_relative", 1.0, "scenario: 1 lets the COG target follow the supporting feet's slip "

@@ -57,6 +57,21 @@ displacement along the path), foot_slip (largest horizontal motion of a supporti
 foot while it stays in contact), fell (tilt > FELL_TILT or body > FELL_DROP below its
 target or diverged), success, status (0 ok, 1 failed).
 
+Backends (`make_scenario(..., backend=)`): "native" runs the model as it is; "mjx" its
+MJX variant (`mjx_variant`). MJX can collide every pair the model has (the pivot towers,
+the only cylinders, are visual; box-box, capsule-box and sphere-box are supported;
+the friction cone is pyramidal and there is no no-slip solver), but MJX has no dynamic
+broad phase: it evaluates every robot-terrain pair at every step, and on the analysis'
+grid field (29 boxes) the trunk, eight leg links and four feet give 696 potential
+contacts (2,796 constraint rows), about 3x slower per step than the feet alone and
+slower still to compile. The variant keeps the feet only (116 sphere-box pairs there)
+and MJX's `max_contact_points` keeps the MJX_MAX_CONTACTS deepest of them in the solver.
+On the native backend the trunk and the links touch the terrain only when a walk has
+already failed (a swinging leg hitting a frame: `swing_collision`, measured from the
+geometry on both backends; or a fall); on MJX they pass through it, so rows that fail
+that way may go on differently after the contact. Walks that do not fail agree closely
+(`docs/simulation.md`).
+
 `demo_crawl_plan` is a hand-made STANDARD intermittent crawl gait for tests and demos
 (flat ground or a plain slope, no terrain adaptation): it is NOT the paper's planner
 (`gait.py`).
@@ -79,6 +94,7 @@ from jaxloco.robots.titan import model as titan_model
 from jaxloco.robots.titan import params as titan_params
 from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
+from jaxloco.sim.backend import BACKENDS
 from jaxloco.sim.data import SimData, sensor_slice
 from jaxloco.sim.scenario import InitialState, Scenario, friction_field
 from jaxloco.sim.scenario import params_batch as sim_params_batch
@@ -91,6 +107,9 @@ N_SAMPLES = 16  # points per leg link for the clearance
 FELL_TILT = 0.3  # [rad]
 FELL_DROP = 0.5  # [m]
 STATUSES = ("ok", "failed")
+# the MJX variant (`mjx_variant`): the robot's geoms that collide on the native backend only
+ROBOT_LINK_GEOMS = ("trunk", *(f"{leg}_{link}" for leg in kinematics.LEG_NAMES for link in ("thigh", "shank")))
+MJX_MAX_CONTACTS = 12  # 4 feet x (the plane and the two beams of a crossing)
 
 # one value per simulation (`titan_params.PARAMETERS`); "direction" here is the slope's
 # uphill azimuth, not the analyses' walking direction (whose default is also 0)
@@ -257,10 +276,24 @@ class FrameField(NamedTuple):
     half_width: float = HALF_EXTENT
 
 
+def mjx_variant(spec: mujoco.MjSpec) -> None:
+    """Make `spec` (the robot on its terrain) the MJX variant, in place: only the feet
+    collide (the trunk's and leg links' contype and conaffinity set to 0) and MJX keeps
+    the MJX_MAX_CONTACTS deepest contacts (its `max_contact_points`; MuJoCo's C engine
+    ignores it). See the module docstring, "Backends"."""
+    for geom in spec.geoms:
+        if geom.name in ROBOT_LINK_GEOMS:
+            geom.contype, geom.conaffinity = 0, 0
+    spec.add_numeric(name="max_contact_points", data=[float(MJX_MAX_CONTACTS)])
+
+
 def build_model(
-    beam_width: float = float(titan_params.FRAME_SMALL), field: FrameField = FrameField()
+    beam_width: float = float(titan_params.FRAME_SMALL), field: FrameField = FrameField(), backend: str = "native"
 ) -> tuple[mujoco.MjModel, tr.Terrain]:
-    """The robot (`models/titan_xi.xml`) on the frames-on-a-plane terrain `field`."""
+    """The robot (`models/titan_xi.xml`) on the frames-on-a-plane terrain `field`; backend
+    "mjx": its MJX variant (`mjx_variant`)."""
+    if backend not in BACKENDS:
+        raise ValueError(f"backend: expected one of {', '.join(BACKENDS)}, got {backend!r}")
     spec = titan_model.load_spec()
     terrain = tr.frames_on_slope(
         nx=field.n_along,
@@ -272,6 +305,8 @@ def build_model(
         half_width=field.half_width,
     )
     terrain.add_to(spec, friction=(PARAM_DEFAULTS["mu"], 0.005, 0.0001))
+    if backend == "mjx":
+        mjx_variant(spec)
     return spec.compile(), terrain
 
 
@@ -486,11 +521,13 @@ def make_scenario(
     step_time: float = PARAM_DEFAULTS["step_time"],
     settle_time: float = PARAM_DEFAULTS["settle_time"],
     field: FrameField = FrameField(),
+    backend: str = "native",
 ) -> Scenario:
     """The footstep executor (`control.py`) for plans of `n_steps` steps on the beams
-    `field`. horizon_s default: the plan at (step_time, settle_time) plus 1 s (the params
-    may change the timing, not the horizon)."""
-    m, terrain = build_model(beam_width, field)
+    `field`, for `backend` ("native" or "mjx": the model's MJX variant, `mjx_variant`).
+    horizon_s default: the plan at (step_time, settle_time) plus 1 s (the params may
+    change the timing, not the horizon)."""
+    m, terrain = build_model(beam_width, field, backend)
     lay = model_layout(m, terrain, n_steps)
     if horizon_s is None:
         horizon_s = settle_time + n_steps * step_time + 1.0

@@ -56,12 +56,14 @@ JITTER_SALT = 0x717A  # the start jitter's draws differ from the survey noise's
 # what the simulated terrain holds (`scenarios.MAX_SPACING`, `MAX_BEAM_HEIGHT`)
 PARAMS = titan_params.PARAMETERS.select(
     "field", "map", "survey_noise", "frame_size", "frame_interval", "slope", "direction", "tether", "mu",
-    "start_jitter", "nesm_tol", "n_cycles", "nthread",
+    "start_jitter", "nesm_tol", "body_gain", "n_cycles", "backend", "nthread",
     frame_size={"doc": "beam section (width = height); 0 = flat ground"},
     frame_interval={"doc": "grid field: beam spacing (long field: 1.5 m)", "hi": 3.0},
     slope={"doc": "slope of the terrain plane (Sec. 8.4: 30 deg, 0.2 m frames every 1.5 m)", "hi": 0.6},
     direction={"doc": "grid field: map-frame walking direction (0 = +x, up the fall line on a slope)"},
     n_cycles={"doc": "gait cycles per walk (6 steps, 18 s each); the long field needs ~52 to cross it", "hi": 80},
+    body_gain={"doc": "the footstep executor's integral gain of the body position and attitude correction "
+               "(control.executor_step; the titan.body_gain objective tunes it)"},
 )
 
 METRICS = (
@@ -126,8 +128,10 @@ def grid_shape(n_cycles: int) -> tuple[int, int]:
 
 
 @lru_cache(maxsize=8)
-def _scenario(n_steps: int, beam_width: float, field: scenarios.FrameField):
-    return scenarios.make_scenario(n_steps, beam_width=beam_width, field=field, record_every=5)
+def walk_scenario(n_steps: int, beam_width: float, field: scenarios.FrameField, backend: str = "native"):
+    """The executor scenario of a group of rows (one per terrain structure and backend;
+    kept, so that its compiled rollout serves every chunk and replay)."""
+    return scenarios.make_scenario(n_steps, beam_width=beam_width, field=field, record_every=5, backend=backend)
 
 
 def row_terrain(v: Mapping[str, Any]) -> tuple[scenarios.FrameField, float, float]:
@@ -199,11 +203,11 @@ def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) 
             continue  # status 7, metrics nan
         groups.setdefault(row_terrain(v), []).append((i, v, planned))
     for (field, _spacing, width), group in groups.items():
-        sc = _scenario(6 * n_cycles, width, field)
+        sc = walk_scenario(6 * n_cycles, width, field, simulator.backend)
         plans = [g[2][0] for g in group]
         scal = [g[2][2] for g in group]
         over = {k: np.array([s[k] for s in scal]) for k in scal[0]}
-        for k in ("mu", "nesm_tol"):
+        for k in ("mu", "nesm_tol", "body_gain"):
             over[k] = np.array([float(g[1][k]) for g in group])
         res = simulator.run(sc, scenarios.params_batch(plans, **over))
         for j, (i, _v, (_plan, gait, _s)) in enumerate(group):
