@@ -91,7 +91,7 @@ def test_every_analysis_has_an_mjx_variant_with_the_native_layout():
         assert m.opt.noslip_iterations == 0 and m.opt.cone == native.opt.cone
     grip = operations.operation_scenario(operations.PIPE, 0.1, backend="mjx").model.actuator("gripper")
     assert grip.trntype[0] == 3 and grip.gear[0] == -1.0  # mjTRN_TENDON, pulling
-    assert grip.gainprm[0] == operations.GRIP_FORCE
+    assert list(grip.forcerange) == [0.0, operations.GRIP_FORCE] and grip.gainprm[1] > 0  # a spring, capped
 
 
 # --------------------------------------------------------------- the contact sweep
