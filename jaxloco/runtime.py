@@ -1,11 +1,13 @@
 """Process-level JAX settings that an application (CLI, tests, notebooks) opts into.
 
 Nothing in the kernels calls this: precision and caching are chosen by the caller,
-once, before the first computation. `configure()` is idempotent.
+once, before the first computation. `configure()` is idempotent. `single_thread_lapack()`
+is for forward-mode MJX gradients on CPU (the robots' `mjx_tuning` objectives call it).
 """
 
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -79,3 +81,32 @@ def current_settings() -> RuntimeSettings:
 
     cache = jax.config.jax_compilation_cache_dir
     return RuntimeSettings(x64=bool(jax.config.jax_enable_x64), cache_dir=Path(cache) if cache else None)
+
+
+@functools.cache
+def single_thread_lapack() -> bool:
+    """Run the LAPACK calls of JAX on CPU (scipy's OpenBLAS) on one thread, unless
+    OPENBLAS_NUM_THREADS is set; True if it did. MJX's tangent dynamics call small
+    Cholesky and triangular solves every physics step, and OpenBLAS's worker threads
+    spin-wait for a core: on 2 busy cores a forward-mode rollout ran 2x (load 3) to
+    ~50x (load 8) slower with them. Process-wide; without scipy's OpenBLAS, nothing."""
+    import ctypes
+    import glob
+    import os
+
+    if "OPENBLAS_NUM_THREADS" in os.environ:
+        return False
+    try:
+        import scipy.linalg.cython_lapack  # loads the library that JAX calls
+    except ImportError:
+        return False
+    import scipy
+
+    for path in sorted(glob.glob(os.path.join(os.path.dirname(scipy.__file__) + ".libs", "libscipy_openblas*"))):
+        try:
+            lib = ctypes.CDLL(path)
+            lib.scipy_openblas_set_num_threads(ctypes.c_int(1))
+            return True
+        except (OSError, AttributeError):
+            continue
+    return False

@@ -42,6 +42,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
+from jaxloco import runtime
 from jaxloco.analysis import Param
 from jaxloco.robots.leggrope import scenarios, sim_analysis
 from jaxloco.robots.leggrope.params import PARAMETERS
@@ -102,10 +103,9 @@ def friction_use(records: Mapping[str, Any], mu: Any, times: Any, t_settle: floa
 def make_loss(settings: Mapping[str, Any]):
     """`Objective.make_loss`: loss_fn(values) -> (loss, metrics) of one MJX rollout;
     the loss is nan when the simulation diverged (the runner then stops)."""
-    from jaxloco.robots.snake.mjx_tuning import single_thread_lapack
 
     horizon, t_settle = float(settings["horizon"]), float(settings["t_settle"])
-    single_thread_lapack()
+    runtime.single_thread_lapack()
     sc, run = _rollout(horizon)
     times = jnp.arange(sc.n_records) * (sc.record_every * sc.control_dt)
     base = scenarios.params_batch(1, **{k: settings[k] for k in ("theta", "psi", "mu", "r_ref_factor")})

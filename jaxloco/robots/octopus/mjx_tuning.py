@@ -44,10 +44,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxloco import runtime
 from jaxloco.errors import SpecError
 from jaxloco.robots.octopus import clm, operator, scenarios
 from jaxloco.robots.octopus.params import PARAMETERS
-from jaxloco.robots.snake.mjx_tuning import single_thread_lapack
 from jaxloco.sim.scenario import Controller, InitialState, Scenario
 from jaxloco.tune.objective import Objective
 
@@ -175,7 +175,7 @@ def make_loss(settings: Mapping[str, Any]):
     """`Objective.make_loss`: loss_fn(values) -> (loss, metrics) of one MJX rollout of the
     CLIMB; the loss is nan when the simulation diverged (the runner then stops)."""
     height, horizon = float(settings["height"]), float(settings["horizon"])
-    single_thread_lapack()
+    runtime.single_thread_lapack()
     run = _rollout_fn(height, horizon)
     dt = climb_scenario(height, horizon).control_dt
     base = params(1, height)

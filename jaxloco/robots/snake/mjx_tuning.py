@@ -41,6 +41,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
+from jaxloco import runtime
 from jaxloco.robots.snake import params as snake_params
 from jaxloco.robots.snake import sim_analysis
 from jaxloco.tune.objective import Objective
@@ -71,35 +72,6 @@ AUX = ("rms_error", "final_error", "max_error", "effort")
 PAPER = {t.name: t.default for t in TUNABLES}  # K = 1 /s (ControlParams' default), k_eta = 0.1
 
 
-@functools.cache
-def single_thread_lapack() -> bool:
-    """Run the LAPACK calls of JAX on CPU (scipy's OpenBLAS) on one thread, unless
-    OPENBLAS_NUM_THREADS is set; True if it did. MJX's tangent dynamics call small
-    Cholesky and triangular solves every physics step, and OpenBLAS's worker threads
-    spin-wait for a core: on 2 busy cores a forward-mode rollout ran 2x (load 3) to
-    ~50x (load 8) slower with them. Process-wide; without scipy's OpenBLAS, nothing."""
-    import ctypes
-    import glob
-    import os
-
-    if "OPENBLAS_NUM_THREADS" in os.environ:
-        return False
-    try:
-        import scipy.linalg.cython_lapack  # loads the library that JAX calls
-    except ImportError:
-        return False
-    import scipy
-
-    for path in sorted(glob.glob(os.path.join(os.path.dirname(scipy.__file__) + ".libs", "libscipy_openblas*"))):
-        try:
-            lib = ctypes.CDLL(path)
-            lib.scipy_openblas_set_num_threads(ctypes.c_int(1))
-            return True
-        except (OSError, AttributeError):
-            continue
-    return False
-
-
 @functools.lru_cache(maxsize=4)
 def _rollout_fn(horizon: float, settle: float):
     from jaxloco.sim import mjx as mjx_backend
@@ -111,7 +83,7 @@ def make_loss(settings: Mapping[str, Any]):
     """`Objective.make_loss`: loss_fn(values) -> (loss, metrics) of one MJX rollout;
     the loss is nan when the simulation diverged (the runner then stops)."""
     horizon, settle = float(settings["horizon"]), float(settings["settle"])
-    single_thread_lapack()
+    runtime.single_thread_lapack()
     run = _rollout_fn(horizon, settle)
     base = sim_analysis.reach_params(1, t_start=settings["t_start"], ramp=settings["ramp"],
                           **{k: settings[k] for k in sim_analysis.DELTA_POS})

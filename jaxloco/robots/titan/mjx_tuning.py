@@ -44,7 +44,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxloco.robots.snake.mjx_tuning import single_thread_lapack
+from jaxloco import runtime
 from jaxloco.robots.titan import control, scenarios
 from jaxloco.robots.titan import params as titan_params
 from jaxloco.tune.objective import Objective
@@ -106,7 +106,7 @@ def loss_params(settings: Mapping[str, Any], n: int = 1, **overrides) -> dict[st
 def make_loss(settings: Mapping[str, Any]):
     """`Objective.make_loss`: loss_fn(values) -> (loss, metrics) of one MJX rollout; the
     loss is nan when the simulation diverged (the runner then stops)."""
-    single_thread_lapack()
+    runtime.single_thread_lapack()
     run = _rollout_fn(float(settings["horizon"]))
     base = {k: np.asarray(v)[0] for k, v in loss_params(settings).items()}
 
