@@ -88,8 +88,24 @@ def octopus_climb(horizon_s: float, backend: str):
     return scenario, lambda n: scenarios.params_batch(n, **paper_analysis.perturbations(n))
 
 
+def titan_walk(horizon_s: float, backend: str):
+    """TITAN XI's `titan.walk` closed loop (the footstep executor and its records) on
+    `backend`'s model (native, or the MJX variant: `scenarios.mjx_variant`): the
+    analysis' default row, one cycle planned on a survey of the Sec. 7 grid (0.2 m frames
+    every 2.0 m, 28 beams), cut to `horizon_s`."""
+    from jaxloco.analysis import get
+    from jaxloco.robots.titan import scenarios, sim_analysis
+
+    values = {**get("titan.walk").defaults(), "n_cycles": 1}
+    plan, _, scalars = sim_analysis.plan_row(values, np.zeros(2, np.uint32), 1)
+    field, _, width = sim_analysis.row_terrain(values)
+    scenario = scenarios.make_scenario(plan.n_steps, horizon_s=horizon_s, beam_width=width, field=field,
+                                       record_every=5, backend=backend)
+    return scenario, lambda n: scenarios.params_batch(plan, n, **scalars)
+
+
 # robot -> builder(horizon [s], backend) -> (scenario, params(n) -> a batch of n param sets)
-ROBOTS = {"leggrope": leggrope_walk, "snake": snake_reach, "octopus": octopus_climb}
+ROBOTS = {"leggrope": leggrope_walk, "snake": snake_reach, "octopus": octopus_climb, "titan": titan_walk}
 
 
 def robot_rows(name: str, horizon_s: float, batches: list[int], mjx_batches: list[int], nthread: int) -> None:

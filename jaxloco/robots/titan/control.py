@@ -72,6 +72,7 @@ class ExecutorState(NamedTuple):
     hold: Array  # (3,) where the swing foot touched down
     corr: Array  # (3,) body position correction
     corr_rot: Array  # (3,) body attitude correction (small world-frame rotation)
+    target: Array  # (3,) the whole-robot COG target for the next control period (the plan's, support_shift added)
 
 
 class StepTargets(NamedTuple):
@@ -145,7 +146,7 @@ def executor_init(p, obs) -> ExecutorState:
     body = p["plan_body0"]
     zero = jnp.zeros(3, feet.dtype)
     return ExecutorState(k=jnp.asarray(-1, jnp.int32), feet=feet, body=body, feet_end=feet, body_end=body,
-                         latched=jnp.asarray(False), hold=zero, corr=zero, corr_rot=zero)
+                         latched=jnp.asarray(False), hold=zero, corr=zero, corr_rot=zero, target=body)
 
 
 def step_targets(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tuple[StepTargets, ExecutorState]:
@@ -371,10 +372,10 @@ def executor_step(p, n_steps: int, weight: float, c: ExecutorState, obs) -> tupl
     gain = jnp.where(running, p["body_gain"] * CONTROL_DT, 0.0)
     corr = jnp.clip(c.corr + gain * err, -MAX_CORR, MAX_CORR)
     rot = jnp.clip(c.corr_rot + gain * attitude_error(R_plan, obs["quat"]), -MAX_CORR_ROT, MAX_CORR_ROT)
-    state = state._replace(corr=corr, corr_rot=rot)
     q0 = leg_targets(p, now.feet, body_for_com(p, now.feet, now.body) + corr, rot)
     later, _ = step_targets(p, n_steps, weight, c, {**obs, "time": obs["time"] + CONTROL_DT})
     later = later._replace(body=later.body + support_shift(p, n_steps, later, obs))
+    state = state._replace(corr=corr, corr_rot=rot, target=later.body)
     q1 = leg_targets(p, later.feet, body_for_com(p, later.feet, later.body) + corr, rot)
     lag = jnp.asarray(SERVO_LAG, q0.dtype)
     q = 0.5 * (q0 + q1) + lag * (q1 - q0) / CONTROL_DT + load_feedforward(p, weight, now, q0, rot)

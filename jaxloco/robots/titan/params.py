@@ -195,7 +195,7 @@ PARAMETERS = ParamTable("titan", (
           "touchdown, default (ours)", "m"),
     Param("contact_force", 0.05, "scenario: a touch above this fraction of M g is a contact"),
     Param("body_gain", 3.0, "scenario: integral gain of the body position and attitude correction "
-          "(control.executor_step); the loop rings from ~20 /s (gain x control period ~1) and falls over at 50 /s",
+          "(control.executor_step); the loop rings from ~25 /s (gain x control period ~1) and falls over at 50 /s",
           "1/s", lo=0.0, hi=20.0),
     Param("anchor_feet", 1.0, "scenario: 1 re-references the foot targets to the measured feet at each step "
           "(control.anchor_to_feet)"),

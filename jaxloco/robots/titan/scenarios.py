@@ -34,7 +34,8 @@ scenario's signals (`Layout`, `observe`, `record`, `summarize`), each a module-l
 function of the model's `Layout`.
 
 Records (every control period): body position and quaternion, rpy, COG (whole-robot
-centre of mass), foot centres and their targets, touch forces and contacts, NESM
+centre of mass) and the executor's target for it (`cog_target`: the plan's, moved with
+the supporting feet, `control.support_shift`), foot centres and their targets, touch forces and contacts, NESM
 (`jaxloco.stability.ne_stability_margin` over the planned support's ground points,
 `up` against gravity plus tether force), step index, swing leg, clearance of each leg to the
 frames (`leg_clearance`: min distance from the leg's thigh, shank and foot to the frame
@@ -59,18 +60,18 @@ target or diverged), success, status (0 ok, 1 failed).
 
 Backends (`make_scenario(..., backend=)`): "native" runs the model as it is; "mjx" its
 MJX variant (`mjx_variant`). MJX can collide every pair the model has (the pivot towers,
-the only cylinders, are visual; box-box, capsule-box and sphere-box are supported;
-the friction cone is pyramidal and there is no no-slip solver), but MJX has no dynamic
-broad phase: it evaluates every robot-terrain pair at every step, and on the analysis'
-grid field (29 boxes) the trunk, eight leg links and four feet give 696 potential
-contacts (2,796 constraint rows), about 3x slower per step than the feet alone and
-slower still to compile. The variant keeps the feet only (116 sphere-box pairs there)
-and MJX's `max_contact_points` keeps the MJX_MAX_CONTACTS deepest of them in the solver.
-On the native backend the trunk and the links touch the terrain only when a walk has
-already failed (a swinging leg hitting a frame: `swing_collision`, measured from the
-geometry on both backends; or a fall); on MJX they pass through it, so rows that fail
-that way may go on differently after the contact. Walks that do not fail agree closely
-(`docs/simulation.md`).
+the only cylinders, are visual; box-box, capsule-box and sphere-box are supported; the
+friction cone is pyramidal and there is no no-slip solver), but it has no dynamic broad
+phase: it evaluates every robot-terrain pair at every step. On the analysis' grid field
+(29 boxes) the trunk, eight leg links and four feet give 696 potential contacts (2,796
+constraint rows): 1.8 ms per MJX physics step at batch 1 on a CPU core, against 0.23 ms
+for the variant (`benchmarks/titan_mjx_agreement.py --physics`). The variant keeps the
+feet only (116 sphere-box pairs there) and MJX's `max_contact_points` keeps the
+MJX_MAX_CONTACTS deepest of them in the solver. On the native backend the trunk and the
+links touch the terrain only when a walk has already failed (a swinging leg hitting a
+frame: `swing_collision`, measured from the geometry on both backends; or a fall); on
+MJX they pass through it, so rows that fail that way may go on differently after the
+contact. Walks that do not fail agree closely (`docs/simulation.md`).
 
 `demo_crawl_plan` is a hand-made STANDARD intermittent crawl gait for tests and demos
 (flat ground or a plain slope, no terrain adaptation): it is NOT the paper's planner
@@ -426,6 +427,7 @@ def record(lay: Layout, p, data: SimData, obs, c: control.ExecutorState, e) -> d
         "feet": feet,
         "feet_target": now.feet,
         "body_target": now.body,
+        "cog_target": c.target,
         "touch": obs["touch"],
         "contact": obs["touch"] > p["contact_force"] * lay.weight,
         "nesm": nesm,

@@ -1,6 +1,8 @@
 """`titan.walk`: TITAN XI's planned walks executed in MuJoCo (Hodoshima et al. 2007, Secs.
-7 and 8.2-8.4) as a sweep analysis on the native backend (executor "host": plans are made
-row by row, each group of rows with the same terrain structure simulates as one batch).
+7 and 8.2-8.4) as a sweep analysis (executor "host": plans are made row by row, each
+group of rows with the same terrain structure simulates as one batch) on native MuJoCo or
+MJX (`backend`, default "auto": native on CPUs; MJX runs the model's MJX variant,
+`scenarios.mjx_variant`, with the same executor code).
 
 The question it answers: planned on a map of the frames (exact, or made from a noisy
 total-station survey, Sec. 8.2.1), does the walk hold up on the true terrain: does the
@@ -20,8 +22,8 @@ One row:
      moved by U(-1, 1) x `start_jitter` in x and y from the row's seed (and onto free
      cells, `walk.clear_start`); grid: along the map-frame `direction`, the walk centred
      on the origin; long: along +x from 5 m before the field;
-  4. execution: the quasi-static footstep executor (`control.py`) in MuJoCo
-     (`scenarios.make_scenario`), friction `mu`.
+  4. execution: the quasi-static footstep executor (`control.py`, integral gain
+     `body_gain`) in MuJoCo (`scenarios.make_scenario`), friction `mu`.
 Frames: the map frame of `maps` (on a slope: x up the fall line, z normal to it); SI, rad.
 
 Success (`success`): every cycle planned, the plan completed in simulation, no fall, the
