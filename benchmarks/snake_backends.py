@@ -10,6 +10,9 @@ table).
 
 Row i has the seed i (the perturbed trials); native runs on one thread. MJX compiles
 each analysis' closed loop first (minutes on 2 cores, then from JAX's persistent cache).
+Keep MJX batches small on CPU (the contact postures two at a time: 6 simulations):
+jaxlib 0.10.2's batched LAPACK kernels can deadlock XLA's CPU thread pool when several
+run at once, and 30 simulations hung on 2 cores.
 """
 
 from __future__ import annotations

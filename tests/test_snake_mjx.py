@@ -16,10 +16,11 @@ from __future__ import annotations
 import contextlib
 import io
 
+import mujoco
 import numpy as np
 import pytest
 
-from jaxloco.robots.snake import contact, operations, scenarios, sim_analysis, table3
+from jaxloco.robots.snake import contact, operations, params, scenarios, sim_analysis, table3
 from jaxloco.sweep import run as run_sweep
 
 with contextlib.redirect_stdout(io.StringIO()):  # mujoco.mjx prints "Failed to import warp" without NVIDIA Warp
@@ -57,8 +58,8 @@ def _variants():
 
 def test_mjx_cannot_simulate_the_native_model():
     """Why the variant: the wheels on the ground box (and the gripper's adhesion)."""
-    unsupported = r"\(mjtGeom.mjGEOM_CYLINDER, mjtGeom.mjGEOM_BOX\) collisions not implemented"
-    with pytest.raises(NotImplementedError, match=unsupported):
+    cylinder_box = r"\(mjtGeom.mjGEOM_CYLINDER, mjtGeom.mjGEOM_BOX\) collisions not implemented"
+    with pytest.raises(NotImplementedError, match=cylinder_box):
         mjx.put_model(scenarios.build_model()[0])
     with pytest.raises(NotImplementedError, match="mjTRN_BODY"):
         m = scenarios.build_model(operations.PIPE)[0]
@@ -89,9 +90,16 @@ def test_every_analysis_has_an_mjx_variant_with_the_native_layout():
         for field in ("actuator_gainprm", "actuator_biasprm", "actuator_trnid", "actuator_ctrlrange"):
             np.testing.assert_array_equal(getattr(m, field)[robot], getattr(native, field)[robot], err_msg=name)
         assert m.opt.noslip_iterations == 0 and m.opt.cone == native.opt.cone
+    # the grip (operations._mjx_grip): a tendon pulled with GRIP_FORCE up to GRIP_REACH beyond touching, 0 from
+    # GRIP_RELEASE further on (the actuator's length is minus the tendon's)
     grip = operations.operation_scenario(operations.PIPE, 0.1, backend="mjx").model.actuator("gripper")
-    assert grip.trntype[0] == 3 and grip.gear[0] == -1.0  # mjTRN_TENDON, pulling
-    assert list(grip.forcerange) == [0.0, operations.GRIP_FORCE] and grip.gainprm[1] > 0  # a spring, capped
+    assert grip.trntype[0] == mujoco.mjtTrn.mjTRN_TENDON and grip.gear[0] == -1.0
+    assert grip.gaintype[0] == mujoco.mjtGain.mjGAIN_AFFINE and list(grip.forcerange) == [0.0, operations.GRIP_FORCE]
+    touch = params.GRIPPER_RADIUS + operations.PIPE_RADIUS
+    reach, release = operations.GRIP_REACH, operations.GRIP_RELEASE
+    for gap, share in ((0.0, 1.0), (reach, 1.0), (reach + 0.5 * release, 0.5), (reach + release, 0.0), (0.1, 0.0)):
+        force = np.clip(grip.gainprm[0] + grip.gainprm[1] * -(touch + gap), *grip.forcerange)
+        assert force == pytest.approx(share * operations.GRIP_FORCE, abs=1e-9), gap
 
 
 # --------------------------------------------------------------- the contact sweep

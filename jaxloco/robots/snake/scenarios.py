@@ -1,7 +1,8 @@
 """T² Snake-3 in MuJoCo (Tanaka et al., IEEE T-RO 35(1), 2019): the actuator command of a
 control law's output (joint targets, base wheel speeds, mode) with the wheels of the mode
 lifted by the base pitch joints (Sec. II-A), and a flat-ground `jaxloco.sim.Scenario`
-that runs it closed loop (native backend).
+that runs it closed loop, on native MuJoCo or, on the model's MJX variant (`mjx_variant`:
+the ground a plane only the wheels touch), on MJX.
 
 Wheel lifting (`lift_angles`). Sec. II-A: "If some of the pitch joints slightly rotate,
 the robot can lift each wheel from the ground"; psi_b = psi_4..psi_8 only lift wheels.
