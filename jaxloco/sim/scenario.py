@@ -263,6 +263,13 @@ def params_batch(defaults: Mapping[str, float], n: int, overrides: Mapping[str, 
             for k, v in {**defaults, **overrides}.items()}
 
 
+def first_row(batch: Mapping[str, Any], dtype: Any) -> dict[str, jax.Array]:
+    """The first simulation's params of a batch (`params_batch`): integer leaves kept,
+    float leaves cast to `dtype` (a tune objective's: forward-mode tangents need one
+    float type throughout)."""
+    return {k: v[0] if jnp.issubdtype(v.dtype, jnp.integer) else v[0].astype(dtype) for k, v in batch.items()}
+
+
 def seed_jitter(keys: Any, n: int) -> np.ndarray:
     """(B, n) numbers uniform in [-1, 1) drawn from the rows' PRNG keys (B, 2): the
     perturbations of a "perturbed trial" (start pose, friction, ...), one draw per key.

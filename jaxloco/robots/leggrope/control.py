@@ -180,8 +180,7 @@ def walk_targets(p: dict, key: Array, design: gait.GaitDesign = gait.DESIGNS["mi
     config = design.config()
     terrain = terrain_of(p, key)
     dtype = jnp.asarray(p["theta"]).dtype
-    primary = jnp.stack([jnp.full(4, walk.stride, dtype), jnp.asarray(walk.lateral, dtype)], axis=1)
-    fallback = primary + p["fallback_distance"] * jnp.asarray(design.fallback, dtype)
+    primary, fallback = foothold_steps(p, walk, design, dtype)
     combos = np.array([[(c >> g) & 1 for g in range(4)] for c in range(16)], bool)
     steps = jnp.where(jnp.asarray(combos)[:, :, None], fallback[None], primary[None])  # (16, 4, 2)
     plans = jax.vmap(lambda s: gait.plan_cycle(robot, walk, terrain, config, steps=s))(steps)
@@ -221,6 +220,14 @@ def walk_targets(p: dict, key: Array, design: gait.GaitDesign = gait.DESIGNS["mi
     )
 
 
+def foothold_steps(p: dict, walk: gait.WalkParams, design: gait.GaitDesign, dtype) -> tuple[Array, Array]:
+    """Each leg's primary and fallback step (4, 2) [m] (u forward, v left in the walking
+    frame): the stride with the leg's lateral offset, and that moved by
+    p["fallback_distance"] along the design's fallback direction."""
+    primary = jnp.stack([jnp.full(4, walk.stride, dtype), jnp.asarray(walk.lateral, dtype)], axis=1)
+    return primary, primary + p["fallback_distance"] * jnp.asarray(design.fallback, dtype)
+
+
 @jax.tree_util.register_dataclass
 @dataclass(frozen=True)
 class Footholds:
@@ -247,8 +254,7 @@ def walk_footholds(p: dict, key: Array, design: gait.GaitDesign = gait.DESIGNS["
     dtype = jnp.asarray(p["theta"]).dtype
     to_world = jax.vmap(lambda uv: gait.slope_to_world(terrain, jnp.concatenate([uv, jnp.zeros(1, dtype)])))
     uv = jnp.asarray(walk.stance, dtype)
-    primary = jnp.stack([jnp.full(4, walk.stride, dtype), jnp.asarray(walk.lateral, dtype)], axis=1)
-    fallback = primary + p["fallback_distance"] * jnp.asarray(design.fallback, dtype)
+    primary, fallback = foothold_steps(p, walk, design, dtype)
     feet0 = to_world(uv)
     R_GR = gait.body_rotation(terrain, walk)
     body0 = gait.place_body(robot, terrain, R_GR, feet0, gait.uv_to_world_xy(terrain, jnp.mean(uv, axis=0)),

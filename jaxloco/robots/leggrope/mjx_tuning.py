@@ -46,6 +46,7 @@ from jaxloco import runtime
 from jaxloco.analysis import Param
 from jaxloco.robots.leggrope import scenarios, sim_analysis
 from jaxloco.robots.leggrope.params import PARAMETERS
+from jaxloco.sim.scenario import first_row
 from jaxloco.tune.objective import Objective
 
 _A = {p.name: p for p in sim_analysis.PARAMS}
@@ -113,7 +114,7 @@ def make_loss(settings: Mapping[str, Any]):
 
     def loss_fn(values):
         dtype = jnp.result_type(*values.values())
-        p = {k: v[0] if jnp.issubdtype(v.dtype, jnp.integer) else v[0].astype(dtype) for k, v in base.items()}
+        p = first_row(base, dtype)
         p.update(shear_relief=values["shear_relief"], twist_relief=values["twist_relief"], key=key)
         records, _, final = run(p, key)
         m = friction_use(records, p["mu"], times, t_settle)

@@ -44,6 +44,7 @@ import jax.numpy as jnp
 from jaxloco import runtime
 from jaxloco.robots.snake import params as snake_params
 from jaxloco.robots.snake import sim_analysis
+from jaxloco.sim.scenario import first_row
 from jaxloco.tune.objective import Objective
 
 GROUND = "plane"  # the MJX-compatible model (sim_analysis.build_model)
@@ -91,7 +92,7 @@ def make_loss(settings: Mapping[str, Any]):
 
     def loss_fn(values):
         dtype = jnp.result_type(*values.values())
-        p = {k: v[0] if jnp.issubdtype(v.dtype, jnp.integer) else v[0].astype(dtype) for k, v in base.items()}
+        p = first_row(base, dtype)
         p["gain"] = values["gain_k"]
         p["k_eta"] = values["k_eta"]
         records, _, final = run(p, jax.random.PRNGKey(0))

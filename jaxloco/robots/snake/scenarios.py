@@ -108,6 +108,7 @@ from jaxloco.robots.snake import model as snake_model
 from jaxloco.robots.snake import params as snake_params
 from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
+from jaxloco.sim.backend import BACKENDS
 from jaxloco.sim.data import SimData
 from jaxloco.sim.scenario import Controller, InitialState, Scenario, friction_field, position_servo_fields
 from jaxloco.sim.scenario import params_batch as sim_params_batch
@@ -474,8 +475,8 @@ def build_model(fixture: Fixture | None = None, backend: str = "native") -> tupl
     """The robot (`models/t2snake3.xml`) on flat ground (top face z = 0), with the
     fixture's bodies if given; for `backend` "mjx" its MJX variant (`mjx_variant`, then
     the fixture's `mjx`), with the same indices."""
-    if backend not in ("native", "mjx"):
-        raise ValueError(f"backend: expected 'native' or 'mjx', got {backend!r}")
+    if backend not in BACKENDS:
+        raise ValueError(f"backend: expected one of {', '.join(BACKENDS)}, got {backend!r}")
     spec = snake_model.load_spec()
     terrain = tr.flat(half_extent=10.0, half_depth=0.5)
     terrain.add_to(spec, friction=(PARAM_DEFAULTS["mu"], 0.005, 0.0001))
