@@ -264,10 +264,11 @@ def params_batch(defaults: Mapping[str, float], n: int, overrides: Mapping[str, 
 
 
 def first_row(batch: Mapping[str, Any], dtype: Any) -> dict[str, jax.Array]:
-    """The first simulation's params of a batch (`params_batch`): integer leaves kept,
-    float leaves cast to `dtype` (a tune objective's: forward-mode tangents need one
-    float type throughout)."""
-    return {k: v[0] if jnp.issubdtype(v.dtype, jnp.integer) else v[0].astype(dtype) for k, v in batch.items()}
+    """The first simulation's params of a batch (`params_batch`): float leaves cast to
+    `dtype` (a tune objective's: forward-mode tangents need one float type throughout),
+    integer and boolean leaves kept."""
+    return {k: jnp.asarray(v[0], dtype) if jnp.issubdtype(v.dtype, jnp.floating) else jnp.asarray(v[0])
+            for k, v in batch.items()}
 
 
 def seed_jitter(keys: Any, n: int) -> np.ndarray:

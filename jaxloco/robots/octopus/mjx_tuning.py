@@ -49,7 +49,7 @@ from jaxloco import runtime
 from jaxloco.errors import SpecError
 from jaxloco.robots.octopus import clm, operator, scenarios
 from jaxloco.robots.octopus.params import PARAMETERS
-from jaxloco.sim.scenario import Controller, InitialState, Scenario
+from jaxloco.sim.scenario import Controller, InitialState, Scenario, first_row
 from jaxloco.tune.objective import Objective
 
 KIND = "step1"  # the 400 mm one-terrace step of the paper (any height in the settings)
@@ -185,7 +185,7 @@ def make_loss(settings: Mapping[str, Any]):
 
     def loss_fn(values):
         dtype = jnp.result_type(*values.values())
-        p = {k: v[0].astype(dtype) for k, v in base.items()}
+        p = first_row(base, dtype)
         p["delta_e"] = values["delta_e"]
         records, _, final = run(p, jax.random.PRNGKey(0))
         m = lift_metrics(records["cog"][:, 2], dt, settings["lift_speed"])

@@ -61,6 +61,7 @@ import numpy as np
 from jaxloco import runtime
 from jaxloco.robots.titan import control, scenarios
 from jaxloco.robots.titan import params as titan_params
+from jaxloco.sim.scenario import first_row
 from jaxloco.tune.objective import Objective
 
 _P = titan_params.PARAMETERS
@@ -122,12 +123,11 @@ def make_loss(settings: Mapping[str, Any]):
     loss is nan when the simulation diverged (the runner then stops)."""
     runtime.single_thread_lapack()
     run = _rollout_fn(float(settings["horizon"]))
-    base = {k: np.asarray(v)[0] for k, v in loss_params(settings).items()}
+    base = {k: np.asarray(v) for k, v in loss_params(settings).items()}
 
     def loss_fn(values):
         dtype = jnp.result_type(*values.values())
-        p = {k: jnp.asarray(v) if np.issubdtype(v.dtype, np.integer) or v.dtype == bool else jnp.asarray(v, dtype)
-             for k, v in base.items()}
+        p = first_row(base, dtype)
         p["body_gain"] = values["body_gain"]
         records, metrics, final = run(p, jax.random.PRNGKey(0))
         m = cog_error(p, records)
