@@ -43,6 +43,8 @@ import numpy as np
 with contextlib.redirect_stdout(io.StringIO()):  # mujoco.mjx prints "Failed to import warp" without NVIDIA Warp
     from mujoco import mjx
 
+from jaxloco.batching import vmap_in_blocks
+from jaxloco.sim import backend
 from jaxloco.sim import data as simdata
 from jaxloco.sim.scenario import Final, Scenario, init_fn, initial_activation, model_field_values, per_scenario, tick_fn
 
@@ -116,21 +118,46 @@ def rollout_fn(scenario: Scenario):
 
 _COMPILED: dict[int, Any] = {}
 
+CPU_ROWS_PER_DEVICE = 4
+"""Rows each CPU device simulates at once. jaxlib 0.10.2's batched LAPACK Cholesky (MJX
+factorizes the mass matrix and the constraint solver's Hessian with it) can hang XLA's
+CPU thread pool from 8 OCTOPUS rows per device on (docs/simulation.md, "MJX at batch 16
+or more on CPU hangs"), so on CPU a larger batch runs as a `lax.map` over blocks of this
+many rows per device (`batching.vmap_in_blocks`). Accelerators take the batch whole."""
 
-def batched_fn(scenario: Scenario):
-    """The jitted, vmapped rollout of `rollout_fn`, kept as long as the scenario lives."""
-    return per_scenario(_COMPILED, scenario, lambda: jax.jit(jax.vmap(rollout_fn(scenario))))
+
+def block_size(n_devices: int, platform: str | None = None,
+               cpu_rows_per_device: int = CPU_ROWS_PER_DEVICE) -> int | None:
+    """Rows per vmapped block for a batch sharded over `n_devices` on `platform` (JAX's
+    default when None): `cpu_rows_per_device` per device on CPU, None (one vmap) on an
+    accelerator."""
+    platform = backend.platform() if platform is None else platform
+    return cpu_rows_per_device * n_devices if platform == "cpu" else None
 
 
-def run(scenario: Scenario, params: Any, keys: jax.Array, *, shard: bool = True) -> dict[str, Any]:
+def batched_fn(scenario: Scenario, block: int | None = None):
+    """The jitted batched rollout of `rollout_fn`: one vmap (`block` None) or a `lax.map`
+    over vmapped blocks of `block` rows; kept as long as the scenario lives."""
+    fns = per_scenario(_COMPILED, scenario, dict)
+    if block not in fns:
+        fns[block] = jax.jit(vmap_in_blocks(rollout_fn(scenario), block=block))
+    return fns[block]
+
+
+def run(scenario: Scenario, params: Any, keys: jax.Array, *, shard: bool = True,
+        cpu_rows_per_device: int = CPU_ROWS_PER_DEVICE) -> dict[str, Any]:
     """Run the scenario for a batch (leaves with leading axis B); the batch is padded to
-    a multiple of the device count and sharded over the devices when `shard`."""
+    a multiple of the device count and sharded over the devices when `shard`. On CPU a
+    batch of more than `cpu_rows_per_device` rows per device runs block by block
+    (`block_size`; padded to whole blocks)."""
     t0 = time.perf_counter()
     nsim = int(keys.shape[0])
-    fn = batched_fn(scenario)
     devices = jax.devices()
     n_dev = len(devices) if shard else 1
-    padded = -(-nsim // n_dev) * n_dev
+    block = block_size(n_dev, cpu_rows_per_device=cpu_rows_per_device)
+    fn = batched_fn(scenario, block if block is not None and nsim > block else None)
+    multiple = n_dev if block is None or nsim <= block else block
+    padded = -(-nsim // multiple) * multiple
     pad = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], padded - nsim, axis=0)]) if padded > nsim else x
     inputs = jax.tree_util.tree_map(lambda x: pad(jnp.asarray(x)), (params, keys))
     if n_dev > 1:
