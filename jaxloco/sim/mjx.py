@@ -108,12 +108,23 @@ def rollout_fn(scenario: Scenario):
             carry, recs = jax.lax.scan(period, carry, None, length=every)
             return carry, jax.tree_util.tree_map(lambda r: r[0], recs)
 
-        carry0 = (d, cstate, estate, jnp.asarray(True), jnp.asarray(jnp.nan, dtype))
+        carry0 = _like_key((d, cstate, estate, jnp.asarray(True), jnp.asarray(jnp.nan, dtype)), key)
         (d, cstate, estate, alive, t_div), records = jax.lax.scan(block, carry0, None, length=scenario.n_records)
         final = Final(simdata.from_mjx(d), cstate, estate, alive, t_div)
         return records, scenario.summarize(params, records, final), final
 
     return run
+
+
+def _like_key(tree: Any, key: jax.Array) -> Any:
+    """`tree` unchanged in value, every leaf made to depend on `key` (a `where` on a
+    predicate that is always false), so that under `jax.vmap` every leaf carries the
+    batch axis whenever the key does. A scan whose initial carry is partly unbatched is
+    batched again once its body makes the carry batched (JAX's fixed point over the
+    carry), and nested scans multiply that: the rollout's trace took about twice as long."""
+    never = jnp.any(jax.random.key_data(key) != jax.random.key_data(key)) if jnp.issubdtype(
+        key.dtype, jax.dtypes.prng_key) else jnp.any(key != key)
+    return jax.tree_util.tree_map(lambda x: jnp.where(never, x, x), tree)
 
 
 _COMPILED: dict[int, Any] = {}
