@@ -183,7 +183,9 @@ def walk_targets(p: dict, key: Array, design: gait.GaitDesign = gait.DESIGNS["mi
     primary, fallback = foothold_steps(p, walk, design, dtype)
     combos = np.array([[(c >> g) & 1 for g in range(4)] for c in range(16)], bool)
     steps = jnp.where(jnp.asarray(combos)[:, :, None], fallback[None], primary[None])  # (16, 4, 2)
-    plans = jax.vmap(lambda s: gait.plan_cycle(robot, walk, terrain, config, steps=s))(steps)
+    # one plan at a time (lax.map, not vmap): XLA keeps every vmapped plan's COG-lattice search
+    # live at once, 33 MB per simulation (34 GB for a batch of 1,024 rows)
+    plans = jax.lax.map(lambda s: gait.plan_cycle(robot, walk, terrain, config, steps=s), steps)
 
     def blended_bodies(plan):
         """Body origins (4, 3) for A' (COG towards the centroid of the three stance feet,
