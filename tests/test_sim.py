@@ -238,24 +238,24 @@ def test_mjx_batch_is_sharded_over_every_device_and_matches_one_device(short_sce
         np.testing.assert_allclose(sharded["records"][k], single["records"][k], rtol=1e-12, atol=1e-12)
 
 
-def test_a_large_mjx_batch_on_cpu_runs_block_by_block_with_the_rows_of_one_vmap(short_scenario):
-    """On CPU an MJX batch of more rows per device than `cpu_rows_per_device` runs as a
-    `lax.map` over vmapped blocks (jaxlib's batched Cholesky can hang XLA's CPU thread
-    pool on large batches: `sim.mjx.CPU_ROWS_PER_DEVICE`). Each row is the same
-    simulation as in one vmap: here 5 rows in blocks of one row per device against the
-    2-row run of test_backends_agree_on_a_short_rollout (the same compiled program)."""
+def test_a_large_mjx_batch_runs_block_by_block_with_the_rows_of_one_vmap(short_scenario):
+    """An MJX batch of more rows per device than `rows_per_device` runs as a `lax.map`
+    over vmapped blocks (on CPU from 5 rows per device: jaxlib's batched Cholesky can
+    hang XLA's CPU thread pool on large batches). Each row is the same simulation as in
+    one vmap: here 5 rows in blocks of one row per device against the 2-row run of
+    test_backends_agree_on_a_short_rollout (the same compiled program)."""
     from jaxloco.sim import mjx as mjx_backend
 
-    if jax.default_backend() != "cpu":
-        pytest.skip("blocks are for the CPU")
     n_dev = len(jax.devices())
-    assert mjx_backend.block_size(n_dev) == mjx_backend.CPU_ROWS_PER_DEVICE * n_dev
-    assert mjx_backend.block_size(n_dev, platform="gpu") is None
+    assert mjx_backend.block_size(n_dev, "cpu") == mjx_backend.CPU_ROWS_PER_DEVICE * n_dev
+    assert mjx_backend.block_size(n_dev, "gpu") == mjx_backend.ACCELERATOR_ROWS_PER_DEVICE * n_dev
+    with pytest.raises(ValueError, match="rows_per_device must be a positive int"):
+        mjx_backend.block_size(n_dev, rows_per_device=0)
     ref = rollout(short_scenario, _params(2, ground=[0.0, 0.1], offset=[0.0, 0.05]), backend="mjx")
     p = _params(5, ground=[0.1, 0.0, 0.1, 0.1, 0.0], offset=[0.05, 0.0, 0.05, 0.05, 0.0])
     keys = jnp.stack([jax.random.PRNGKey(i) for i in (1, 0, 1, 1, 0)])
     p["key"] = keys
-    blocked = mjx_backend.run(short_scenario, p, keys, cpu_rows_per_device=1)
+    blocked = mjx_backend.run(short_scenario, p, keys, rows_per_device=1)
     for row, ref_row in enumerate((1, 0, 1, 1, 0)):
         np.testing.assert_allclose(blocked["records"]["qpos"][row], ref.records["qpos"][ref_row], rtol=1e-9, atol=1e-12)
 

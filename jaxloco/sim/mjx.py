@@ -131,19 +131,28 @@ _COMPILED: dict[int, Any] = {}
 
 CPU_ROWS_PER_DEVICE = 4
 """Rows each CPU device simulates at once. jaxlib 0.10.2's batched LAPACK Cholesky (MJX
-factorizes the mass matrix and the constraint solver's Hessian with it) can hang XLA's
-CPU thread pool from 8 OCTOPUS rows per device on (docs/simulation.md, "MJX at batch 16
-or more on CPU hangs"), so on CPU a larger batch runs as a `lax.map` over blocks of this
-many rows per device (`batching.vmap_in_blocks`). Accelerators take the batch whole."""
+factorizes the mass matrix and the constraint solver's Hessian with it) hung XLA's CPU
+thread pool from 8 OCTOPUS rows per device on (docs/simulation.md, "MJX on CPU runs
+large batches block by block"), so on CPU a larger batch runs as a `lax.map` over
+vmapped blocks of this many rows per device (`batching.vmap_in_blocks`)."""
+
+ACCELERATOR_ROWS_PER_DEVICE = 8192
+"""Rows each GPU or TPU simulates at once, default (ours): bounds the memory of one
+block (a controller's init can be large: the leg-grope walk plans 16 cycles per row,
+3 MB each) at a batch that GPUs run well (MuJoCo's maintainers report a Go1 scene at
+about 3.0M steps/s at batch 8,192 on one GPU). Not yet measured on one here."""
 
 
-def block_size(n_devices: int, platform: str | None = None,
-               cpu_rows_per_device: int = CPU_ROWS_PER_DEVICE) -> int | None:
+def block_size(n_devices: int, platform: str | None = None, rows_per_device: int | None = None) -> int:
     """Rows per vmapped block for a batch sharded over `n_devices` on `platform` (JAX's
-    default when None): `cpu_rows_per_device` per device on CPU, None (one vmap) on an
-    accelerator."""
-    platform = backend.platform() if platform is None else platform
-    return cpu_rows_per_device * n_devices if platform == "cpu" else None
+    default when None): `rows_per_device` per device, by default `CPU_ROWS_PER_DEVICE`
+    on CPU and `ACCELERATOR_ROWS_PER_DEVICE` on a GPU or TPU."""
+    if rows_per_device is None:
+        platform = backend.platform() if platform is None else platform
+        rows_per_device = CPU_ROWS_PER_DEVICE if platform == "cpu" else ACCELERATOR_ROWS_PER_DEVICE
+    if int(rows_per_device) != rows_per_device or rows_per_device < 1:
+        raise ValueError(f"rows_per_device must be a positive int, got {rows_per_device!r}")
+    return int(rows_per_device) * n_devices
 
 
 def batched_fn(scenario: Scenario, block: int | None = None):
@@ -156,18 +165,18 @@ def batched_fn(scenario: Scenario, block: int | None = None):
 
 
 def run(scenario: Scenario, params: Any, keys: jax.Array, *, shard: bool = True,
-        cpu_rows_per_device: int = CPU_ROWS_PER_DEVICE) -> dict[str, Any]:
+        rows_per_device: int | None = None) -> dict[str, Any]:
     """Run the scenario for a batch (leaves with leading axis B); the batch is padded to
-    a multiple of the device count and sharded over the devices when `shard`. On CPU a
-    batch of more than `cpu_rows_per_device` rows per device runs block by block
-    (`block_size`; padded to whole blocks)."""
+    a multiple of the device count and sharded over the devices when `shard`. A batch of
+    more than `rows_per_device` rows per device (`block_size`: 4 on CPU, 8,192 on an
+    accelerator by default) runs block by block, padded to whole blocks."""
     t0 = time.perf_counter()
     nsim = int(keys.shape[0])
     devices = jax.devices()
     n_dev = len(devices) if shard else 1
-    block = block_size(n_dev, cpu_rows_per_device=cpu_rows_per_device)
-    fn = batched_fn(scenario, block if block is not None and nsim > block else None)
-    multiple = n_dev if block is None or nsim <= block else block
+    block = block_size(n_dev, rows_per_device=rows_per_device)
+    fn = batched_fn(scenario, block if nsim > block else None)
+    multiple = n_dev if nsim <= block else block
     padded = -(-nsim // multiple) * multiple
     pad = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], padded - nsim, axis=0)]) if padded > nsim else x
     inputs = jax.tree_util.tree_map(lambda x: pad(jnp.asarray(x)), (params, keys))
