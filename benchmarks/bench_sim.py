@@ -108,13 +108,35 @@ def titan_walk(horizon_s: float, backend: str):
 ROBOTS = {"leggrope": leggrope_walk, "snake": snake_reach, "octopus": octopus_climb, "titan": titan_walk}
 
 
-def robot_rows(name: str, horizon_s: float, batches: list[int], mjx_batches: list[int], nthread: int) -> None:
-    """Print the robot's closed-loop steps/s on each backend and the MJX first call."""
+def memory_maps() -> int:
+    """This process' memory mappings (Linux; 0 elsewhere). Every compiled XLA CPU program
+    keeps its code mapped, and a process may hold `vm.max_map_count` maps (65,530 by
+    default): past it LLVM fails with "Unable to allocate section memory"."""
+    try:
+        with open("/proc/self/maps") as f:
+            return sum(1 for _ in f)
+    except OSError:
+        return 0
+
+
+def robot_rows(name: str, horizon_s: float, batches: list[int], mjx_batches: list[int], nthread: int,
+               keep_programs: bool = False) -> None:
+    """Print the robot's closed-loop steps/s on each backend and the MJX first call; then,
+    unless `keep_programs`, drop JAX's compiled programs (`jax.clear_caches`) so that a
+    run over every robot stays under the process' limit of memory maps."""
+    import gc
+
+    import jax
+
     for backend, sizes in (("native", batches), ("mjx", mjx_batches)):
         scenario, params = ROBOTS[name](horizon_s, backend)
         for n in sizes:
             rate, first = closed_loop(scenario, params(n), backend, nthread)
-            print(f"{name:>9} {backend:>7} {n:>6} {rate:>12,.0f} {first:>15.1f}")
+            print(f"{name:>9} {backend:>7} {n:>6} {rate:>12,.0f} {first:>15.1f} {memory_maps():>10,}")
+        del scenario, params
+    if not keep_programs:
+        gc.collect()
+        jax.clear_caches()
 
 
 def main() -> None:
@@ -127,6 +149,8 @@ def main() -> None:
     ap.add_argument("--robots", nargs="+", choices=sorted(ROBOTS), default=[],
                     help="time these robots' own closed loops instead of the standing quadruped")
     ap.add_argument("--horizon", type=float, default=2.0, help="simulated seconds per robot rollout (--robots)")
+    ap.add_argument("--keep-programs", action="store_true",
+                    help="keep every robot's compiled programs (default: drop them after each robot)")
     args = ap.parse_args()
 
     from jaxloco import runtime
@@ -139,9 +163,9 @@ def main() -> None:
 
     if args.robots:
         print(f"devices: {jax.device_count()} x {jax.devices()[0].platform}; {args.horizon} s per rollout")
-        print(f"{'robot':>9} {'backend':>7} {'batch':>6} {'steps/s':>12} {'first call [s]':>15}")
+        print(f"{'robot':>9} {'backend':>7} {'batch':>6} {'steps/s':>12} {'first call [s]':>15} {'memory maps':>11}")
         for name in args.robots:
-            robot_rows(name, args.horizon, args.batches, args.mjx_batches, args.nthread)
+            robot_rows(name, args.horizon, args.batches, args.mjx_batches, args.nthread, args.keep_programs)
         return
 
     sc = scenarios.standing_scenario(horizon=args.periods, substeps=args.substeps, record_every=10)
