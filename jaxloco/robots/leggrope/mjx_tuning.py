@@ -29,7 +29,7 @@ iteration counts; the test checks the forward-mode derivative against central fi
 differences of the same MJX loss. Forward mode costs one tangent per tuned tunable: tune
 `shear_relief` alone (twist_relief then stays at its [init] value).
 
-Settings: horizon, t_settle, theta, psi, mu, r_ref_factor. Reference "default": the
+Settings: horizon, t_settle, theta, psi, mu, r_ref_factor. Reference "default (ours)": the
 controller's defaults (shear_relief 0.1, twist_relief 0.02; ours, not the paper's).
 """
 
@@ -104,7 +104,6 @@ def friction_use(records: Mapping[str, Any], mu: Any, times: Any, t_settle: floa
 def make_loss(settings: Mapping[str, Any]):
     """`Objective.make_loss`: loss_fn(values) -> (loss, metrics) of one MJX rollout;
     the loss is nan when the simulation diverged (the runner then stops)."""
-
     horizon, t_settle = float(settings["horizon"]), float(settings["t_settle"])
     runtime.single_thread_lapack()
     sc, run = _rollout(horizon)
@@ -131,7 +130,7 @@ SHEAR_RELIEF_TUNE = Objective(
     tunables=TUNABLES,
     settings=SETTINGS,
     make_loss=make_loss,
-    references={"default": DEFAULTS},
+    references={"default (ours)": DEFAULTS},
     x64=True,
     grad_mode="forward",
 )
