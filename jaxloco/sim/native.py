@@ -25,6 +25,7 @@ import mujoco
 import mujoco.batch
 import numpy as np
 
+from jaxloco.batching import vmap_in_blocks
 from jaxloco.sim import data as simdata
 from jaxloco.sim.scenario import STATE_KEYS, Final, Scenario, init_fn, initial_activation, per_scenario, tick_fn
 
@@ -37,6 +38,11 @@ DIVERGENCE_WARNINGS = (
     mujoco.mjtWarning.mjWARN_CONTACTFULL,
     mujoco.mjtWarning.mjWARN_CNSTRFULL,
 )
+# The controller's and environment's init run over the batch in vmapped blocks of this
+# many rows (`batching.vmap_in_blocks`), so that an init with large intermediates (the
+# leg-grope walk plans its 16 cycles at about 3 MB per row) needs memory for one block,
+# not for the whole batch. Default (ours).
+INIT_ROWS = 256
 
 
 def make_batch(scenario: Scenario, params: Any, nsim: int, nthread: int = 0) -> mujoco.batch.Batch:
@@ -63,19 +69,24 @@ def run(
     nthread: int = 0,
     progress: bool = False,
     record_state: bool = False,
+    init_rows: int | None = INIT_ROWS,
 ) -> dict[str, Any]:
     """Run the scenario for a batch of parameter sets (leaves with leading axis B) and
     PRNG keys (B, 2). Returns a dict with records (B, R, ...), metrics (B,), final
     (batched `Final`) and timings, and with `record_state` the MuJoCo states at the
     recorded periods ("states": STATE_KEYS -> (B, R, ...), copied from the batch on the
-    host: the compiled tick is the same as without); `jaxloco.sim.rollout.rollout` wraps it."""
+    host: the compiled tick is the same as without); `jaxloco.sim.rollout.rollout` wraps it.
+    init_rows: the controller's init runs in blocks of this many rows (None: all at once;
+    `INIT_ROWS`)."""
+    if init_rows is not None and (int(init_rows) != init_rows or init_rows < 1):
+        raise ValueError(f"init_rows must be a positive int or None, got {init_rows!r}")
     nsim = int(keys.shape[0])
     t0 = time.perf_counter()
     batch = make_batch(scenario, params, nsim, nthread)
     bound = simdata.bind_native(batch)  # before any call: outputs bound later read zero until the next call
     # the inputs written every period, bound once (attribute access re-binds each time)
     inputs = {name: batch.bind(name) for name in ("ctrl", "mocap_pos", "mocap_quat")}
-    jitted = _jitted_inits(scenario)
+    jitted = _jitted_inits(scenario, init_rows)
     init_state = jitted["initial_state"](params, keys)
     batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
     for name in ("qpos", "qvel", "ctrl", "mocap_pos", "mocap_quat"):
@@ -154,14 +165,18 @@ _TICKS: dict[int, Any] = {}
 _INITS: dict[int, Any] = {}
 
 
-def _jitted_inits(scenario: Scenario) -> dict[str, Any]:
-    """The jitted, vmapped initial_state, controller/environment init and summarize of a
-    scenario, kept as long as the scenario lives so repeated rollouts do not re-trace them."""
-    return per_scenario(_INITS, scenario, lambda: {
-        "initial_state": jax.jit(jax.vmap(scenario.initial_state)),
-        "init": jax.jit(jax.vmap(init_fn(scenario))),
-        "summarize": jax.jit(jax.vmap(scenario.summarize)),
-    })
+def _jitted_inits(scenario: Scenario, init_rows: int | None) -> dict[str, Any]:
+    """The jitted, vmapped initial_state, controller/environment init (in blocks of
+    `init_rows` rows) and summarize of a scenario, kept as long as the scenario lives so
+    repeated rollouts do not re-trace them."""
+    inits = per_scenario(_INITS, scenario, dict)
+    if init_rows not in inits:
+        inits[init_rows] = {
+            "initial_state": jax.jit(jax.vmap(scenario.initial_state)),
+            "init": jax.jit(vmap_in_blocks(init_fn(scenario), block=init_rows)),
+            "summarize": jax.jit(jax.vmap(scenario.summarize)),
+        }
+    return inits[init_rows]
 
 
 def _layout(bound: dict[str, np.ndarray]) -> tuple[tuple[str, int, tuple[int, ...]], ...]:
