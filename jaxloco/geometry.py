@@ -227,15 +227,60 @@ def hull_edges(points: Array, mask: Array) -> Array:
     return pair & jnp.all(ok_k, axis=-1)
 
 
+def _small_hull_edges(x: list[Array], y: list[Array], mk: list[Array], tol: Array
+                      ) -> tuple[list[Array], list[Array], list[Array], list[Array]]:
+    """The counter-clockwise hull edges of a few points given as per-point scalars
+    (stop-gradient coordinates x, y, mask mk; unrolled at trace time, O(N^2)): for each
+    point i the index j of its successor, the edge vector p_j - p_i and whether i -> j
+    is a hull edge, with `hull_edges`' rules: from p_i a gift-wrap step picks the most
+    clockwise other point, points within `tol` of the best one's line counting as on it
+    (then the farthest along wins: maximal edges); i -> j is an edge when every masked
+    point lies left of its line or within `tol` of it, and those within `tol` lie
+    between p_i and p_j. Points within `tol` of p_i are skipped."""
+    n = len(x)
+    tol2 = tol * tol
+    zero = jnp.zeros_like(x[0])
+    succ, vx, vy, edges = [], [], [], []
+    for i in range(n):
+        ex, ey, j, found = zero, zero, jnp.asarray(i), jnp.asarray(False)
+        for k in range(n):
+            if k == i:
+                continue
+            ax, ay = x[k] - x[i], y[k] - y[i]
+            a2, b2 = ax * ax + ay * ay, ex * ex + ey * ey
+            cand = mk[k] & (a2 > tol2)
+            turn = ex * ay - ey * ax  # |p_best - p_i| times p_k's distance left of that line
+            on_line = turn * turn <= tol2 * b2
+            clockwise = (turn < 0) & ~on_line
+            farther = on_line & (ex * ax + ey * ay > 0) & (a2 > b2)
+            better = cand & (~found | clockwise | farther)
+            ex, ey = jnp.where(better, ax, ex), jnp.where(better, ay, ey)
+            j, found = jnp.where(better, k, j), found | cand
+        e2 = jnp.where(found, ex * ex + ey * ey, 1.0)
+        edge = mk[i] & found
+        for k in range(n):
+            if k == i:
+                continue
+            rx, ry = x[k] - x[i], y[k] - y[i]
+            left = ex * ry - ey * rx  # |e| times p_k's distance left of the line i -> j
+            along = ex * rx + ey * ry  # |e|^2 times p_k's position along the edge
+            on_line = left * left <= tol2 * e2
+            between = (along >= -tol * jnp.sqrt(e2)) & (along <= e2 + tol * jnp.sqrt(e2))
+            edge = edge & (~mk[k] | ((left >= 0) | on_line) & (~on_line | between))
+        succ.append(j)
+        vx.append(ex)
+        vy.append(ey)
+        edges.append(edge)
+    return succ, vx, vy, edges
+
+
 def _hull_distance(q: Array, points: Array, mask: Array) -> tuple[Array, Array, Array]:
     """`hull_signed_distance` and its gradients (w.r.t. q (2,) and points (N, 2)), from
     per-point scalars (the loops below are unrolled at trace time: under vmap every
     operation is elementwise over the batch, which XLA fuses into vectorised loops).
 
-    From each masked point i a gift-wrap step picks the most clockwise other point j
-    (the farthest along on exact ties; points within the tolerance of p_i skipped);
-    i -> j is a counter-clockwise hull edge when every masked point lies on its left
-    (within the tolerance). O(N^2) in all. Inside, the value is the smallest distance
+    The hull edges come from `_small_hull_edges` (a gift-wrap step from every point,
+    `hull_edges`' rules, O(N^2)). Inside, the value is the smallest distance
     from q to a hull edge's line; otherwise minus the distance to the nearest hull edge
     or point. A collinear set has both directions of its extreme segment, so no inside."""
     n = points.shape[0]
@@ -251,26 +296,10 @@ def _hull_distance(q: Array, points: Array, mask: Array) -> tuple[Array, Array, 
     in_d, in_i, in_j, in_t, in_nx, in_ny = big, 0, 0, zero, zero, zero
     out_d2, out_i, out_j, out_t, out_x, out_y = big, 0, 0, zero, zero, zero
     hull = jnp.asarray(False)
-    for i in range(n):
-        ex, ey, j, found = zero, zero, jnp.asarray(i), jnp.asarray(False)
-        for k in range(n):  # the gift-wrap step from p_i
-            if k == i:
-                continue
-            ax, ay = x[k] - x[i], y[k] - y[i]
-            a2 = ax * ax + ay * ay
-            cand = mk[k] & (a2 > tol * tol)
-            turn = ex * ay - ey * ax  # < 0: p_k is clockwise of the best so far
-            farther = (turn == 0) & (ex * ax + ey * ay > 0) & (a2 > ex * ex + ey * ey)
-            better = cand & (~found | (turn < 0) | farther)
-            ex, ey = jnp.where(better, ax, ex), jnp.where(better, ay, ey)
-            j, found = jnp.where(better, k, j), found | cand
-        e2 = jnp.where(found, ex * ex + ey * ey, 1.0)
+    for i, (j, ex, ey, edge) in enumerate(zip(*_small_hull_edges(x, y, mk, tol))):
+        e2 = jnp.where(edge, ex * ex + ey * ey, 1.0)
         inv = jax.lax.rsqrt(e2)
         nx, ny = -ey * inv, ex * inv  # left (inward) unit normal
-        edge = mk[i] & found
-        for k in range(n):
-            if k != i:
-                edge = edge & (~mk[k] | (nx * (x[k] - x[i]) + ny * (y[k] - y[i]) >= -tol))
         d = -(nx * x[i] + ny * y[i])  # n . (q - p_i), q at the origin
         t_line = -(x[i] * ex + y[i] * ey) / e2
         closer = edge & (d < in_d)
@@ -307,6 +336,20 @@ def _hull_distance(q: Array, points: Array, mask: Array) -> tuple[Array, Array, 
     g_p = (rows == gi).astype(dt)[:, None] * a[None, :] + (rows == gj).astype(dt)[:, None] * b[None, :]
     live = jnp.any(mask)
     return value, jnp.where(live, g_q, 0.0), jnp.where(live, g_p, 0.0)
+
+
+def small_hull_edges(points: Array, mask: Array) -> tuple[Array, Array]:
+    """The counter-clockwise hull edges of the masked 2D points as successors: (succ (N,)
+    int, edge (N,) bool), edge[i] when p_i -> p_succ[i] is a maximal hull edge (the edges
+    of `hull_edges`, one per hull vertex). O(N^2), unrolled at trace time: meant for up
+    to UNROLL_MAX_POINTS points. The selection is piecewise constant (no gradient)."""
+    n = points.shape[0]
+    p = jax.lax.stop_gradient(points)
+    mask = unique_mask(p, mask)  # one edge per hull vertex, as `hull_edges`
+    tol = _tolerance(p, mask)
+    succ, _, _, edges = _small_hull_edges([p[k, 0] for k in range(n)], [p[k, 1] for k in range(n)],
+                                          [mask[k] for k in range(n)], tol)
+    return jnp.stack(succ), jnp.stack(edges)
 
 
 @jax.custom_jvp

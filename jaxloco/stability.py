@@ -128,8 +128,20 @@ def ne_stability_margin(cog: Array, contacts: Array, mask: Array, up: Array | No
     the weight. It is signed: negative when the COG's projection is outside the edge
     (already past the top). NESM = min over edges; -inf with fewer than two contacts.
     """
+    if contacts.shape[0] <= geo.UNROLL_MAX_POINTS:
+        return _ne_stability_margin_small(cog, contacts, mask, up)
     S, p2 = _ne_edge_margins(cog, contacts, up)
     E = geo.hull_edges(p2, mask)
+    return jnp.where(jnp.any(E), jnp.min(jnp.where(E, S, jnp.inf)), -jnp.inf)
+
+
+def _ne_stability_margin_small(cog: Array, contacts: Array, mask: Array, up: Array | None) -> Array:
+    """`ne_stability_margin` for a few contacts: the signed margins of every axis as in
+    the general case, the support polygon's edges from the successors of
+    `geometry.small_hull_edges` (O(N^2)) instead of the all-pairs `hull_edges` (O(N^3))."""
+    S, p2 = _ne_edge_margins(cog, contacts, up)
+    succ, edge = geo.small_hull_edges(p2, mask)
+    E = edge[:, None] & (succ[:, None] == jnp.arange(contacts.shape[0])[None, :])
     return jnp.where(jnp.any(E), jnp.min(jnp.where(E, S, jnp.inf)), -jnp.inf)
 
 

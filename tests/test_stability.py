@@ -448,3 +448,69 @@ def test_vmap_equals_loop_and_float32():
         assert out32[k].dtype == jnp.float32, k
         scale = 1.0 if k not in ("fric", "fric_s") else 10.0  # forces are tens of newtons
         np.testing.assert_allclose(out32[k], batched[k], atol=1e-4 * scale, rtol=1e-4, err_msg=k)
+
+
+# ------------------------------------ a few contacts: the unrolled hull (geometry.UNROLL_MAX_POINTS)
+FEW = geo.UNROLL_MAX_POINTS
+SMALL_MARGINS = jax.jit(jax.vmap(lambda c, p, m: (sm.static_margin(c, p, m), sm.ne_stability_margin(c, p, m))))
+EDGES_V = jax.jit(jax.vmap(lambda p, m: (geo.hull_edges(p, m), *geo.small_hull_edges(p, m))))
+
+
+def _few_scenes(seed: int, count: int):
+    """FEW rows: 1..FEW contacts on a sloped grid (exact duplicates and collinear sets
+    happen) or in general position, garbage in the masked rows; a COG above them."""
+    rng = np.random.default_rng(seed)
+    cogs, contacts, masks = [], [], []
+    for _ in range(count):
+        n = int(rng.integers(1, FEW + 1))
+        xy = rng.integers(-2, 3, size=(n, 2)) * 0.25 if rng.uniform() < 0.5 else rng.normal(0, 0.4, (n, 2))
+        z = xy @ rng.uniform(-0.4, 0.4, 2) + rng.uniform(-0.05, 0.05, n)
+        pts = rng.uniform(-30.0, 30.0, size=(FEW, 3))
+        mask = np.zeros(FEW, bool)
+        rows = rng.permutation(FEW)[:n]
+        pts[rows], mask[rows] = np.column_stack([xy, z]), True
+        cogs.append(np.r_[xy.mean(axis=0) + rng.normal(0, 0.2, 2), z.mean() + rng.uniform(0.2, 0.6)])
+        contacts.append(pts)
+        masks.append(mask)
+    return np.array(cogs), np.array(contacts), np.array(masks)
+
+
+def test_few_contacts_give_the_all_pairs_margins_and_edges():
+    """Up to UNROLL_MAX_POINTS contacts the static margin and the NESM run on the unrolled
+    O(N^2) hull: on 400 random scenes (1..6 contacts, duplicates, collinear sets) the
+    successor edges are `hull_edges`' edges, and both margins equal the all-pairs forms
+    (the same scene padded to N rows) to 1e-12 m in float64 and to 1e-4 m in float32."""
+    cogs, contacts, masks = _few_scenes(11, 400)
+    E, succ, edge = (np.asarray(a) for a in EDGES_V(jnp.asarray(contacts[..., :2]), jnp.asarray(masks)))
+    rows = np.arange(FEW)
+    from_succ = np.zeros_like(E)
+    from_succ[np.nonzero(edge)[0], rows[None, :].repeat(len(E), 0)[edge], succ[edge]] = True
+    np.testing.assert_array_equal(from_succ, E)
+    static, nesm = (np.asarray(a) for a in SMALL_MARGINS(jnp.asarray(cogs), jnp.asarray(contacts), jnp.asarray(masks)))
+    padded = np.concatenate([contacts, np.full((len(contacts), N - FEW, 3), 9.0)], axis=1)
+    pmask = np.concatenate([masks, np.zeros((len(masks), N - FEW), bool)], axis=1)
+    ref = MARG_V(cogs, padded, pmask, np.tile([1.0, 0.0], (len(cogs), 1)), np.tile([0.0, 0.0, 10.0], (len(cogs), N, 1)),
+                 1e-3)
+    np.testing.assert_allclose(static, np.asarray(ref["static"]), atol=1e-12, rtol=0)
+    np.testing.assert_allclose(nesm, np.asarray(ref["nesm"]), atol=1e-12, rtol=0)
+    assert (nesm > 0).sum() > 50 and (nesm < 0).sum() > 20 and np.isinf(nesm).sum() > 0
+    f32 = SMALL_MARGINS(jnp.asarray(cogs, jnp.float32), jnp.asarray(contacts, jnp.float32), jnp.asarray(masks))
+    for a, b in zip(f32, (static, nesm)):
+        finite = np.isfinite(b)
+        np.testing.assert_allclose(np.asarray(a)[finite], b[finite], atol=1e-4, rtol=0)
+
+
+def test_few_contacts_margin_gradients():
+    """The unrolled static margin and NESM against central differences (check_grads, fwd
+    and rev) w.r.t. the COG and the contacts, inside and outside; masked rows get zero
+    gradient, and so does a contact inside the support polygon."""
+    contacts = np.array([[0.0, 0.0, 0.0], [0.6, 0.05, 0.08], [0.65, 0.5, 0.12], [0.05, 0.45, 0.03],
+                         [0.3, 0.25, 0.05], [9.0, 9.0, 9.0]])
+    mask = np.array([True, True, True, True, True, False])
+    fn = jax.jit(lambda c, p: jnp.stack([sm.static_margin(c, p, jnp.asarray(mask)),
+                                         sm.ne_stability_margin(c, p, jnp.asarray(mask))]))
+    for cog in ([0.35, 0.2, 0.5], [0.9, 0.3, 0.4]):
+        args = (jnp.asarray(cog), jnp.asarray(contacts))
+        check_grads(fn, args, order=1, modes=["fwd", "rev"], eps=1e-6)
+        jac = np.asarray(jax.jacrev(fn, argnums=1)(*args))
+        assert np.all(jac[:, 5] == 0.0) and np.all(jac[:, 4] == 0.0) and np.all(np.isfinite(jac))
