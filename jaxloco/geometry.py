@@ -257,6 +257,7 @@ def _small_hull_edges(x: list[Array], y: list[Array], mk: list[Array], tol: Arra
             ex, ey = jnp.where(better, ax, ex), jnp.where(better, ay, ey)
             j, found = jnp.where(better, k, j), found | cand
         e2 = jnp.where(found, ex * ex + ey * ey, 1.0)
+        band = tol * jnp.sqrt(e2)  # |e| times the tolerance
         edge = mk[i] & found
         for k in range(n):
             if k == i:
@@ -265,7 +266,7 @@ def _small_hull_edges(x: list[Array], y: list[Array], mk: list[Array], tol: Arra
             left = ex * ry - ey * rx  # |e| times p_k's distance left of the line i -> j
             along = ex * rx + ey * ry  # |e|^2 times p_k's position along the edge
             on_line = left * left <= tol2 * e2
-            between = (along >= -tol * jnp.sqrt(e2)) & (along <= e2 + tol * jnp.sqrt(e2))
+            between = (along >= -band) & (along <= e2 + band)
             edge = edge & (~mk[k] | ((left >= 0) | on_line) & (~on_line | between))
         succ.append(j)
         vx.append(ex)
@@ -417,8 +418,6 @@ def _hull_signed_distance_all_pairs(q: Array, points: Array, mask: Array) -> Arr
     """`hull_signed_distance` from the all-pairs edge matrix (`hull_edges`, O(N^3)):
     for more than UNROLL_MAX_POINTS points, where unrolling compiles too slowly."""
     return _edges_signed_distance(q, points, mask, hull_edges(points, mask))
-
-
 
 
 def convex_hull(points: Array, mask: Array) -> tuple[Array, Array]:

@@ -482,9 +482,9 @@ def test_few_contacts_give_the_all_pairs_margins_and_edges():
     (the same scene padded to N rows) to 1e-12 m in float64 and to 1e-4 m in float32."""
     cogs, contacts, masks = _few_scenes(11, 400)
     E, succ, edge = (np.asarray(a) for a in EDGES_V(jnp.asarray(contacts[..., :2]), jnp.asarray(masks)))
-    rows = np.arange(FEW)
     from_succ = np.zeros_like(E)
-    from_succ[np.nonzero(edge)[0], rows[None, :].repeat(len(E), 0)[edge], succ[edge]] = True
+    scene, i = np.nonzero(edge)
+    from_succ[scene, i, succ[scene, i]] = True
     np.testing.assert_array_equal(from_succ, E)
     static, nesm = (np.asarray(a) for a in SMALL_MARGINS(jnp.asarray(cogs), jnp.asarray(contacts), jnp.asarray(masks)))
     padded = np.concatenate([contacts, np.full((len(contacts), N - FEW, 3), 9.0)], axis=1)

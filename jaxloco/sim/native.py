@@ -169,14 +169,14 @@ def _jitted_inits(scenario: Scenario, init_rows: int | None) -> dict[str, Any]:
     """The jitted, vmapped initial_state, controller/environment init (in blocks of
     `init_rows` rows) and summarize of a scenario, kept as long as the scenario lives so
     repeated rollouts do not re-trace them."""
-    inits = per_scenario(_INITS, scenario, dict)
-    if init_rows not in inits:
-        inits[init_rows] = {
-            "initial_state": jax.jit(jax.vmap(scenario.initial_state)),
-            "init": jax.jit(vmap_in_blocks(init_fn(scenario), block=init_rows)),
-            "summarize": jax.jit(jax.vmap(scenario.summarize)),
-        }
-    return inits[init_rows]
+    jitted = per_scenario(_INITS, scenario, lambda: {
+        "initial_state": jax.jit(jax.vmap(scenario.initial_state)),
+        "summarize": jax.jit(jax.vmap(scenario.summarize)),
+    })
+    key = ("init", init_rows)
+    if key not in jitted:
+        jitted[key] = jax.jit(vmap_in_blocks(init_fn(scenario), block=init_rows))
+    return {**jitted, "init": jitted[key]}
 
 
 def _layout(bound: dict[str, np.ndarray]) -> tuple[tuple[str, int, tuple[int, ...]], ...]:
