@@ -15,6 +15,8 @@ validity mask.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import jax
 import jax.numpy as jnp
 
@@ -227,52 +229,58 @@ def hull_edges(points: Array, mask: Array) -> Array:
     return pair & jnp.all(ok_k, axis=-1)
 
 
+def _gift_wrap_from(i, xi: Array, yi: Array, mki: Array, x: list[Array], y: list[Array], mk: list[Array],
+                    tol: Array) -> tuple[Array, Array, Array, Array]:
+    """One gift-wrap step with `hull_edges`' rules from p_i = (xi, yi) (mask mki) over the
+    points given as per-point scalars x, y, mk (stop-gradient; the loop over them is
+    unrolled at trace time): the most clockwise other point j, points within `tol` of the
+    best one's line counting as on it (then the farthest along wins: maximal edges); then
+    whether i -> j is a hull edge: every masked point lies left of its line or within
+    `tol` of it, and those within `tol` lie between p_i and p_j. Points within `tol` of
+    p_i are skipped. Returns (j, e_x, e_y, edge), e = p_j - p_i.
+
+    `i` is a point's index (int; xi, yi, mki its scalars), or `jnp.arange(N)` with xi, yi,
+    mki the (N,) arrays of every point: then every point's step at once, O(N) operations
+    on N-vectors instead of O(N^2) on scalars. p_i itself needs no skipping: it is
+    within `tol` of itself, and lies on every line through it."""
+    tol2 = tol * tol
+    zero = jnp.zeros_like(xi)
+    ex, ey, j, found = zero, zero, jnp.asarray(i), jnp.zeros_like(mki)
+    for k in range(len(x)):
+        if isinstance(i, int) and k == i:
+            continue
+        ax, ay = x[k] - xi, y[k] - yi
+        a2, b2 = ax * ax + ay * ay, ex * ex + ey * ey
+        cand = mk[k] & (a2 > tol2)
+        turn = ex * ay - ey * ax  # |p_best - p_i| times p_k's distance left of that line
+        on_line = turn * turn <= tol2 * b2
+        clockwise = (turn < 0) & ~on_line
+        farther = on_line & (ex * ax + ey * ay > 0) & (a2 > b2)
+        better = cand & (~found | clockwise | farther)
+        ex, ey = jnp.where(better, ax, ex), jnp.where(better, ay, ey)
+        j, found = jnp.where(better, k, j), found | cand
+    e2 = jnp.where(found, ex * ex + ey * ey, 1.0)
+    band = tol * jnp.sqrt(e2)  # |e| times the tolerance
+    edge = mki & found
+    for k in range(len(x)):
+        if isinstance(i, int) and k == i:
+            continue
+        rx, ry = x[k] - xi, y[k] - yi
+        left = ex * ry - ey * rx  # |e| times p_k's distance left of the line i -> j
+        along = ex * rx + ey * ry  # |e|^2 times p_k's position along the edge
+        on_line = left * left <= tol2 * e2
+        between = (along >= -band) & (along <= e2 + band)
+        edge = edge & (~mk[k] | ((left >= 0) | on_line) & (~on_line | between))
+    return j, ex, ey, edge
+
+
 def _small_hull_edges(x: list[Array], y: list[Array], mk: list[Array], tol: Array
                       ) -> tuple[list[Array], list[Array], list[Array], list[Array]]:
     """The counter-clockwise hull edges of a few points given as per-point scalars
-    (stop-gradient coordinates x, y, mask mk; unrolled at trace time, O(N^2)): for each
-    point i the index j of its successor, the edge vector p_j - p_i and whether i -> j
-    is a hull edge, with `hull_edges`' rules: from p_i a gift-wrap step picks the most
-    clockwise other point, points within `tol` of the best one's line counting as on it
-    (then the farthest along wins: maximal edges); i -> j is an edge when every masked
-    point lies left of its line or within `tol` of it, and those within `tol` lie
-    between p_i and p_j. Points within `tol` of p_i are skipped."""
-    n = len(x)
-    tol2 = tol * tol
-    zero = jnp.zeros_like(x[0])
-    succ, vx, vy, edges = [], [], [], []
-    for i in range(n):
-        ex, ey, j, found = zero, zero, jnp.asarray(i), jnp.asarray(False)
-        for k in range(n):
-            if k == i:
-                continue
-            ax, ay = x[k] - x[i], y[k] - y[i]
-            a2, b2 = ax * ax + ay * ay, ex * ex + ey * ey
-            cand = mk[k] & (a2 > tol2)
-            turn = ex * ay - ey * ax  # |p_best - p_i| times p_k's distance left of that line
-            on_line = turn * turn <= tol2 * b2
-            clockwise = (turn < 0) & ~on_line
-            farther = on_line & (ex * ax + ey * ay > 0) & (a2 > b2)
-            better = cand & (~found | clockwise | farther)
-            ex, ey = jnp.where(better, ax, ex), jnp.where(better, ay, ey)
-            j, found = jnp.where(better, k, j), found | cand
-        e2 = jnp.where(found, ex * ex + ey * ey, 1.0)
-        band = tol * jnp.sqrt(e2)  # |e| times the tolerance
-        edge = mk[i] & found
-        for k in range(n):
-            if k == i:
-                continue
-            rx, ry = x[k] - x[i], y[k] - y[i]
-            left = ex * ry - ey * rx  # |e| times p_k's distance left of the line i -> j
-            along = ex * rx + ey * ry  # |e|^2 times p_k's position along the edge
-            on_line = left * left <= tol2 * e2
-            between = (along >= -band) & (along <= e2 + band)
-            edge = edge & (~mk[k] | ((left >= 0) | on_line) & (~on_line | between))
-        succ.append(j)
-        vx.append(ex)
-        vy.append(ey)
-        edges.append(edge)
-    return succ, vx, vy, edges
+    (stop-gradient coordinates x, y, mask mk; unrolled at trace time, O(N^2) scalar
+    operations): for each point i `_gift_wrap_from(i)`, as lists (succ, e_x, e_y, edge)."""
+    steps = [_gift_wrap_from(i, x[i], y[i], mk[i], x, y, mk, tol) for i in range(len(x))]
+    return tuple(list(column) for column in zip(*steps))
 
 
 def _hull_distance(q: Array, points: Array, mask: Array) -> tuple[Array, Array, Array]:
@@ -321,6 +329,19 @@ def _hull_distance(q: Array, points: Array, mask: Array) -> tuple[Array, Array, 
         out_d2, out_t = jnp.where(closer, c2, out_d2), jnp.where(closer, 0.0, out_t)
         out_x, out_y = jnp.where(closer, -x[k], out_x), jnp.where(closer, -y[k], out_y)
         out_i, out_j = jnp.where(closer, k, out_i), jnp.where(closer, k, out_j)
+    return _signed_distance_and_gradients(mask, hull, (in_d, in_t, in_nx, in_ny, in_i, in_j),
+                                          (out_d2, out_t, out_x, out_y, out_i, out_j))
+
+
+def _signed_distance_and_gradients(mask: Array, hull: Array, nearest_line: tuple, nearest_point: tuple
+                                   ) -> tuple[Array, Array, Array]:
+    """The value and gradients of `_hull_distance` from its selections: `nearest_line`
+    (distance d, foot parameter t, inward unit normal, endpoints i, j) of the nearest hull
+    edge line, `nearest_point` (squared distance, t, q minus the point, i, j) of the
+    nearest hull edge point or single point; `hull`: whether there is any edge."""
+    in_d, in_t, in_nx, in_ny, in_i, in_j = nearest_line
+    out_d2, out_t, out_x, out_y, out_i, out_j = nearest_point
+    n, dt = mask.shape[0], in_d.dtype
     inside = hull & (in_d > 0)
     ok = out_d2 > 0
     out_d = jnp.where(ok, jnp.sqrt(jnp.where(ok, out_d2, 1.0)), 0.0)
@@ -339,41 +360,96 @@ def _hull_distance(q: Array, points: Array, mask: Array) -> tuple[Array, Array, 
     return value, jnp.where(live, g_q, 0.0), jnp.where(live, g_p, 0.0)
 
 
+def _hull_distance_vectorized(q: Array, points: Array, mask: Array) -> tuple[Array, Array, Array]:
+    """`_hull_distance` with every point's gift-wrap step at once (`_gift_wrap_from` over
+    N-vectors, the loop over the other points unrolled): O(N^2) work in O(N) operations,
+    so the program stays small at 8-16 points, where the scalar form's O(N^2) operations
+    compile slowly. The same edges, selections and tie-breaks (the first nearest)."""
+    n = points.shape[0]
+    dt = points.dtype
+    tol = jax.lax.stop_gradient(_tolerance(points, mask))
+    big = jnp.asarray(jnp.finfo(dt).max, dt)
+    rel = jax.lax.stop_gradient(points - q[None, :])  # gradients come from the closed forms
+    px, py = rel[:, 0], rel[:, 1]
+    rows = jnp.arange(n)
+    j, ex, ey, edge = _gift_wrap_from(rows, px, py, mask, [px[k] for k in range(n)], [py[k] for k in range(n)],
+                                      [mask[k] for k in range(n)], tol)
+    e2 = jnp.where(edge, ex * ex + ey * ey, 1.0)
+    inv = jax.lax.rsqrt(e2)
+    nx, ny = -ey * inv, ex * inv  # left (inward) unit normals
+    d = jnp.where(edge, -(nx * px + ny * py), big)  # n . (q - p_i), q at the origin
+    t_line = -(px * ex + py * ey) / e2
+
+    def pick(index, values):  # values[index] as a masked sum (no gather)
+        return jnp.sum(jnp.where(rows == index, values, 0), axis=-1)
+
+    in_i = jnp.argmin(d)
+    nearest_line = (jnp.min(d), pick(in_i, t_line), pick(in_i, nx), pick(in_i, ny), in_i, pick(in_i, j))
+    t = jnp.clip(t_line, 0.0, 1.0)
+    cx, cy = px + t * ex, py + t * ey  # each edge's nearest point to q
+    c2 = jnp.where(edge, cx * cx + cy * cy, big)
+    p2 = jnp.where(mask, px * px + py * py, big)
+    e_i, p_i = jnp.argmin(c2), jnp.argmin(p2)
+    point = jnp.min(p2) < jnp.min(c2)  # a single point (or vertex) only when strictly nearer
+    nearest_point = (
+        jnp.minimum(jnp.min(p2), jnp.min(c2)),
+        jnp.where(point, 0.0, pick(e_i, t)),
+        jnp.where(point, -pick(p_i, px), -pick(e_i, cx)),
+        jnp.where(point, -pick(p_i, py), -pick(e_i, cy)),
+        jnp.where(point, p_i, e_i),
+        jnp.where(point, p_i, pick(e_i, j)),
+    )
+    return _signed_distance_and_gradients(mask, jnp.any(edge), nearest_line, nearest_point)
+
+
 def small_hull_edges(points: Array, mask: Array) -> tuple[Array, Array]:
     """The counter-clockwise hull edges of the masked 2D points as successors: (succ (N,)
     int, edge (N,) bool), edge[i] when p_i -> p_succ[i] is a maximal hull edge (the edges
-    of `hull_edges`, one per hull vertex). O(N^2), unrolled at trace time: meant for up
-    to UNROLL_MAX_POINTS points. The selection is piecewise constant (no gradient)."""
+    of `hull_edges`, one per hull vertex). O(N^2): a gift-wrap step from every point
+    (`_gift_wrap_from`), on per-point scalars up to UNROLL_MAX_POINTS points, on
+    N-vectors beyond. The selection is piecewise constant (no gradient)."""
     n = points.shape[0]
     p = jax.lax.stop_gradient(points)
     mask = unique_mask(p, mask)  # one edge per hull vertex, as `hull_edges`
     tol = _tolerance(p, mask)
-    succ, _, _, edges = _small_hull_edges([p[k, 0] for k in range(n)], [p[k, 1] for k in range(n)],
-                                          [mask[k] for k in range(n)], tol)
+    x, y, mk = [p[k, 0] for k in range(n)], [p[k, 1] for k in range(n)], [mask[k] for k in range(n)]
+    if n > UNROLL_MAX_POINTS:
+        succ, _, _, edge = _gift_wrap_from(jnp.arange(n), p[:, 0], p[:, 1], mask, x, y, mk, tol)
+        return succ, edge
+    succ, _, _, edges = _small_hull_edges(x, y, mk, tol)
     return jnp.stack(succ), jnp.stack(edges)
 
 
-@jax.custom_jvp
-def _hull_signed_distance_unrolled(q: Array, points: Array, mask: Array) -> Array:
-    """`hull_signed_distance` by `_hull_distance` (O(N^2), unrolled), with the closed-form
-    derivative of the distance to the nearest edge's line (inside) or nearest edge point
-    (outside): exact between changes of the nearest edge, zero for masked and interior
-    points, O(N) to evaluate."""
-    return _hull_distance(q, points, mask)[0]
+def _with_closed_form_jvp(distance: Callable[[Array, Array, Array], tuple[Array, Array, Array]]):
+    """`hull_signed_distance` by `distance` (`_hull_distance` or its vectorised form),
+    with the closed-form derivative of the distance to the nearest edge's line (inside)
+    or nearest edge point (outside) that `distance` returns: exact between changes of the
+    nearest edge, zero for masked and interior points, O(N) to evaluate; the selection
+    itself is never differentiated."""
+
+    @jax.custom_jvp
+    def signed_distance(q: Array, points: Array, mask: Array) -> Array:
+        return distance(q, points, mask)[0]
+
+    @signed_distance.defjvp
+    def signed_distance_jvp(primals, tangents):
+        q, points, mask = primals
+        dq, dp, _ = tangents
+        value, g_q, g_p = distance(q, points, mask)
+        return value, jnp.dot(g_q, dq) + jnp.sum(g_p * dp)
+
+    return signed_distance
 
 
-@_hull_signed_distance_unrolled.defjvp
-def _hull_signed_distance_unrolled_jvp(primals, tangents):
-    q, points, mask = primals
-    dq, dp, _ = tangents
-    value, g_q, g_p = _hull_distance(q, points, mask)
-    return value, jnp.dot(g_q, dq) + jnp.sum(g_p * dp)
+_hull_signed_distance_unrolled = _with_closed_form_jvp(_hull_distance)
+_hull_signed_distance_vectorized = _with_closed_form_jvp(_hull_distance_vectorized)
 
 
-# Up to this many points `hull_signed_distance` runs unrolled (`_hull_distance`: 1.0e7
-# margins/s at 4 contacts against 6e5 for the all-pairs form, float64, 2 cores); its
-# program grows with N^2 and compiles in 1.6 s at N = 4, 5 s at N = 8 and 50 s at
-# N = 16, so larger sets use the all-pairs form. Default (ours).
+# Up to this many points `hull_signed_distance` (and `small_hull_edges`) run on per-point
+# scalars (`_hull_distance`: 1.6e7 margins/s at 4 points against 8.4e6 for the vectorised
+# form, float64, one core; its program grows with N^2, 50 s to compile at N = 16), beyond
+# on N-vectors (`_hull_distance_vectorized`: 4.6e6 at 8 points, 2.0e6 at 16, compiled in
+# 0.4-0.9 s; the all-pairs form 1.5e5 and 2.8e4). Default (ours).
 UNROLL_MAX_POINTS = 6
 
 
@@ -382,14 +458,15 @@ def hull_signed_distance(q: Array, points: Array, mask: Array) -> Array:
     points: positive inside, negative outside (minus the distance to the hull). A
     segment or a single point gives <= 0; no points gives -inf. Gradients flow through
     the coordinates of the nearest edge or point; masked and interior points get none.
-    Up to UNROLL_MAX_POINTS points by the unrolled O(N^2) form, beyond by the all-pairs
-    edge matrix (the same values)."""
+    O(N^2): a gift-wrap step from every point, on per-point scalars up to
+    UNROLL_MAX_POINTS points, on N-vectors beyond (the all-pairs edge matrix of
+    `hull_edges`, O(N^3), gives the same values: `_hull_signed_distance_all_pairs`)."""
     n = points.shape[0]
     if n == 0:
         return jnp.asarray(-jnp.inf, points.dtype)
     if n <= UNROLL_MAX_POINTS:
         return _hull_signed_distance_unrolled(q, points, mask)
-    return _hull_signed_distance_all_pairs(q, points, mask)
+    return _hull_signed_distance_vectorized(q, points, mask)
 
 
 def _edges_signed_distance(q: Array, points: Array, mask: Array, E: Array) -> Array:
@@ -415,8 +492,8 @@ def _edges_signed_distance(q: Array, points: Array, mask: Array, E: Array) -> Ar
 
 
 def _hull_signed_distance_all_pairs(q: Array, points: Array, mask: Array) -> Array:
-    """`hull_signed_distance` from the all-pairs edge matrix (`hull_edges`, O(N^3)):
-    for more than UNROLL_MAX_POINTS points, where unrolling compiles too slowly."""
+    """`hull_signed_distance` from the all-pairs edge matrix (`hull_edges`, O(N^3)): the
+    reference the O(N^2) forms are tested against (autodiff gradients)."""
     return _edges_signed_distance(q, points, mask, hull_edges(points, mask))
 
 

@@ -8,7 +8,8 @@ unit "up" vector (e.g. the negative of an effective gravity that includes a teth
 force). Distances in metres, forces in newtons.
 
 The support polygon is the convex hull of the active contacts projected along `up`;
-its edges come from `geometry.hull_edges`, so no ordering of contacts is needed.
+its edges come from `geometry.small_hull_edges` (the static and energy margins, O(N^2))
+or `geometry.hull_edges` (the others), so no ordering of contacts is needed.
 
 Every margin is signed: positive when stable, negative when the robot would tip (or
 slip, for the friction margin). Each has a `*_smooth` variant for gradient-based
@@ -127,21 +128,42 @@ def ne_stability_margin(cog: Array, contacts: Array, mask: Array, up: Array | No
     highest point above the COG's present height, i.e. the tip-over energy divided by
     the weight. It is signed: negative when the COG's projection is outside the edge
     (already past the top). NESM = min over edges; -inf with fewer than two contacts.
+    The edges come from `geometry.small_hull_edges` (O(N^2)); up to
+    UNROLL_MAX_POINTS contacts every pair's margin is evaluated and the edges' minimum
+    taken, beyond only the N successor axes' (`_ne_successor_margins`).
     """
-    if contacts.shape[0] <= geo.UNROLL_MAX_POINTS:
-        return _ne_stability_margin_small(cog, contacts, mask, up)
-    S, p2 = _ne_edge_margins(cog, contacts, up)
-    E = geo.hull_edges(p2, mask)
-    return jnp.where(jnp.any(E), jnp.min(jnp.where(E, S, jnp.inf)), -jnp.inf)
-
-
-def _ne_stability_margin_small(cog: Array, contacts: Array, mask: Array, up: Array | None) -> Array:
-    """`ne_stability_margin` for a few contacts: the signed margins of every axis as in
-    the general case, the support polygon's edges from the successors of
-    `geometry.small_hull_edges` (O(N^2)) instead of the all-pairs `hull_edges` (O(N^3))."""
+    if contacts.shape[0] > geo.UNROLL_MAX_POINTS:  # (the successor axes at <= 6 made TITAN's stride gradient NaN)
+        S, edge = _ne_successor_margins(cog, contacts, mask, up)
+        return jnp.where(jnp.any(edge), jnp.min(jnp.where(edge, S, jnp.inf)), -jnp.inf)
     S, p2 = _ne_edge_margins(cog, contacts, up)
     succ, edge = geo.small_hull_edges(p2, mask)
     E = edge[:, None] & (succ[:, None] == jnp.arange(contacts.shape[0])[None, :])
+    return jnp.where(jnp.any(E), jnp.min(jnp.where(E, S, jnp.inf)), -jnp.inf)
+
+
+def _ne_successor_margins(cog: Array, contacts: Array, mask: Array, up: Array | None) -> tuple[Array, Array]:
+    """The signed energy margins (N,) [m] of the axes p_i -> p_succ[i] and whether each is
+    a support edge (`geometry.small_hull_edges`): N axes instead of every pair's N^2. The
+    successor's coordinates are selected with a masked sum (no gather, and no product
+    with the garbage of masked rows); a non-edge row's axis is degenerate (succ[i] = i),
+    which `axis_energy_rise` keeps finite."""
+    B = vertical_frame(up, contacts.dtype)
+    c = B @ cog
+    p = contacts @ B.T
+    succ, edge = geo.small_hull_edges(p[:, :2], mask)
+    chosen = succ[:, None] == jnp.arange(contacts.shape[0])[None, :]
+    b = jnp.sum(jnp.where(chosen[:, :, None], p[None, :, :], 0.0), axis=1)
+    rise = jax.vmap(lambda a, b_: axis_energy_rise(c, a, b_))(p, b)
+    side = geo.cross2(b[:, :2] - p[:, :2], c[:2] - p[:, :2])  # the COG's side, times |edge|
+    return jnp.where(side >= 0, rise, -rise), edge
+
+
+def _ne_stability_margin_all_pairs(cog: Array, contacts: Array, mask: Array, up: Array | None = None) -> Array:
+    """`ne_stability_margin` with the support edges from the all-pairs `hull_edges`
+    (O(N^3)) instead of the successors of `geometry.small_hull_edges` (O(N^2)): the
+    reference the tests hold it to."""
+    S, p2 = _ne_edge_margins(cog, contacts, up)
+    E = geo.hull_edges(p2, mask)
     return jnp.where(jnp.any(E), jnp.min(jnp.where(E, S, jnp.inf)), -jnp.inf)
 
 

@@ -584,14 +584,14 @@ def test_soft_min_tends_to_min():
 SMALL = geo.UNROLL_MAX_POINTS  # hull_signed_distance's unrolled form (O(N^2), closed-form gradient)
 
 
-def _small_case(rng: np.random.Generator):
-    """SMALL rows: 1..SMALL real points on a dyadic grid (exact duplicates and exact
+def _small_case(rng: np.random.Generator, size: int = SMALL):
+    """`size` rows: 1..size real points on a dyadic grid (exact duplicates and exact
     collinear triples happen), or in general position; garbage in the masked rows."""
-    n_real = int(rng.integers(1, SMALL + 1))
+    n_real = int(rng.integers(1, size + 1))
     real = rng.integers(-4, 5, size=(n_real, 2)) / 4.0 if rng.uniform() < 0.5 else rng.normal(size=(n_real, 2))
-    pts = rng.uniform(-50.0, 50.0, size=(SMALL, 2))
-    mask = np.zeros(SMALL, bool)
-    rows = rng.permutation(SMALL)[:n_real]
+    pts = rng.uniform(-50.0, 50.0, size=(size, 2))
+    mask = np.zeros(size, bool)
+    rows = rng.permutation(size)[:n_real]
     pts[rows], mask[rows] = real, True
     qs = np.concatenate([rng.uniform(-2.0, 2.0, size=(Q - 3, 2)), real[:1], 0.5 * (real[:1] + real[-1:]),
                          real[-1:] + 1e-3])
@@ -647,3 +647,44 @@ def test_small_hull_distance_gradients():
         assert np.all(g_p[~mask] == 0.0) and np.all(g_p[4] == 0.0) and np.abs(g_p).sum() > 0
         assert float(jnp.linalg.norm(g_q)) == pytest.approx(1.0)  # a distance: unit slope in q
     assert float(hsd(jnp.zeros(2), jnp.asarray(pts), jnp.zeros(SMALL, bool))) == -np.inf
+
+
+# ------------------------------------ more points: the vectorised O(N^2) hull distance
+LARGE = 16  # beyond UNROLL_MAX_POINTS: every point's gift-wrap step at once, on 16-vectors
+HSD_LARGE = jax.jit(jax.vmap(jax.vmap(geo.hull_signed_distance, (0, None, None))))
+HSD_ALL_PAIRS = jax.jit(jax.vmap(jax.vmap(geo._hull_signed_distance_all_pairs, (0, None, None))))
+
+
+def test_vectorized_hull_distance_equals_the_all_pairs_form():
+    """Beyond UNROLL_MAX_POINTS, hull_signed_distance runs every point's gift-wrap step on
+    N-vectors: 300 random sets of 1 to 16 points (duplicates, collinear, garbage in masked
+    rows) give the all-pairs form's values to 1e-12; float32 agrees within its tolerance."""
+    assert LARGE > geo.UNROLL_MAX_POINTS
+    rng = np.random.default_rng(8)
+    cases = [_small_case(rng, LARGE) for _ in range(300)]
+    pts, mask, qs = (np.stack([c[k] for c in cases]) for k in range(3))
+    got = np.asarray(HSD_LARGE(qs, pts, mask))
+    np.testing.assert_allclose(got, np.asarray(HSD_ALL_PAIRS(qs, pts, mask)), atol=1e-12, rtol=0)
+    assert np.isinf(got).sum() == 0 and (got > 0).sum() > 500 and (got < 0).sum() > 500
+    f32 = np.asarray(HSD_LARGE(qs.astype(np.float32), pts.astype(np.float32), mask))
+    np.testing.assert_allclose(f32, got, atol=5e-5, rtol=0)
+
+
+def test_vectorized_hull_distance_gradients():
+    """Its closed-form derivative against central differences (check_grads, forward and
+    reverse) and against the all-pairs form's autodiff gradient, inside and outside a
+    hexagon with interior points; masked rows and interior points get zero gradient."""
+    hexagon = [[np.cos(a) + 0.1 * k, np.sin(a)] for k, a in enumerate(np.linspace(0, 2 * np.pi, 7)[:-1])]
+    pts, mask = _pad([*hexagon, [0.2, 0.1], [-0.3, 0.2], [0.5, 0.0]], n=LARGE, fill=5.0)
+    hsd = jax.jit(geo.hull_signed_distance)
+    reference = jax.jit(jax.grad(geo._hull_signed_distance_all_pairs, argnums=(0, 1)))
+    for q in ([0.1, 0.05], [2.0, 0.3], [0.2, -1.4], [-1.5, 0.9]):
+        fn = lambda q_, p_: hsd(q_, p_, jnp.asarray(mask))  # noqa: E731
+        args = (jnp.asarray(q), jnp.asarray(pts))
+        check_grads(fn, args, order=1, modes=["fwd", "rev"], eps=1e-6)
+        g_q, g_p = jax.grad(fn, argnums=(0, 1))(*args)
+        r_q, r_p = reference(*args, jnp.asarray(mask))
+        np.testing.assert_allclose(g_q, r_q, atol=1e-12)
+        np.testing.assert_allclose(g_p, r_p, atol=1e-12)
+        g_p = np.asarray(g_p)
+        assert np.all(g_p[~mask] == 0.0) and np.all(g_p[6:9] == 0.0) and np.abs(g_p).sum() > 0

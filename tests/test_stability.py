@@ -456,18 +456,18 @@ SMALL_MARGINS = jax.jit(jax.vmap(lambda c, p, m: (sm.static_margin(c, p, m), sm.
 EDGES_V = jax.jit(jax.vmap(lambda p, m: (geo.hull_edges(p, m), *geo.small_hull_edges(p, m))))
 
 
-def _few_scenes(seed: int, count: int):
-    """FEW rows: 1..FEW contacts on a sloped grid (exact duplicates and collinear sets
+def _few_scenes(seed: int, count: int, size: int = FEW):
+    """`size` rows: 1..size contacts on a sloped grid (exact duplicates and collinear sets
     happen) or in general position, garbage in the masked rows; a COG above them."""
     rng = np.random.default_rng(seed)
     cogs, contacts, masks = [], [], []
     for _ in range(count):
-        n = int(rng.integers(1, FEW + 1))
+        n = int(rng.integers(1, size + 1))
         xy = rng.integers(-2, 3, size=(n, 2)) * 0.25 if rng.uniform() < 0.5 else rng.normal(0, 0.4, (n, 2))
         z = xy @ rng.uniform(-0.4, 0.4, 2) + rng.uniform(-0.05, 0.05, n)
-        pts = rng.uniform(-30.0, 30.0, size=(FEW, 3))
-        mask = np.zeros(FEW, bool)
-        rows = rng.permutation(FEW)[:n]
+        pts = rng.uniform(-30.0, 30.0, size=(size, 3))
+        mask = np.zeros(size, bool)
+        rows = rng.permutation(size)[:n]
         pts[rows], mask[rows] = np.column_stack([xy, z]), True
         cogs.append(np.r_[xy.mean(axis=0) + rng.normal(0, 0.2, 2), z.mean() + rng.uniform(0.2, 0.6)])
         contacts.append(pts)
@@ -514,3 +514,23 @@ def test_few_contacts_margin_gradients():
         check_grads(fn, args, order=1, modes=["fwd", "rev"], eps=1e-6)
         jac = np.asarray(jax.jacrev(fn, argnums=1)(*args))
         assert np.all(jac[:, 5] == 0.0) and np.all(jac[:, 4] == 0.0) and np.all(np.isfinite(jac))
+
+
+NESM_BOTH = jax.jit(jax.vmap(lambda c, p, m: (sm.ne_stability_margin(c, p, m),
+                                              sm._ne_stability_margin_all_pairs(c, p, m))))
+
+
+def test_many_contacts_nesm_uses_the_successor_edges():
+    """With N = 16 contacts (beyond UNROLL_MAX_POINTS) the NESM's edges come from the
+    vectorised gift-wrap (`small_hull_edges` on 16-vectors) and only the successor axes
+    are evaluated: on 300 random scenes the successors are `hull_edges`' edges and the
+    NESM equals the all-pairs form (every pair's margin, `hull_edges`) to 1e-12 m."""
+    cogs, contacts, masks = _few_scenes(12, 300, size=N)
+    E, succ, edge = (np.asarray(a) for a in EDGES_V(jnp.asarray(contacts[..., :2]), jnp.asarray(masks)))
+    from_succ = np.zeros_like(E)
+    scene, i = np.nonzero(edge)
+    from_succ[scene, i, succ[scene, i]] = True
+    np.testing.assert_array_equal(from_succ, E)
+    nesm, ref = (np.asarray(a) for a in NESM_BOTH(jnp.asarray(cogs), jnp.asarray(contacts), jnp.asarray(masks)))
+    np.testing.assert_allclose(nesm, ref, atol=1e-12, rtol=0)
+    assert (nesm > 0).sum() > 50 and (nesm < 0).sum() > 20
