@@ -209,8 +209,19 @@ def hull_edges(points: Array, mask: Array) -> Array:
     collinear ones lie between p_i and p_j). Order of the points does not matter.
 
     Degenerate sets: all points collinear -> both directions of the extreme segment;
-    one point (or none) -> no edges. Gradients flow through the point coordinates of
-    the selected edges; the selection itself is piecewise constant."""
+    one point (or none) -> no edges. The selection is piecewise constant (no gradient).
+    From the successors of `small_hull_edges` (a gift-wrap step from every point,
+    O(N^2)); `_hull_edges_all_pairs` (O(N^3)) gives the same matrix."""
+    n = points.shape[0]
+    if n == 0:
+        return jnp.zeros((0, 0), bool)
+    succ, edge = small_hull_edges(points, mask)
+    return edge[:, None] & (succ[:, None] == jnp.arange(n)[None, :])
+
+
+def _hull_edges_all_pairs(points: Array, mask: Array) -> Array:
+    """`hull_edges` by testing every pair (i, j) against every point k (O(N^3)): the
+    reference the gift-wrap forms are tested against."""
     mask = unique_mask(points, mask)
     tol = jax.lax.stop_gradient(_tolerance(points, mask))
     p = jax.lax.stop_gradient(points)
@@ -494,7 +505,7 @@ def _edges_signed_distance(q: Array, points: Array, mask: Array, E: Array) -> Ar
 def _hull_signed_distance_all_pairs(q: Array, points: Array, mask: Array) -> Array:
     """`hull_signed_distance` from the all-pairs edge matrix (`hull_edges`, O(N^3)): the
     reference the O(N^2) forms are tested against (autodiff gradients)."""
-    return _edges_signed_distance(q, points, mask, hull_edges(points, mask))
+    return _edges_signed_distance(q, points, mask, _hull_edges_all_pairs(points, mask))
 
 
 def convex_hull(points: Array, mask: Array) -> tuple[Array, Array]:

@@ -163,7 +163,7 @@ def _ne_stability_margin_all_pairs(cog: Array, contacts: Array, mask: Array, up:
     (O(N^3)) instead of the successors of `geometry.small_hull_edges` (O(N^2)): the
     reference the tests hold it to."""
     S, p2 = _ne_edge_margins(cog, contacts, up)
-    E = geo.hull_edges(p2, mask)
+    E = geo._hull_edges_all_pairs(p2, mask)
     return jnp.where(jnp.any(E), jnp.min(jnp.where(E, S, jnp.inf)), -jnp.inf)
 
 

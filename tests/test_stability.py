@@ -453,7 +453,7 @@ def test_vmap_equals_loop_and_float32():
 # ------------------------------------ a few contacts: the unrolled hull (geometry.UNROLL_MAX_POINTS)
 FEW = geo.UNROLL_MAX_POINTS
 SMALL_MARGINS = jax.jit(jax.vmap(lambda c, p, m: (sm.static_margin(c, p, m), sm.ne_stability_margin(c, p, m))))
-EDGES_V = jax.jit(jax.vmap(lambda p, m: (geo.hull_edges(p, m), *geo.small_hull_edges(p, m))))
+EDGES_V = jax.jit(jax.vmap(lambda p, m: (geo._hull_edges_all_pairs(p, m), *geo.small_hull_edges(p, m))))
 
 
 def _few_scenes(seed: int, count: int, size: int = FEW):
@@ -478,7 +478,7 @@ def _few_scenes(seed: int, count: int, size: int = FEW):
 def test_few_contacts_give_the_all_pairs_margins_and_edges():
     """Up to UNROLL_MAX_POINTS contacts the static margin and the NESM run on the unrolled
     O(N^2) hull: on 400 random scenes (1..6 contacts, duplicates, collinear sets) the
-    successor edges are `hull_edges`' edges, and both margins equal the all-pairs forms
+    successor edges are the all-pairs test's edges, and both margins equal the all-pairs forms
     (the same scene padded to N rows) to 1e-12 m in float64 and to 1e-4 m in float32."""
     cogs, contacts, masks = _few_scenes(11, 400)
     E, succ, edge = (np.asarray(a) for a in EDGES_V(jnp.asarray(contacts[..., :2]), jnp.asarray(masks)))
@@ -523,8 +523,8 @@ NESM_BOTH = jax.jit(jax.vmap(lambda c, p, m: (sm.ne_stability_margin(c, p, m),
 def test_many_contacts_nesm_uses_the_successor_edges():
     """With N = 16 contacts (beyond UNROLL_MAX_POINTS) the NESM's edges come from the
     vectorised gift-wrap (`small_hull_edges` on 16-vectors) and only the successor axes
-    are evaluated: on 300 random scenes the successors are `hull_edges`' edges and the
-    NESM equals the all-pairs form (every pair's margin, `hull_edges`) to 1e-12 m."""
+    are evaluated: on 300 random scenes the successors are the all-pairs test's edges and the
+    NESM equals the all-pairs form (every pair's margin) to 1e-12 m."""
     cogs, contacts, masks = _few_scenes(12, 300, size=N)
     E, succ, edge = (np.asarray(a) for a in EDGES_V(jnp.asarray(contacts[..., :2]), jnp.asarray(masks)))
     from_succ = np.zeros_like(E)
