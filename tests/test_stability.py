@@ -454,6 +454,8 @@ def test_vmap_equals_loop_and_float32():
 FEW = geo.UNROLL_MAX_POINTS
 SMALL_MARGINS = jax.jit(jax.vmap(lambda c, p, m: (sm.static_margin(c, p, m), sm.ne_stability_margin(c, p, m))))
 EDGES_V = jax.jit(jax.vmap(lambda p, m: (geo._hull_edges_all_pairs(p, m), *geo.small_hull_edges(p, m))))
+NESM_BOTH = jax.jit(jax.vmap(lambda c, p, m: (sm.ne_stability_margin(c, p, m),
+                                              sm._ne_stability_margin_all_pairs(c, p, m))))
 
 
 def _few_scenes(seed: int, count: int, size: int = FEW):
@@ -475,17 +477,25 @@ def _few_scenes(seed: int, count: int, size: int = FEW):
     return np.array(cogs), np.array(contacts), np.array(masks)
 
 
-def test_few_contacts_give_the_all_pairs_margins_and_edges():
-    """Up to UNROLL_MAX_POINTS contacts the static margin and the NESM run on the unrolled
-    O(N^2) hull: on 400 random scenes (1..6 contacts, duplicates, collinear sets) the
-    successor edges are the all-pairs test's edges, and both margins equal the all-pairs forms
-    (the same scene padded to N rows) to 1e-12 m in float64 and to 1e-4 m in float32."""
-    cogs, contacts, masks = _few_scenes(11, 400)
+def _assert_successors_are_the_all_pairs_edges(contacts, masks):
+    """`small_hull_edges`' successor edges of every scene == `_hull_edges_all_pairs`."""
     E, succ, edge = (np.asarray(a) for a in EDGES_V(jnp.asarray(contacts[..., :2]), jnp.asarray(masks)))
     from_succ = np.zeros_like(E)
     scene, i = np.nonzero(edge)
     from_succ[scene, i, succ[scene, i]] = True
     np.testing.assert_array_equal(from_succ, E)
+
+
+def test_few_contacts_give_the_all_pairs_margins_and_edges():
+    """Up to UNROLL_MAX_POINTS contacts the static margin and the NESM run on the unrolled
+    O(N^2) hull: on 400 random scenes (1..6 contacts, duplicates, collinear sets) the
+    successor edges are the all-pairs test's edges, the NESM is the all-pairs form's, and
+    both margins equal those of the same scene padded to N rows (the vectorised forms) to
+    1e-12 m in float64 and to 1e-4 m in float32."""
+    cogs, contacts, masks = _few_scenes(11, 400)
+    _assert_successors_are_the_all_pairs_edges(contacts, masks)
+    nesm, ref = (np.asarray(a) for a in NESM_BOTH(jnp.asarray(cogs), jnp.asarray(contacts), jnp.asarray(masks)))
+    np.testing.assert_allclose(nesm, ref, atol=1e-12, rtol=0)
     static, nesm = (np.asarray(a) for a in SMALL_MARGINS(jnp.asarray(cogs), jnp.asarray(contacts), jnp.asarray(masks)))
     padded = np.concatenate([contacts, np.full((len(contacts), N - FEW, 3), 9.0)], axis=1)
     pmask = np.concatenate([masks, np.zeros((len(masks), N - FEW), bool)], axis=1)
@@ -516,9 +526,6 @@ def test_few_contacts_margin_gradients():
         assert np.all(jac[:, 5] == 0.0) and np.all(jac[:, 4] == 0.0) and np.all(np.isfinite(jac))
 
 
-NESM_BOTH = jax.jit(jax.vmap(lambda c, p, m: (sm.ne_stability_margin(c, p, m),
-                                              sm._ne_stability_margin_all_pairs(c, p, m))))
-
 
 def test_many_contacts_nesm_uses_the_successor_edges():
     """With N = 16 contacts (beyond UNROLL_MAX_POINTS) the NESM's edges come from the
@@ -526,11 +533,7 @@ def test_many_contacts_nesm_uses_the_successor_edges():
     are evaluated: on 300 random scenes the successors are the all-pairs test's edges and the
     NESM equals the all-pairs form (every pair's margin) to 1e-12 m."""
     cogs, contacts, masks = _few_scenes(12, 300, size=N)
-    E, succ, edge = (np.asarray(a) for a in EDGES_V(jnp.asarray(contacts[..., :2]), jnp.asarray(masks)))
-    from_succ = np.zeros_like(E)
-    scene, i = np.nonzero(edge)
-    from_succ[scene, i, succ[scene, i]] = True
-    np.testing.assert_array_equal(from_succ, E)
+    _assert_successors_are_the_all_pairs_edges(contacts, masks)
     nesm, ref = (np.asarray(a) for a in NESM_BOTH(jnp.asarray(cogs), jnp.asarray(contacts), jnp.asarray(masks)))
     np.testing.assert_allclose(nesm, ref, atol=1e-12, rtol=0)
     assert (nesm > 0).sum() > 50 and (nesm < 0).sum() > 20
