@@ -213,8 +213,6 @@ def hull_edges(points: Array, mask: Array) -> Array:
     From the successors of `small_hull_edges` (a gift-wrap step from every point,
     O(N^2)); `_hull_edges_all_pairs` (O(N^3)) gives the same matrix."""
     n = points.shape[0]
-    if n == 0:
-        return jnp.zeros((0, 0), bool)
     succ, edge = small_hull_edges(points, mask)
     return edge[:, None] & (succ[:, None] == jnp.arange(n)[None, :])
 
@@ -420,6 +418,8 @@ def small_hull_edges(points: Array, mask: Array) -> tuple[Array, Array]:
     (`_gift_wrap_from`), on per-point scalars up to UNROLL_MAX_POINTS points, on
     N-vectors beyond. The selection is piecewise constant (no gradient)."""
     n = points.shape[0]
+    if n == 0:
+        return jnp.zeros((0,), jnp.int32), jnp.zeros((0,), bool)
     p = jax.lax.stop_gradient(points)
     mask = unique_mask(p, mask)  # one edge per hull vertex, as `hull_edges`
     tol = _tolerance(p, mask)
@@ -470,8 +470,8 @@ def hull_signed_distance(q: Array, points: Array, mask: Array) -> Array:
     segment or a single point gives <= 0; no points gives -inf. Gradients flow through
     the coordinates of the nearest edge or point; masked and interior points get none.
     O(N^2): a gift-wrap step from every point, on per-point scalars up to
-    UNROLL_MAX_POINTS points, on N-vectors beyond (the all-pairs edge matrix of
-    `hull_edges`, O(N^3), gives the same values: `_hull_signed_distance_all_pairs`)."""
+    UNROLL_MAX_POINTS points, on N-vectors beyond (`_hull_signed_distance_all_pairs`,
+    O(N^3), gives the same values)."""
     n = points.shape[0]
     if n == 0:
         return jnp.asarray(-jnp.inf, points.dtype)
@@ -503,8 +503,8 @@ def _edges_signed_distance(q: Array, points: Array, mask: Array, E: Array) -> Ar
 
 
 def _hull_signed_distance_all_pairs(q: Array, points: Array, mask: Array) -> Array:
-    """`hull_signed_distance` from the all-pairs edge matrix (`hull_edges`, O(N^3)): the
-    reference the O(N^2) forms are tested against (autodiff gradients)."""
+    """`hull_signed_distance` from the all-pairs edge matrix (`_hull_edges_all_pairs`,
+    O(N^3)): the reference the O(N^2) forms are tested against (autodiff gradients)."""
     return _edges_signed_distance(q, points, mask, _hull_edges_all_pairs(points, mask))
 
 

@@ -8,8 +8,8 @@ unit "up" vector (e.g. the negative of an effective gravity that includes a teth
 force). Distances in metres, forces in newtons.
 
 The support polygon is the convex hull of the active contacts projected along `up`;
-its edges come from `geometry.small_hull_edges` (the static and energy margins, O(N^2))
-or `geometry.hull_edges` (the others), so no ordering of contacts is needed.
+its edges come from geometry's gift-wrap (`hull_edges`, `small_hull_edges`, O(N^2)), so
+no ordering of contacts is needed.
 
 Every margin is signed: positive when stable, negative when the robot would tip (or
 slip, for the friction margin). Each has a `*_smooth` variant for gradient-based
@@ -38,11 +38,15 @@ def vertical_frame(up: Array | None, dtype) -> Array:
     return R.T
 
 
+def _vertical_coordinates(cog: Array, contacts: Array, up: Array | None) -> tuple[Array, Array]:
+    """The COG (3,) and the contacts (N, 3) in `vertical_frame(up)` (z along up)."""
+    B = vertical_frame(up, contacts.dtype)
+    return B @ cog, contacts @ B.T
+
+
 def _split(cog: Array, contacts: Array, up: Array | None) -> tuple[Array, Array, Array, Array]:
     """Horizontal (2D) and vertical coordinates of the COG and the contacts."""
-    B = vertical_frame(up, contacts.dtype)
-    c = B @ cog
-    p = contacts @ B.T
+    c, p = _vertical_coordinates(cog, contacts, up)
     return c[:2], c[2], p[:, :2], p[:, 2]
 
 
@@ -102,9 +106,7 @@ def axis_energy_rise(c: Array, a: Array, b: Array) -> Array:
 
 def _ne_edge_margins(cog: Array, contacts: Array, up: Array | None) -> tuple[Array, Array]:
     """Per-edge energy margin h_max - h_0 (m), signed by the side of the COG."""
-    B = vertical_frame(up, contacts.dtype)
-    c = B @ cog
-    p = contacts @ B.T
+    c, p = _vertical_coordinates(cog, contacts, up)
     # axis i -> j for every pair (finite gradient on the i == j diagonal)
     rise = jax.vmap(jax.vmap(lambda a, b: axis_energy_rise(c, a, b), (None, 0)), (0, None))(p, p)
     side = _edge_line_distances(c[:2], p[:, :2])
@@ -128,17 +130,22 @@ def ne_stability_margin(cog: Array, contacts: Array, mask: Array, up: Array | No
     highest point above the COG's present height, i.e. the tip-over energy divided by
     the weight. It is signed: negative when the COG's projection is outside the edge
     (already past the top). NESM = min over edges; -inf with fewer than two contacts.
-    The edges come from `geometry.small_hull_edges` (O(N^2)); up to
-    UNROLL_MAX_POINTS contacts every pair's margin is evaluated and the edges' minimum
-    taken, beyond only the N successor axes' (`_ne_successor_margins`).
+    The edges come from geometry's gift-wrap (O(N^2)); up to UNROLL_MAX_POINTS contacts
+    every pair's margin is evaluated and the edges' minimum taken, beyond only the N
+    successor axes' (`_ne_successor_margins`).
     """
-    if contacts.shape[0] > geo.UNROLL_MAX_POINTS:  # (the successor axes at <= 6 made TITAN's stride gradient NaN)
-        S, edge = _ne_successor_margins(cog, contacts, mask, up)
-        return jnp.where(jnp.any(edge), jnp.min(jnp.where(edge, S, jnp.inf)), -jnp.inf)
+    if contacts.shape[0] > geo.UNROLL_MAX_POINTS:
+        return _min_over_edges(*_ne_successor_margins(cog, contacts, mask, up))
+    # Up to 6 contacts every pair: the successor axes alone made TITAN's stride gradient
+    # NaN (tests/test_titan_tune.py; docs/sweeps.md).
     S, p2 = _ne_edge_margins(cog, contacts, up)
-    succ, edge = geo.small_hull_edges(p2, mask)
-    E = edge[:, None] & (succ[:, None] == jnp.arange(contacts.shape[0])[None, :])
-    return jnp.where(jnp.any(E), jnp.min(jnp.where(E, S, jnp.inf)), -jnp.inf)
+    return _min_over_edges(S, geo.hull_edges(p2, mask))
+
+
+def _min_over_edges(margins: Array, edges: Array) -> Array:
+    """The smallest margin over the support edges (any shape, same for both); -inf with
+    no edge."""
+    return jnp.where(jnp.any(edges), jnp.min(jnp.where(edges, margins, jnp.inf), initial=jnp.inf), -jnp.inf)
 
 
 def _ne_successor_margins(cog: Array, contacts: Array, mask: Array, up: Array | None) -> tuple[Array, Array]:
@@ -147,9 +154,7 @@ def _ne_successor_margins(cog: Array, contacts: Array, mask: Array, up: Array | 
     successor's coordinates are selected with a masked sum (no gather, and no product
     with the garbage of masked rows); a non-edge row's axis is degenerate (succ[i] = i),
     which `axis_energy_rise` keeps finite."""
-    B = vertical_frame(up, contacts.dtype)
-    c = B @ cog
-    p = contacts @ B.T
+    c, p = _vertical_coordinates(cog, contacts, up)
     succ, edge = geo.small_hull_edges(p[:, :2], mask)
     chosen = succ[:, None] == jnp.arange(contacts.shape[0])[None, :]
     b = jnp.sum(jnp.where(chosen[:, :, None], p[None, :, :], 0.0), axis=1)
@@ -159,12 +164,10 @@ def _ne_successor_margins(cog: Array, contacts: Array, mask: Array, up: Array | 
 
 
 def _ne_stability_margin_all_pairs(cog: Array, contacts: Array, mask: Array, up: Array | None = None) -> Array:
-    """`ne_stability_margin` with the support edges from the all-pairs `hull_edges`
-    (O(N^3)) instead of the successors of `geometry.small_hull_edges` (O(N^2)): the
-    reference the tests hold it to."""
+    """`ne_stability_margin` with the support edges from the all-pairs `_hull_edges_all_pairs`
+    (O(N^3)) instead of the gift-wrap: the reference the tests hold it to."""
     S, p2 = _ne_edge_margins(cog, contacts, up)
-    E = geo._hull_edges_all_pairs(p2, mask)
-    return jnp.where(jnp.any(E), jnp.min(jnp.where(E, S, jnp.inf)), -jnp.inf)
+    return _min_over_edges(S, geo._hull_edges_all_pairs(p2, mask))
 
 
 def ne_stability_margin_smooth(
@@ -202,8 +205,7 @@ def longitudinal_margin(
     to the line of the violated edge (edges parallel to the travel line count with
     |n.d| floored at `eps`, so a COG beside the polygon gives a large negative value)."""
     terms, p2 = _longitudinal_terms(cog, contacts, direction, up, eps)
-    E = geo.hull_edges(p2, mask)
-    return jnp.where(jnp.any(E), jnp.min(jnp.where(E, terms, jnp.inf)), -jnp.inf)
+    return _min_over_edges(terms, geo.hull_edges(p2, mask))
 
 
 def longitudinal_margin_smooth(

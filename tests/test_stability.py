@@ -526,7 +526,6 @@ def test_few_contacts_margin_gradients():
         assert np.all(jac[:, 5] == 0.0) and np.all(jac[:, 4] == 0.0) and np.all(np.isfinite(jac))
 
 
-
 def test_many_contacts_nesm_uses_the_successor_edges():
     """With N = 16 contacts (beyond UNROLL_MAX_POINTS) the NESM's edges come from the
     vectorised gift-wrap (`small_hull_edges` on 16-vectors) and only the successor axes
