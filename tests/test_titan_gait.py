@@ -429,6 +429,29 @@ def test_grad_of_standard_stance_margin_wrt_lateral_shift():
     assert float(gr) == pytest.approx(float(fd), rel=1e-6)
 
 
+def test_swing_path_of_a_foot_that_stays_has_finite_derivatives():
+    """A leg whose landing equals its lift-off (a held cycle: no horizontal return) has a
+    swing path whose derivatives are finite in forward and reverse mode (the return
+    direction divides by |dv| floored at 1e-9 m; the norm's own derivative is 0/0 there);
+    away from that point they match central differences. No NaN even inside (`debug_nans`):
+    a NaN that a later selection drops is 0 * NaN away from breaking every gradient of
+    a plan."""
+    g = titan_maps.flat_map((90, 70), ORIGIN)
+    s = gait.standard_start(PAR, g, jnp.array([3.0, 3.5]))
+
+    def path(shift):
+        after = s.feet.at[1, 0].add(shift)
+        return gait.swing_path(PAR, g, s.feet, after, jnp.asarray(1))
+
+    for jac in (jax.jacfwd(path), jax.jacrev(path)):
+        with jax.debug_nans(True):
+            held = jac(0.0)
+        assert bool(jnp.all(jnp.isfinite(held)))
+        np.testing.assert_allclose(held[2:, 0], 1.0)  # the touch-down points move with the foot
+        moved = jac(0.1)
+        np.testing.assert_allclose(moved, (path(0.1 + 1e-6) - path(0.1 - 1e-6)) / 2e-6, atol=1e-6)
+
+
 def test_direction_changes_across_rear_pairs_use_a_transition_shift():
     """Reversing or turning by 90 deg changes the rear pair: neither new rear leg can lift
     at the old cycle-start pose, so the planner makes one transition COG shift (no swing)

@@ -665,7 +665,8 @@ def swing_path(
     li = jnp.maximum(leg, 0)
     a, b = before[li], after[li]
     dv = b[:2] - a[:2]
-    u = dv / jnp.maximum(jnp.linalg.norm(dv), 1e-9)
+    # |dv| floored at 1e-9 m before the square root: also its derivative stays finite at dv = 0
+    u = dv / jnp.sqrt(jnp.maximum(dv @ dv, 1e-18))
     s = jnp.linspace(0.0, 1.0, 24, dtype=a.dtype)[:, None]
     a0 = a[:2] - params.foot_radius * u  # the pad's whole footprint, ends included
     seg = a0[None] + s * (b[:2] + params.foot_radius * u - a0)[None]
