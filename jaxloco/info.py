@@ -93,6 +93,12 @@ def static_environment() -> list[tuple[str, str]]:
     source = f" (from ${runtime.ENV_CACHE_DIR})" if os.environ.get(runtime.ENV_CACHE_DIR) else ""
     state = "exists" if cache.is_dir() else "not created yet"
     rows.append(("compilation cache", f"{cache}{source}, {state}"))
+    programs = runtime.program_cache_dir(cache)
+    if programs is None:
+        rows.append(("program cache", f"off (${runtime.ENV_PROGRAM_CACHE})"))
+    else:
+        state = "exists" if programs.is_dir() else "not created yet"
+        rows.append(("program cache", f"{programs} (traced MJX rollouts), {state}"))
     return rows
 
 

@@ -28,6 +28,25 @@ def default_cache_dir() -> Path:
     return base / "jaxloco" / "jax"
 
 
+ENV_PROGRAM_CACHE = "JAXLOCO_PROGRAM_CACHE"
+PROGRAM_CACHE_SUFFIX = "-programs"
+
+
+def program_cache_dir(compilation_cache: str | Path | None) -> Path | None:
+    """Where traced programs are kept (`jaxloco.sim.programs`), given JAX's compilation
+    cache directory (None: off): `$JAXLOCO_PROGRAM_CACHE` if it names a directory ("0",
+    "off", "false" or "no": off), else `<compilation cache>-programs` beside it."""
+    env = os.environ.get(ENV_PROGRAM_CACHE, "").strip()
+    if env.lower() in ("0", "false", "no", "off"):
+        return None
+    if env and env.lower() not in ("1", "true", "yes", "on"):
+        return Path(env).expanduser()
+    if not compilation_cache:
+        return None
+    path = Path(compilation_cache)
+    return path.with_name(path.name + PROGRAM_CACHE_SUFFIX)
+
+
 @dataclass(frozen=True)
 class RuntimeSettings:
     x64: bool

@@ -230,10 +230,10 @@ def test_mjx_batch_is_sharded_over_every_device_and_matches_one_device(short_sce
     if len(jax.devices()) < 2:
         pytest.skip("one JAX device: nothing to shard over")
     seen = []
-    original = mjx_backend.batched_fn
+    original = mjx_backend.program
 
-    def spy(scenario, block=None):
-        fn = original(scenario, block)
+    def spy(scenario, block, inputs):
+        fn = original(scenario, block, inputs)
 
         def wrapped(params, keys):
             seen.append((keys.shape[0], keys.sharding.device_set))
@@ -241,7 +241,7 @@ def test_mjx_batch_is_sharded_over_every_device_and_matches_one_device(short_sce
 
         return wrapped
 
-    monkeypatch.setattr(mjx_backend, "batched_fn", spy)
+    monkeypatch.setattr(mjx_backend, "program", spy)
     # one row, padded to one per device, its key among the parameters as `rollout` puts
     # it: with 2 devices the sharded program is the one test_backends_agree_on_a_short_rollout
     # compiled (2 rows, same structure), so only the single-device run compiles anew
@@ -277,6 +277,79 @@ def test_a_large_mjx_batch_runs_block_by_block_with_the_rows_of_one_vmap(short_s
     blocked = mjx_backend.run(short_scenario, p, keys, rows_per_device=1)
     for row, ref_row in enumerate((1, 0, 1, 1, 0)):
         np.testing.assert_allclose(blocked["records"]["qpos"][row], ref.records["qpos"][ref_row], rtol=1e-9, atol=1e-12)
+
+
+def _counting_rollout_fn(monkeypatch):
+    """Count the MJX backend's calls of `rollout_fn` (each one traces the rollout anew)."""
+    from jaxloco.sim import mjx as mjx_backend
+
+    calls = []
+    original = mjx_backend.rollout_fn
+
+    def counted(scenario):
+        calls.append(scenario.name)
+        return original(scenario)
+
+    monkeypatch.setattr(mjx_backend, "rollout_fn", counted)
+    return calls
+
+
+def test_a_later_process_loads_the_traced_mjx_program_and_gets_the_same_rows(tmp_path, monkeypatch):
+    """The program cache (`jaxloco.sim.programs`): the first MJX run of a scenario traces
+    its rollout and keeps the lowered program on disk; a scenario built the same way (as
+    in a new process) loads it without tracing and gets the same rows bit for bit, as
+    does a run with the cache off (traced as before). A damaged file is traced again and
+    rewritten. (2 rows, 10 periods: the program of test_backends_agree_on_a_short_rollout.)"""
+    from jaxloco.sim import programs
+
+    monkeypatch.setenv(programs.ENV_SWITCH, str(tmp_path))
+    calls = _counting_rollout_fn(monkeypatch)
+    p = _params(2, ground=[0.0, 0.1], offset=[0.0, 0.05])
+    first = rollout(standing_scenario(horizon=10, substeps=2), p, backend="mjx")
+    files = list(tmp_path.glob("*.bin"))
+    assert len(calls) == 1 and len(files) == 1
+    later = rollout(standing_scenario(horizon=10, substeps=2), p, backend="mjx")
+    assert len(calls) == 1  # loaded, not traced
+    monkeypatch.setenv(programs.ENV_SWITCH, "0")
+    plain = rollout(standing_scenario(horizon=10, substeps=2), p, backend="mjx")
+    assert len(calls) == 2 and len(list(tmp_path.glob("*.bin"))) == 1
+    monkeypatch.setenv(programs.ENV_SWITCH, str(tmp_path))
+    files[0].write_bytes(b"not a program")
+    again = rollout(standing_scenario(horizon=10, substeps=2), p, backend="mjx")
+    assert len(calls) == 3 and files[0].stat().st_size > 10_000
+    for other in (later, plain, again):
+        for k in first.records:
+            np.testing.assert_array_equal(other.records[k], first.records[k], err_msg=k)
+        assert list(other.status) == list(first.status) == ["ok", "ok"]
+
+
+def test_program_keys_follow_what_the_program_is_traced_from(tmp_path, monkeypatch):
+    """Same scenario and inputs, same key; another horizon, batch or dtype, another key;
+    a scenario holding code from outside jaxloco (here this test module, whose edits the
+    key would not see) or a cache switched off, no key (traced every time)."""
+    import dataclasses
+
+    from jaxloco.sim import programs
+
+    monkeypatch.setenv(programs.ENV_SWITCH, str(tmp_path))
+    keys2 = jnp.stack([jax.random.PRNGKey(0)] * 2)
+
+    def key(sc, n=2, dtype=jnp.float64):
+        p = jax.tree_util.tree_map(lambda x: jnp.asarray(x, dtype), _params(n))
+        return programs.program_key(sc, (p, keys2[:1].repeat(n, 0)), "test")
+
+    base = key(standing_scenario(horizon=10, substeps=2))
+    assert base is not None and base == key(standing_scenario(horizon=10, substeps=2))
+    assert len({base, key(standing_scenario(horizon=12, substeps=2)), key(standing_scenario(horizon=10, substeps=2), 3),
+                key(standing_scenario(horizon=10, substeps=2), dtype=jnp.float32)}) == 4
+
+    def summarize_here(params, records, final):
+        return {}
+
+    mine = dataclasses.replace(standing_scenario(horizon=10, substeps=2), summarize=summarize_here)
+    assert key(mine) is None
+    monkeypatch.setenv(programs.ENV_SWITCH, "off")
+    assert programs.cache_dir() is None and key(standing_scenario(horizon=10, substeps=2)) is None
 
 
 def test_mujoco_warnings_stay_out_of_the_working_directory(tmp_path, monkeypatch):

@@ -44,7 +44,7 @@ with contextlib.redirect_stdout(io.StringIO()):  # mujoco.mjx prints "Failed to 
     from mujoco import mjx
 
 from jaxloco.batching import vmap_in_blocks
-from jaxloco.sim import backend
+from jaxloco.sim import backend, programs
 from jaxloco.sim import data as simdata
 from jaxloco.sim.scenario import Final, Scenario, init_fn, initial_activation, model_field_values, per_scenario, tick_fn
 
@@ -164,6 +164,19 @@ def batched_fn(scenario: Scenario, block: int | None = None):
     return fns[block]
 
 
+def program(scenario: Scenario, block: int | None, inputs: tuple):
+    """The batched rollout (`batched_fn`) for `inputs` = (params, keys): from the program
+    cache (`jaxloco.sim.programs`: no tracing in a later process) when the scenario can be
+    keyed there, else jitted. Kept as long as the scenario lives."""
+    key = programs.program_key(scenario, inputs, f"mjx.run block={block}")
+    if key is None:
+        return batched_fn(scenario, block)
+    fns = per_scenario(_COMPILED, scenario, dict)
+    if key not in fns:
+        fns[key] = programs.load_or_export(lambda: vmap_in_blocks(rollout_fn(scenario), block=block), key, inputs)
+    return fns[key]
+
+
 def run(scenario: Scenario, params: Any, keys: jax.Array, *, shard: bool = True,
         rows_per_device: int | None = None) -> dict[str, Any]:
     """Run the scenario for a batch (leaves with leading axis B); the batch is padded to
@@ -175,7 +188,7 @@ def run(scenario: Scenario, params: Any, keys: jax.Array, *, shard: bool = True,
     devices = jax.devices()
     n_dev = len(devices) if shard else 1
     block = block_size(n_dev, rows_per_device=rows_per_device)
-    fn = batched_fn(scenario, block if nsim > block else None)
+    blocks = block if nsim > block else None
     multiple = n_dev if nsim <= block else block
     padded = -(-nsim // multiple) * multiple
     pad = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], padded - nsim, axis=0)]) if padded > nsim else x
@@ -183,7 +196,7 @@ def run(scenario: Scenario, params: Any, keys: jax.Array, *, shard: bool = True,
     if n_dev > 1:
         mesh = jax.sharding.Mesh(np.array(devices), ("batch",))
         inputs = jax.device_put(inputs, jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch")))
-    records, metrics, final = fn(*inputs)
+    records, metrics, final = program(scenario, blocks, inputs)(*inputs)
     cut = lambda x: np.asarray(x)[:nsim]
     records = {k: cut(v) for k, v in records.items()}
     metrics = {k: cut(v) for k, v in metrics.items()}

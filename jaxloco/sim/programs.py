@@ -1,0 +1,187 @@
+"""Traced programs kept on disk, so that a simulation's first call in a new process skips
+JAX's tracing and lowering.
+
+JAX's persistent compilation cache (`runtime.configure`) skips XLA's compile, but not
+the tracing and lowering that produce its key: for an MJX rollout (controller, terrain,
+`mjx.step`, records, metrics) that is 6-9 s of Python on every new process, most of a
+cached first call. Here the lowered program is kept as a serialized `jax.export.Exported`
+beside the compilation cache (`<cache dir>-programs/`), keyed by what it was traced
+from; a later process deserializes it (milliseconds) and runs it through `jax.jit`,
+whose compile the persistent cache then serves. The program is the same StableHLO, so
+its results are the same as the traced one's, bit for bit.
+
+The key (`program_key`) is a SHA-256 of:
+  * the scenario by value (`cloudpickle`: its model, arrays and settings, and the code
+    of the closures it holds), together with the source of every module of `jaxloco`
+    (functions defined at module level are pickled by reference, so their code comes
+    in through the source);
+  * the input leaves' shapes, dtypes and tree structure, the extra settings of the
+    caller (block size, devices), the platform, and the versions of Python, jax, jaxlib,
+    mujoco and mujoco-mjx.
+A scenario that references code outside `jaxloco`, the standard library and the
+versioned packages above (a user's own controller in a script, say) gets no key and is
+traced every time: an edit there would not change the key. Pickling or exporting
+failures (an effect such as a host callback) also fall back to tracing.
+
+On while the persistent compilation cache is on (`jax_compilation_cache_dir`), in
+`<that dir>-programs`; `$JAXLOCO_PROGRAM_CACHE` names another directory, or with 0 turns
+it off. Used by the MJX backend (`jaxloco.sim.mjx.run`), not by differentiated rollouts.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib.metadata
+import io
+import os
+import pickle
+import sys
+import types
+from pathlib import Path
+from typing import Any, Callable
+
+import jax
+
+from jaxloco import runtime
+
+ENV_SWITCH = runtime.ENV_PROGRAM_CACHE
+# root packages whose code a keyed scenario may reference by name (their versions are in
+# the key; jaxloco's source is hashed)
+VERSIONED = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "numpy", "ml_dtypes", "optax", "chex")
+TRUSTED_ROOTS = frozenset({"jaxloco", "jax", "jaxlib", "mujoco", "numpy", "ml_dtypes", "optax", "chex",
+                           "opt_einsum", "scipy", "cloudpickle"})
+
+
+def cache_dir() -> Path | None:
+    """Where traced programs are kept now, or None (off): `runtime.program_cache_dir` of
+    JAX's compilation cache directory."""
+    return runtime.program_cache_dir(jax.config.jax_compilation_cache_dir)
+
+
+@functools.cache
+def _jaxloco_source_digest() -> str:
+    """SHA-256 over the path and bytes of every .py file of the jaxloco package."""
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256()
+    for f in sorted(root.rglob("*.py")):
+        h.update(str(f.relative_to(root)).encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+@functools.cache
+def _versions() -> str:
+    found = []
+    for name in VERSIONED:
+        try:
+            found.append(f"{name}={importlib.metadata.version(name)}")
+        except importlib.metadata.PackageNotFoundError:
+            found.append(f"{name}=-")
+    return f"python={sys.version_info[:3]};" + ";".join(found)
+
+
+class _UntrustedCode(Exception):
+    """The scenario references code whose edits the key would not see."""
+
+
+def _trusted(module: str | None) -> bool:
+    root = (module or "").split(".", 1)[0]
+    return root in TRUSTED_ROOTS or root in sys.stdlib_module_names or root == "builtins"
+
+
+def _scenario_bytes(scenario: Any) -> bytes:
+    """The scenario pickled by value (cloudpickle); raises `_UntrustedCode` when a function
+    or class it references comes from outside `TRUSTED_ROOTS` and the standard library."""
+    import cloudpickle
+
+    class Pickler(cloudpickle.Pickler):
+        def reducer_override(self, obj):
+            if isinstance(obj, (types.FunctionType, type)) and not _trusted(getattr(obj, "__module__", None)):
+                raise _UntrustedCode(f"{getattr(obj, '__module__', None)}.{getattr(obj, '__qualname__', obj)}")
+            return super().reducer_override(obj)
+
+    buf = io.BytesIO()
+    Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL).dump(scenario)
+    return buf.getvalue()
+
+
+def program_key(scenario: Any, args: tuple, extra: str = "") -> str | None:
+    """The key of the program traced from `scenario` for the inputs `args` (their
+    leaves' shapes, dtypes and shardings, and their tree structure) and the caller's
+    `extra` settings, or None when the cache is off or the scenario cannot be keyed
+    safely."""
+    if cache_dir() is None:
+        return None
+    leaves, tree = jax.tree_util.tree_flatten(args)
+    try:
+        blob = _scenario_bytes(scenario)
+    except Exception:  # untrusted code, or something cloudpickle cannot pickle
+        return None
+    h = hashlib.sha256()
+    for part in (blob, _jaxloco_source_digest().encode(), _versions().encode(), str(tree).encode(),
+                 jax.default_backend().encode(), extra.encode(), str(bool(jax.config.jax_enable_x64)).encode()):
+        h.update(hashlib.sha256(part).digest())
+    for leaf in leaves:
+        aval = jax.typeof(leaf)
+        h.update(f"{aval.shape}{aval.dtype}{aval.weak_type}{getattr(leaf, 'sharding', None)}".encode())
+    return h.hexdigest()
+
+
+def _load(path: Path) -> tuple[Any, Any] | None:
+    """(Exported, output tree) from `path`, or None if missing or unreadable."""
+    from jax import export
+
+    try:
+        saved = pickle.loads(path.read_bytes())
+        return export.deserialize(bytearray(saved["exported"])), saved["out_tree"]
+    except Exception:  # missing, truncated, or from an incompatible version: trace again
+        return None
+
+
+def _save(path: Path, exported: Any, out_tree: Any) -> None:
+    """Write atomically (a temporary file renamed), so a reader never sees half a file."""
+    blob = pickle.dumps({"exported": exported.serialize(), "out_tree": out_tree})
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    tmp.write_bytes(blob)
+    os.replace(tmp, path)
+
+
+def load_or_export(make_fn: Callable[[], Callable], key: str, args: tuple) -> Callable[..., Any]:
+    """A function equal to `jax.jit(make_fn())` for inputs shaped like `args` (as keyed
+    by `program_key`): the program loaded from the cache when it holds `key` (`make_fn`
+    is then not called), else traced and lowered once (`jax.export`), kept there and run.
+    An unexportable program (an effect such as a host callback, an unpicklable output
+    tree) gives `jax.jit(make_fn())`; a cache that cannot be written only costs the next
+    process a trace."""
+    from jax import export
+
+    root = cache_dir()
+    path = root / f"{key}.bin" if root is not None else None
+    loaded = _load(path) if path is not None else None
+    leaves, tree = jax.tree_util.tree_flatten(args)
+    if loaded is None:
+        fn = make_fn()
+        out_box = {}
+
+        def flat(*xs):
+            out_leaves, out_box["tree"] = jax.tree_util.tree_flatten(fn(*jax.tree_util.tree_unflatten(tree, xs)))
+            return out_leaves
+
+        try:
+            loaded = export.export(jax.jit(flat))(*leaves), out_box["tree"]
+        except Exception:  # not exportable: trace as usual
+            return jax.jit(fn)
+        if path is not None:
+            try:
+                _save(path, *loaded)
+            except Exception:  # read-only or full disk, an output tree pickle cannot hold
+                pass
+    exported, out_tree = loaded
+    call = jax.jit(exported.call)
+
+    def run(*xs):
+        return jax.tree_util.tree_unflatten(out_tree, call(*jax.tree_util.tree_leaves(xs)))
+
+    return run
