@@ -223,7 +223,8 @@ def test_info_subprocess_is_clean():
         capture_output=True, text=True, env=env, timeout=120, cwd=REPO,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
-    for name in ("jaxloco", "jax", "jaxlib", "mujoco", "mujoco-mjx", "jax devices", "float64", "compilation cache", "program cache"):
+    for name in ("jaxloco", "jax", "jaxlib", "mujoco", "mujoco-mjx", "jax devices", "float64", "compilation cache",
+                 "program cache"):
         assert name in proc.stdout
     from importlib.metadata import version
 
