@@ -137,7 +137,8 @@ def ne_stability_margin(cog: Array, contacts: Array, mask: Array, up: Array | No
     if contacts.shape[0] > geo.UNROLL_MAX_POINTS:
         return _min_over_edges(*_ne_successor_margins(cog, contacts, mask, up))
     # Up to 6 contacts every pair: the successor axes alone made TITAN's stride gradient
-    # NaN (tests/test_titan_tune.py; docs/sweeps.md).
+    # NaN in programs compiled at XLA's optimisation level 0, as the suite compiles them
+    # (tests/test_titan_tune.py; finite and right at the default level; docs/sweeps.md).
     S, p2 = _ne_edge_margins(cog, contacts, up)
     return _min_over_edges(S, geo.hull_edges(p2, mask))
 
