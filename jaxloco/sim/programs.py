@@ -15,9 +15,10 @@ The key (`program_key`) is a SHA-256 of:
     of the closures it holds), together with the source of every module of `jaxloco`
     (functions defined at module level are pickled by reference, so their code comes
     in through the source);
-  * the input leaves' shapes, dtypes and tree structure, the extra settings of the
-    caller (block size, devices), the platform, and the versions of Python, jax, jaxlib,
-    mujoco and mujoco-mjx.
+  * the input leaves' shapes, dtypes, shardings and tree structure, the extra settings
+    of the caller (block size), the platform, every JAX flag (`jax.config.values`:
+    float64, matmul precision, PRNG, ...), and the versions of Python, jax, jaxlib,
+    mujoco, mujoco-mjx and the other packages in `VERSIONED`.
 A scenario that references code outside `jaxloco`, the standard library and the
 versioned packages above (a user's own controller in a script, say) gets no key and is
 traced every time: an edit there would not change the key. Pickling or exporting
@@ -119,8 +120,9 @@ def program_key(scenario: Any, args: tuple, extra: str = "") -> str | None:
     except Exception:  # untrusted code, or something cloudpickle cannot pickle
         return None
     h = hashlib.sha256()
+    flags = repr(sorted((k, repr(v)) for k, v in jax.config.values.items()))  # x64, matmul precision, PRNG, ...
     for part in (blob, _jaxloco_source_digest().encode(), _versions().encode(), str(tree).encode(),
-                 jax.default_backend().encode(), extra.encode(), str(bool(jax.config.jax_enable_x64)).encode()):
+                 jax.default_backend().encode(), extra.encode(), flags.encode()):
         h.update(hashlib.sha256(part).digest())
     for leaf in leaves:
         aval = jax.typeof(leaf)
