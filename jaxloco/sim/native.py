@@ -27,6 +27,7 @@ import numpy as np
 
 from jaxloco.batching import vmap_in_blocks
 from jaxloco.sim import data as simdata
+from jaxloco.sim import programs
 from jaxloco.sim.scenario import STATE_KEYS, Final, Scenario, init_fn, initial_activation, per_scenario, tick_fn
 
 # warnings that mean the simulation can no longer be trusted
@@ -168,14 +169,17 @@ _INITS: dict[int, Any] = {}
 def _jitted_inits(scenario: Scenario, init_rows: int | None) -> dict[str, Any]:
     """The jitted, vmapped initial_state, controller/environment init (in blocks of
     `init_rows` rows) and summarize of a scenario, kept as long as the scenario lives so
-    repeated rollouts do not re-trace them."""
+    repeated rollouts do not re-trace them, and on disk (`programs.CachedJit`) so that a
+    later process does not either."""
     jitted = per_scenario(_INITS, scenario, lambda: {
-        "initial_state": jax.jit(jax.vmap(scenario.initial_state)),
-        "summarize": jax.jit(jax.vmap(scenario.summarize)),
+        "initial_state": programs.CachedJit(scenario, "native initial_state",
+                                            lambda: jax.vmap(scenario.initial_state)),
+        "summarize": programs.CachedJit(scenario, "native summarize", lambda: jax.vmap(scenario.summarize)),
     })
     key = ("init", init_rows)
     if key not in jitted:
-        jitted[key] = jax.jit(vmap_in_blocks(init_fn(scenario), block=init_rows))
+        jitted[key] = programs.CachedJit(scenario, f"native init rows={init_rows}",
+                                         lambda: vmap_in_blocks(init_fn(scenario), block=init_rows))
     return {**jitted, "init": jitted[key]}
 
 

@@ -26,7 +26,10 @@ failures (an effect such as a host callback) also fall back to tracing.
 
 On while the persistent compilation cache is on (`jax_compilation_cache_dir`), in
 `<that dir>-programs`; `$JAXLOCO_PROGRAM_CACHE` names another directory, or with 0 turns
-it off. Used by the MJX backend (`jaxloco.sim.mjx.run`), not by differentiated rollouts.
+it off. Used by the MJX backend (`jaxloco.sim.mjx.run`: the whole rollout) and the native
+one (`jaxloco.sim.native`: the initial states, the controller's init and the metrics, not
+the per-period tick, whose extra flattening would cost every period), not by
+differentiated rollouts.
 """
 
 from __future__ import annotations
@@ -187,3 +190,31 @@ def load_or_export(make_fn: Callable[[], Callable], key: str, args: tuple) -> Ca
         return jax.tree_util.tree_unflatten(out_tree, call(*jax.tree_util.tree_leaves(xs)))
 
     return run
+
+
+class CachedJit:
+    """`jax.jit(make_fn())` whose programs come from the program cache: for each call
+    signature (the arguments' tree, shapes, dtypes and shardings) one key, and the
+    program loaded or exported once (`load_or_export`); a scenario that cannot be keyed
+    gets the plain jit. For functions called a few times per run (a rollout's inits and
+    metrics): each call flattens its arguments once more than `jax.jit` does."""
+
+    def __init__(self, scenario: Any, label: str, make_fn: Callable[[], Callable]):
+        self._scenario, self._label, self._make_fn = scenario, label, make_fn
+        self._by_signature: dict[Any, Callable] = {}
+        self._plain: Callable | None = None
+
+    def __call__(self, *args):
+        leaves, tree = jax.tree_util.tree_flatten(args)
+        signature = (tree, tuple((jax.typeof(x), str(getattr(x, "sharding", None))) for x in leaves))
+        fn = self._by_signature.get(signature)
+        if fn is None:
+            key = program_key(self._scenario, args, self._label)
+            if key is None:
+                if self._plain is None:
+                    self._plain = jax.jit(self._make_fn())
+                fn = self._plain
+            else:
+                fn = load_or_export(self._make_fn, key, args)
+            self._by_signature[signature] = fn
+        return fn(*args)
