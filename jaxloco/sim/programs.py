@@ -24,6 +24,9 @@ versioned packages above (a user's own controller in a script, say) gets no key 
 traced every time: an edit there would not change the key. Pickling or exporting
 failures (an effect such as a host callback) also fall back to tracing.
 
+The files are pickles (the program and its output tree): like JAX's compilation cache,
+the directory must be writable by no one you would not let run code as you.
+
 On while the persistent compilation cache is on (`jax_compilation_cache_dir`), in
 `<that dir>-programs`; `$JAXLOCO_PROGRAM_CACHE` names another directory, or with 0 turns
 it off. Used by the MJX backend (`jaxloco.sim.mjx.run`: the whole rollout) and the native
