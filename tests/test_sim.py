@@ -232,8 +232,8 @@ def test_mjx_batch_is_sharded_over_every_device_and_matches_one_device(short_sce
     seen = []
     original = mjx_backend.program
 
-    def spy(scenario, block, inputs):
-        fn = original(scenario, block, inputs)
+    def spy(scenario, block):
+        fn = original(scenario, block)
 
         def wrapped(params, keys):
             seen.append((keys.shape[0], keys.sharding.device_set))

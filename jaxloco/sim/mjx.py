@@ -155,26 +155,16 @@ def block_size(n_devices: int, platform: str | None = None, rows_per_device: int
     return int(rows_per_device) * n_devices
 
 
-def batched_fn(scenario: Scenario, block: int | None = None):
-    """The jitted batched rollout of `rollout_fn`: one vmap (`block` None) or a `lax.map`
-    over vmapped blocks of `block` rows; kept as long as the scenario lives."""
+def program(scenario: Scenario, block: int | None) -> programs.CachedJit:
+    """The jitted batched rollout of `rollout_fn`, one vmap (`block` None) or a `lax.map`
+    over vmapped blocks of `block` rows, from the program cache (`jaxloco.sim.programs`:
+    a later process loads it instead of tracing it) where the scenario can be keyed there.
+    Kept as long as the scenario lives."""
     fns = per_scenario(_COMPILED, scenario, dict)
     if block not in fns:
-        fns[block] = jax.jit(vmap_in_blocks(rollout_fn(scenario), block=block))
+        fns[block] = programs.CachedJit(scenario, f"mjx.run block={block}",
+                                        lambda: vmap_in_blocks(rollout_fn(scenario), block=block))
     return fns[block]
-
-
-def program(scenario: Scenario, block: int | None, inputs: tuple):
-    """The batched rollout (`batched_fn`) for `inputs` = (params, keys): from the program
-    cache (`jaxloco.sim.programs`: no tracing in a later process) when the scenario can be
-    keyed there, else jitted. Kept as long as the scenario lives."""
-    key = programs.program_key(scenario, inputs, f"mjx.run block={block}")
-    if key is None:
-        return batched_fn(scenario, block)
-    fns = per_scenario(_COMPILED, scenario, dict)
-    if key not in fns:
-        fns[key] = programs.load_or_export(lambda: vmap_in_blocks(rollout_fn(scenario), block=block), key, inputs)
-    return fns[key]
 
 
 def run(scenario: Scenario, params: Any, keys: jax.Array, *, shard: bool = True,
@@ -196,7 +186,7 @@ def run(scenario: Scenario, params: Any, keys: jax.Array, *, shard: bool = True,
     if n_dev > 1:
         mesh = jax.sharding.Mesh(np.array(devices), ("batch",))
         inputs = jax.device_put(inputs, jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch")))
-    records, metrics, final = program(scenario, blocks, inputs)(*inputs)
+    records, metrics, final = program(scenario, blocks)(*inputs)
     cut = lambda x: np.asarray(x)[:nsim]
     records = {k: cut(v) for k, v in records.items()}
     metrics = {k: cut(v) for k, v in metrics.items()}

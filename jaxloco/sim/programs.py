@@ -53,11 +53,11 @@ import jax
 from jaxloco import runtime
 
 ENV_SWITCH = runtime.ENV_PROGRAM_CACHE
-# root packages whose code a keyed scenario may reference by name (their versions are in
-# the key; jaxloco's source is hashed)
-VERSIONED = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "numpy", "ml_dtypes", "optax", "chex")
-TRUSTED_ROOTS = frozenset({"jaxloco", "jax", "jaxlib", "mujoco", "numpy", "ml_dtypes", "optax", "chex",
-                           "opt_einsum", "scipy", "cloudpickle"})
+# packages whose code a keyed scenario may reference by name (besides jaxloco, whose
+# source is hashed, and the standard library): their versions are in the key
+VERSIONED = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "numpy", "ml_dtypes", "optax", "chex", "opt_einsum", "scipy",
+             "cloudpickle")
+TRUSTED_ROOTS = frozenset({"jaxloco"} | {name.split("-", 1)[0] for name in VERSIONED})
 
 
 def cache_dir() -> Path | None:
