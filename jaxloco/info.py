@@ -91,15 +91,30 @@ def static_environment() -> list[tuple[str, str]]:
     rows.append(("python", sys.version.split()[0]))
     cache = runtime.default_cache_dir()
     source = f" (from ${runtime.ENV_CACHE_DIR})" if os.environ.get(runtime.ENV_CACHE_DIR) else ""
-    state = "exists" if cache.is_dir() else "not created yet"
-    rows.append(("compilation cache", f"{cache}{source}, {state}"))
+    bound = _cache_bound()
+    rows.append(("compilation cache", f"{cache}{source}, {_cache_state(cache, bound)}"))
     programs = runtime.program_cache_dir(cache)
     if programs is None:
         rows.append(("program cache", f"off (${runtime.ENV_PROGRAM_CACHE})"))
     else:
-        state = "exists" if programs.is_dir() else "not created yet"
-        rows.append(("program cache", f"{programs} (traced MJX rollouts), {state}"))
+        rows.append(("program cache", f"{programs} (traced simulations), {_cache_state(programs, bound)}"))
     return rows
+
+
+def _cache_bound() -> str:
+    """'at most N MB' from `$JAXLOCO_CACHE_MAX_MB` (or its default), 'no bound', or what
+    is wrong with the variable."""
+    try:
+        max_bytes = runtime.cache_max_bytes()
+    except ValueError as err:
+        return f"bound: {err}"
+    return "no bound" if max_bytes is None else f"at most {max_bytes / 2**20:.0f} MB"
+
+
+def _cache_state(path: Path, bound: str) -> str:
+    if not path.is_dir():
+        return f"not created yet ({bound})"
+    return f"{runtime.directory_bytes(path) / 2**20:.0f} MB ({bound})"
 
 
 def jax_environment() -> list[tuple[str, str]]:

@@ -12,7 +12,14 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from jaxloco.errors import SpecError
+
 ENV_CACHE_DIR = "JAXLOCO_CACHE_DIR"
+ENV_CACHE_MAX = "JAXLOCO_CACHE_MAX_MB"
+# default (ours): each cache directory (compiled programs, traced programs) is kept below
+# this many MB, the least recently used entries removed first; the suite's cache is
+# ~250 MB + ~80 MB, a sweep adds one or two programs of 0.5-5 MB
+DEFAULT_CACHE_MAX_MB = 4096
 
 
 def default_cache_dir() -> Path:
@@ -26,6 +33,91 @@ def default_cache_dir() -> Path:
     xdg = os.environ.get("XDG_CACHE_HOME")
     base = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
     return base / "jaxloco" / "jax"
+
+
+def cache_max_bytes() -> int | None:
+    """The size bound [bytes] of each cache directory (JAX's compilation cache, the
+    program cache): `$JAXLOCO_CACHE_MAX_MB` megabytes (-1: unbounded, None), default
+    `DEFAULT_CACHE_MAX_MB`. A value that is not a positive number or -1 is a SpecError."""
+    raw = os.environ.get(ENV_CACHE_MAX, "").strip()
+    if not raw:
+        return DEFAULT_CACHE_MAX_MB * 2**20
+    try:
+        mb = float(raw)
+    except ValueError:
+        mb = float("nan")
+    if mb == -1:
+        return None
+    if not mb > 0 or mb == float("inf"):
+        raise SpecError(f"${ENV_CACHE_MAX}: expected a size in MB (> 0, or -1 for no bound), got {raw!r}")
+    return int(mb * 2**20)
+
+
+def directory_bytes(path: Path) -> int:
+    """Total size [bytes] of the files under `path` (0 if it does not exist)."""
+    total = 0
+    for f in path.rglob("*") if path.is_dir() else ():
+        try:
+            total += f.stat().st_size if f.is_file() else 0
+        except OSError:  # removed meanwhile by another process
+            pass
+    return total
+
+
+STALE_TMP_S = 3600.0  # [s] a temporary file this old is a crashed writer's, not a live one's
+
+
+JAX_CACHE_SUFFIX = "-cache"  # the entries of JAX's compilation cache
+PROGRAM_SUFFIX = ".bin"  # the entries of the program cache (`jaxloco.sim.programs`)
+TMP_SUFFIX = ".tmp"  # its files being written
+
+
+def prune_cache(root: Path, max_bytes: int | None, *, suffix: str, tmp_suffix: str | None = None,
+                now: float | None = None) -> list[Path]:
+    """Remove the oldest entries (files named `*{suffix}`; nothing else in `root` is
+    touched) of a cache directory by modification time (JAX's compilation cache writes
+    an entry once; the program cache touches a file it loads, so there it is the least
+    recently used) until they take at most `max_bytes` (None: no bound), and the
+    `*{tmp_suffix}` files older than `STALE_TMP_S` (writers that died). Returns the
+    removed paths. Safe beside other processes: a file removed meanwhile is skipped, and
+    a reader whose entry is gone compiles or traces it again."""
+    import time
+
+    now = time.time() if now is None else now
+    entries, removed = [], []
+    for f in root.iterdir() if root.is_dir() else ():
+        is_tmp = tmp_suffix is not None and f.name.endswith(tmp_suffix)
+        if not (is_tmp or f.name.endswith(suffix)):
+            continue
+        try:
+            st = f.stat()
+        except OSError:
+            continue
+        if not f.is_file():
+            continue
+        if is_tmp:
+            if now - st.st_mtime > STALE_TMP_S and _unlink(f):
+                removed.append(f)
+        else:
+            entries.append((st.st_mtime, f.name, st.st_size, f))
+    if max_bytes is None:
+        return removed
+    total = sum(e[2] for e in entries)
+    for _, _, size, f in sorted(entries):
+        if total <= max_bytes:
+            break
+        if _unlink(f):
+            removed.append(f)
+        total -= size
+    return removed
+
+
+def _unlink(path: Path) -> bool:
+    try:
+        path.unlink()
+        return True
+    except OSError:  # gone already, or not ours to remove
+        return False
 
 
 ENV_PROGRAM_CACHE = "JAXLOCO_PROGRAM_CACHE"
@@ -60,13 +152,17 @@ def configure(
     devices.
 
     cache_dir: True -> `default_cache_dir()`; False/None -> leave the cache off;
-    a path -> use it. Compiled programs of any compile time are cached.
+    a path -> use it. Compiled programs of any compile time are cached, and the oldest
+    entries are removed (`prune_cache`) until the directory is within `cache_max_bytes()`.
+    (JAX's own bound, `jax_compilation_cache_max_size`, is not used: it fails on every
+    write into a cache that was filled without it, as every existing one was.)
     cpu_devices: how many JAX CPU devices to expose (default: `$JAXLOCO_CPU_DEVICES` or
     the number of cores), so that a batch sharded over them runs on every core. It only
     takes effect before JAX's backend starts (the first computation); later it is left.
     """
     import jax
 
+    max_bytes = cache_max_bytes()  # a bad $JAXLOCO_CACHE_MAX_MB fails before anything changes
     jax.config.update("jax_enable_x64", bool(x64))
     use_cpu_cores(cpu_devices)
     path: Path | None = None
@@ -79,6 +175,7 @@ def configure(
         jax.config.update("jax_compilation_cache_dir", str(path))
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
         jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+        prune_cache(path, max_bytes, suffix=JAX_CACHE_SUFFIX)
     return RuntimeSettings(x64=bool(x64), cache_dir=path)
 
 

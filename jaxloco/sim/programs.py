@@ -25,7 +25,10 @@ traced every time: an edit there would not change the key. Pickling or exporting
 failures (an effect such as a host callback) also fall back to tracing.
 
 The files are pickles (the program and its output tree): like JAX's compilation cache,
-the directory must be writable by no one you would not let run code as you.
+the directory must be writable by no one you would not let run code as you. Like that
+cache, it is kept below `runtime.cache_max_bytes()` (`$JAXLOCO_CACHE_MAX_MB`): after each
+write the least recently used programs go first (`runtime.prune_cache`; a load touches
+its file).
 
 On while the persistent compilation cache is on (`jax_compilation_cache_dir`), in
 `<that dir>-programs`; `$JAXLOCO_PROGRAM_CACHE` names another directory, or with 0 turns
@@ -137,21 +140,28 @@ def program_key(scenario: Any, args: tuple, extra: str = "") -> str | None:
 
 
 def _load(path: Path) -> tuple[Any, Any] | None:
-    """(Exported, output tree) from `path`, or None if missing or unreadable."""
+    """(Exported, output tree) from `path`, or None if missing or unreadable. A loaded
+    file's modification time is set to now: `runtime.prune_cache` removes the least
+    recently used first."""
     from jax import export
 
     try:
         saved = pickle.loads(path.read_bytes())
-        return export.deserialize(bytearray(saved["exported"])), saved["out_tree"]
+        loaded = export.deserialize(bytearray(saved["exported"])), saved["out_tree"]
     except Exception:  # missing, truncated, or from an incompatible version: trace again
         return None
+    try:
+        os.utime(path)
+    except OSError:  # a read-only cache still serves
+        pass
+    return loaded
 
 
 def _save(path: Path, exported: Any, out_tree: Any) -> None:
     """Write atomically (a temporary file renamed), so a reader never sees half a file."""
     blob = pickle.dumps({"exported": exported.serialize(), "out_tree": out_tree})
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    tmp = path.with_suffix(f".{os.getpid()}{runtime.TMP_SUFFIX}")
     tmp.write_bytes(blob)
     os.replace(tmp, path)
 
@@ -166,7 +176,7 @@ def load_or_export(make_fn: Callable[[], Callable], key: str, args: tuple) -> Ca
     from jax import export
 
     root = cache_dir()
-    path = root / f"{key}.bin" if root is not None else None
+    path = root / f"{key}{runtime.PROGRAM_SUFFIX}" if root is not None else None
     loaded = _load(path) if path is not None else None
     leaves, tree = jax.tree_util.tree_flatten(args)
     if loaded is None:
@@ -184,6 +194,8 @@ def load_or_export(make_fn: Callable[[], Callable], key: str, args: tuple) -> Ca
         if path is not None:
             try:
                 _save(path, *loaded)
+                runtime.prune_cache(root, runtime.cache_max_bytes(), suffix=runtime.PROGRAM_SUFFIX,
+                                    tmp_suffix=runtime.TMP_SUFFIX)
             except Exception:  # read-only or full disk, an output tree pickle cannot hold
                 pass
     exported, out_tree = loaded

@@ -1,0 +1,92 @@
+"""The size bound of the two on-disk caches (JAX's compilation cache, the program cache):
+`runtime.cache_max_bytes` reads `$JAXLOCO_CACHE_MAX_MB`, `runtime.prune_cache` removes the
+oldest entries, `runtime.configure` prunes the compilation cache and `sim.programs` the
+program cache after each write, touching the files it loads."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+
+import jax.numpy as jnp
+import pytest
+
+from jaxloco import runtime
+from jaxloco.errors import SpecError
+
+MB = 2**20
+
+
+def _entry(path, size, age_s, now):
+    path.write_bytes(b"x" * size)
+    os.utime(path, (now - age_s, now - age_s))
+    return path
+
+
+def test_cache_bound_reads_the_environment(monkeypatch):
+    monkeypatch.delenv(runtime.ENV_CACHE_MAX, raising=False)
+    assert runtime.cache_max_bytes() == runtime.DEFAULT_CACHE_MAX_MB * MB
+    monkeypatch.setenv(runtime.ENV_CACHE_MAX, "2.5")
+    assert runtime.cache_max_bytes() == int(2.5 * MB)
+    monkeypatch.setenv(runtime.ENV_CACHE_MAX, " -1 ")
+    assert runtime.cache_max_bytes() is None
+    for bad in ("abc", "0", "-2", "inf", "nan"):
+        monkeypatch.setenv(runtime.ENV_CACHE_MAX, bad)
+        with pytest.raises(SpecError, match=runtime.ENV_CACHE_MAX):
+            runtime.cache_max_bytes()
+
+
+def test_prune_removes_the_oldest_entries_and_nothing_else(tmp_path):
+    now = time.time()
+    old, mid, new = (_entry(tmp_path / f"{n}-cache", 400, age, now) for n, age in (("a", 300), ("b", 200), ("c", 100)))
+    other = _entry(tmp_path / "notes.txt", 5000, 10_000, now)  # not an entry: never touched
+    (tmp_path / "sub-cache").mkdir()  # a directory named like one: skipped
+    removed = runtime.prune_cache(tmp_path, 900, suffix="-cache", now=now)
+    assert removed == [old]
+    assert not old.exists() and mid.exists() and new.exists() and other.exists()
+    assert runtime.prune_cache(tmp_path, 800, suffix="-cache", now=now) == []  # already within
+    assert runtime.prune_cache(tmp_path, 399, suffix="-cache", now=now) == [mid, new]
+    assert runtime.prune_cache(tmp_path, None, suffix="-cache", now=now) == []
+    assert runtime.prune_cache(tmp_path / "missing", 0, suffix="-cache", now=now) == []
+
+
+def test_prune_removes_stale_temporary_files_only(tmp_path):
+    now = time.time()
+    stale = _entry(tmp_path / "k1.123.tmp", 10, runtime.STALE_TMP_S + 5, now)
+    live = _entry(tmp_path / "k2.456.tmp", 10, 5, now)
+    kept = _entry(tmp_path / "k3.bin", 10, 10 * runtime.STALE_TMP_S, now)
+    removed = runtime.prune_cache(tmp_path, None, suffix=".bin", tmp_suffix=".tmp", now=now)
+    assert removed == [stale] and live.exists() and kept.exists()
+
+
+def test_configure_prunes_the_compilation_cache(tmp_path):
+    """In a fresh process (configure points this one's JAX at its cache for good)."""
+    now = time.time()
+    cache = tmp_path / "jax"
+    cache.mkdir()
+    old = _entry(cache / "jit_f-1-cache", MB // 2, 100, now)
+    new = _entry(cache / "jit_f-2-cache", MB // 2, 10, now)
+    env = {**os.environ, runtime.ENV_CACHE_MAX: "0.6"}
+    code = f"from jaxloco import runtime; runtime.configure(cache_dir={str(cache)!r})"
+    subprocess.run([sys.executable, "-c", code], env=env, check=True, timeout=120)
+    assert not old.exists() and new.exists()
+
+
+def test_a_loaded_program_is_touched_and_a_write_prunes_the_oldest(tmp_path, monkeypatch):
+    from jaxloco.sim import programs
+
+    monkeypatch.setenv(programs.ENV_SWITCH, str(tmp_path))
+    x = jnp.arange(3.0)
+    programs.load_or_export(lambda: lambda v: 2.0 * v, "k1", (x,))
+    first = tmp_path / f"k1{runtime.PROGRAM_SUFFIX}"
+    size = first.stat().st_size
+    os.utime(first, (1.0, 1.0))
+    run = programs.load_or_export(lambda: pytest.fail("traced again"), "k1", (x,))
+    assert jnp.array_equal(run(x), 2.0 * x)
+    assert first.stat().st_mtime > 1e9  # touched: the most recently used
+    stale = _entry(tmp_path / f"k0{runtime.PROGRAM_SUFFIX}", size, 1000, time.time())
+    monkeypatch.setenv(runtime.ENV_CACHE_MAX, str(2.5 * size / MB))  # room for two programs
+    programs.load_or_export(lambda: lambda v: 3.0 * v, "k2", (x,))
+    assert not stale.exists() and first.exists() and (tmp_path / f"k2{runtime.PROGRAM_SUFFIX}").exists()
