@@ -324,24 +324,26 @@ def test_a_later_process_loads_the_traced_mjx_program_and_gets_the_same_rows(tmp
 
 
 def test_a_later_process_loads_the_native_backends_inits_and_metrics(tmp_path, monkeypatch):
-    """The native backend keeps its jitted initial states, controller init and metrics in
-    the program cache (`programs.CachedJit`; the per-period tick is traced as before): a
-    scenario built again loads them without tracing the init, and its rows and metrics
-    equal bit for bit those of the first run and of a run with the cache off."""
+    """The native backend keeps its jitted initial states, controller init, per-period
+    tick and metrics in the program cache (`programs.CachedJit`, `programs.load_or_export`):
+    a scenario built again loads them without tracing the init or the tick, and its rows
+    and metrics equal bit for bit those of the first run and of a run with the cache off."""
     from jaxloco.sim import native, programs
 
     monkeypatch.setenv(programs.ENV_SWITCH, str(tmp_path))
     calls = []
-    original = native.init_fn
-    monkeypatch.setattr(native, "init_fn", lambda sc: calls.append(sc.name) or original(sc))
+    for name in ("init_fn", "tick_fn"):
+        original = getattr(native, name)
+        monkeypatch.setattr(native, name, lambda sc, o=original, n=name: calls.append(n) or o(sc))
     p = _params(2, ground=[0.0, 0.1], offset=[0.0, 0.05])
     runs = [rollout(standing_scenario(horizon=10, substeps=2), p, backend="native")]
-    assert len(calls) == 1 and len(list(tmp_path.glob("*.bin"))) == 3  # initial_state, init, summarize
+    assert sorted(calls) == ["init_fn", "tick_fn"]
+    assert len(list(tmp_path.glob("*.bin"))) == 4  # initial_state, init, tick, summarize
     runs.append(rollout(standing_scenario(horizon=10, substeps=2), p, backend="native"))
-    assert len(calls) == 1  # loaded, not traced
+    assert len(calls) == 2  # loaded, not traced
     monkeypatch.setenv(programs.ENV_SWITCH, "0")
     runs.append(rollout(standing_scenario(horizon=10, substeps=2), p, backend="native"))
-    assert len(calls) == 2
+    assert sorted(calls) == ["init_fn", "init_fn", "tick_fn", "tick_fn"]
     for other in runs[1:]:
         for k in runs[0].records:
             np.testing.assert_array_equal(other.records[k], runs[0].records[k], err_msg=k)

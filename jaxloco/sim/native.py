@@ -97,7 +97,8 @@ def run(
     batch.forward()
     cstate, estate = jitted["init"](params, simdata.from_native(bound))
     layout = _layout(bound)
-    tick = _jitted_tick(scenario, layout)
+    flat = _pack(bound, layout, nsim)
+    tick = _jitted_tick(scenario, layout, (params, cstate, estate, flat))
     nu, nmocap = scenario.model.nu, scenario.model.nmocap
     warn_idx = np.array([int(w) for w in DIVERGENCE_WARNINGS])
     warnings0 = batch.warning[:, warn_idx, 1].sum(axis=1).copy()
@@ -111,7 +112,7 @@ def run(
     try:
         for t in range(scenario.horizon):
             # one packed array in, one packed array out: per-call overhead is per array
-            flat = np.concatenate([bound[name].reshape(nsim, -1) for name, _, _ in layout], axis=1)
+            flat = _pack(bound, layout, nsim)
             cstate, estate, out, rec = tick(params, cstate, estate, flat)
             if t % scenario.record_every == 0:
                 _store(records, rec, t // scenario.record_every, scenario.n_records)
@@ -189,6 +190,11 @@ def _layout(bound: dict[str, np.ndarray]) -> tuple[tuple[str, int, tuple[int, ..
                  for name in simdata.FIELDS)
 
 
+def _pack(bound: dict[str, np.ndarray], layout, nsim: int) -> np.ndarray:
+    """The SimData fields of the batch in one (nsim, width) array, in `layout`'s order."""
+    return np.concatenate([bound[name].reshape(nsim, -1) for name, _, _ in layout], axis=1)
+
+
 def _unpack(flat, layout) -> simdata.SimData:
     out, start = {}, 0
     for name, width, shape in layout:
@@ -198,23 +204,34 @@ def _unpack(flat, layout) -> simdata.SimData:
     return simdata.SimData(**out)
 
 
-def _jitted_tick(scenario: Scenario, layout):
-    """One jitted, vmapped tick per scenario object (reused across calls), on the packed
-    data; it returns (ctrl_state, env_state, [ctrl | mocap_pos | mocap_quat | bad], record)."""
+def _jitted_tick(scenario: Scenario, layout, args: tuple):
+    """The jitted, vmapped tick of a scenario on the packed data, for arguments shaped
+    like `args` = (params, ctrl_state, env_state, packed data); it returns (ctrl_state,
+    env_state, [ctrl | mocap_pos | mocap_quat | bad], record). Kept per scenario object
+    and call signature (reused across calls; the signature is read once per rollout, not
+    per period) and on disk (`programs.load_or_export`, keyed by `programs.program_key`),
+    so a later process runs it without tracing; a scenario that cannot be keyed gets the
+    plain jit."""
     ticks = per_scenario(_TICKS, scenario, dict)
-    if layout not in ticks:
-        tick = tick_fn(scenario)
+    leaves, tree = jax.tree_util.tree_flatten(args)
+    signature = (layout, tree, tuple((jax.typeof(x), str(getattr(x, "sharding", None))) for x in leaves))
+    if signature not in ticks:
+        def make():
+            tick = tick_fn(scenario)
 
-        def packed(params, cstate, estate, flat):
-            data = _unpack(flat, layout)
-            cstate, estate, ctrl, mocap_pos, mocap_quat, rec, bad = tick(params, cstate, estate, data)
-            dtype = flat.dtype
-            out = jnp.concatenate([ctrl.astype(dtype), mocap_pos.reshape(-1).astype(dtype),
-                                   mocap_quat.reshape(-1).astype(dtype), bad.astype(dtype)[None]])
-            return cstate, estate, out, rec
+            def packed(params, cstate, estate, flat):
+                data = _unpack(flat, layout)
+                cstate, estate, ctrl, mocap_pos, mocap_quat, rec, bad = tick(params, cstate, estate, data)
+                dtype = flat.dtype
+                out = jnp.concatenate([ctrl.astype(dtype), mocap_pos.reshape(-1).astype(dtype),
+                                       mocap_quat.reshape(-1).astype(dtype), bad.astype(dtype)[None]])
+                return cstate, estate, out, rec
 
-        ticks[layout] = jax.jit(jax.vmap(packed))
-    return ticks[layout]
+            return jax.vmap(packed)
+
+        key = programs.program_key(scenario, args, f"native tick {layout}")
+        ticks[signature] = jax.jit(make()) if key is None else programs.load_or_export(make, key, args)
+    return ticks[signature]
 
 
 def _step(batch: mujoco.batch.Batch, ids: np.ndarray, nstep: int, alive: np.ndarray, t_div: np.ndarray) -> None:

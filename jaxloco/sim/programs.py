@@ -33,9 +33,8 @@ its file).
 On while the persistent compilation cache is on (`jax_compilation_cache_dir`), in
 `<that dir>-programs`; `$JAXLOCO_PROGRAM_CACHE` names another directory, or with 0 turns
 it off. Used by the MJX backend (`jaxloco.sim.mjx.run`: the whole rollout) and the native
-one (`jaxloco.sim.native`: the initial states, the controller's init and the metrics, not
-the per-period tick, whose extra flattening would cost every period), not by
-differentiated rollouts.
+one (`jaxloco.sim.native`: the initial states, the controller's init, the per-period
+tick and the metrics), not by differentiated rollouts.
 """
 
 from __future__ import annotations
