@@ -90,3 +90,34 @@ def test_a_loaded_program_is_touched_and_a_write_prunes_the_oldest(tmp_path, mon
     monkeypatch.setenv(runtime.ENV_CACHE_MAX, str(2.5 * size / MB))  # room for two programs
     programs.load_or_export(lambda: lambda v: 3.0 * v, "k2", (x,))
     assert not stale.exists() and first.exists() and (tmp_path / f"k2{runtime.PROGRAM_SUFFIX}").exists()
+
+
+def test_a_tune_objectives_evaluate_is_loaded_by_a_later_process(tmp_path, monkeypatch):
+    """`runner.jitted_value_and_grad` (what `runner.make_evaluate` jits) keys the loss by
+    value: a loss built again (as in a new process) is evaluated from the kept program
+    without tracing, with the values and gradients of the plain jit."""
+    import jax
+
+    from jaxloco.sim import programs
+    from jaxloco.tune import objective as registry
+    from jaxloco.tune import runner
+
+    monkeypatch.setenv(programs.ENV_SWITCH, str(tmp_path))
+    objective = registry.get("octopus.sigma")
+    settings = {p.name: p.default for p in objective.settings} | {"samples": 64}
+    values = {t.name: jnp.asarray(t.default, jnp.float32) for t in objective.tunables}
+    traced = []
+
+    def make(loss):
+        return lambda: traced.append(1) or runner.value_and_grad(loss, "reverse")
+
+    label = "test octopus.sigma"
+    first = programs.CachedJit(objective.make_loss(settings), label, make(objective.make_loss(settings)))(values)
+    again = objective.make_loss(settings)
+    second = programs.CachedJit(again, label, make(again))(values)
+    assert len(traced) == 1 and len(list(tmp_path.glob(f"*{runtime.PROGRAM_SUFFIX}"))) == 1
+    plain = jax.jit(runner.value_and_grad(again, "reverse"))(values)
+    via_runner = runner.jitted_value_and_grad(again, "reverse", None, "octopus.sigma")(values)
+    for other in (second, plain, via_runner):
+        for a, b in zip(jax.tree_util.tree_leaves(first), jax.tree_util.tree_leaves(other)):
+            assert jnp.array_equal(a, b)

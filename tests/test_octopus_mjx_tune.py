@@ -42,8 +42,9 @@ def test_lift_metrics_closed_form():
 
 @pytest.fixture(scope="module")
 def mjx_loss():
-    """Delta_E -> ((loss, aux), dloss/dDelta_E) of the objective (forward mode, as the runner uses it)."""
-    f = jax.jit(runner.value_and_grad(mjx_tuning.make_loss(SETTINGS), "forward", ["delta_e"]))
+    """Delta_E -> ((loss, aux), dloss/dDelta_E) of the objective (forward mode, jitted as
+    the runner does: from the program cache)."""
+    f = runner.jitted_value_and_grad(mjx_tuning.make_loss(SETTINGS), "forward", ["delta_e"], "octopus.climb_lift")
 
     def evaluate(k: float):
         (loss, aux), g = f({"delta_e": jnp.float64(k)})

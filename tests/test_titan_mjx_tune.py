@@ -9,7 +9,6 @@ time, JAX's persistent cache keeps it)."""
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -70,7 +69,7 @@ def test_cog_error_closed_form():
 @pytest.fixture(scope="module")
 def mjx_loss():
     """gain -> ((loss, aux), dloss/dgain) of the objective (forward mode, as the runner uses it)."""
-    f = jax.jit(runner.value_and_grad(mjx_tuning.make_loss(SETTINGS), "forward", ["body_gain"]))
+    f = runner.jitted_value_and_grad(mjx_tuning.make_loss(SETTINGS), "forward", ["body_gain"], "titan.body_gain")
 
     def evaluate(gain: float):
         with optimized():  # compiled once, on the first call

@@ -34,7 +34,9 @@ On while the persistent compilation cache is on (`jax_compilation_cache_dir`), i
 `<that dir>-programs`; `$JAXLOCO_PROGRAM_CACHE` names another directory, or with 0 turns
 it off. Used by the MJX backend (`jaxloco.sim.mjx.run`: the whole rollout) and the native
 one (`jaxloco.sim.native`: the initial states, the controller's init, the per-period
-tick and the metrics), not by differentiated rollouts.
+tick and the metrics), and by the tune runner (`jaxloco.tune.runner.jitted_value_and_grad`:
+an objective's loss and gradient, the loss closure keyed by value), so that an MJX
+objective's differentiated rollout is not traced again either.
 """
 
 from __future__ import annotations

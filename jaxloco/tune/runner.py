@@ -156,7 +156,7 @@ def make_evaluate(spec: TuneSpec) -> Callable:
     except SpecError as exc:
         message = str(exc)
         raise (exc if message.startswith(f"{spec.source}: ") else SpecError(f"{spec.source}: {message}")) from None
-    evaluate = jax.jit(value_and_grad(loss_fn, objective.grad_mode, list(spec.params)))
+    evaluate = jitted_value_and_grad(loss_fn, objective.grad_mode, list(spec.params), objective.name)
     _EVALUATE[key] = (objective, evaluate)
     while len(_EVALUATE) > _EVALUATE_KEPT:
         _EVALUATE.pop(next(iter(_EVALUATE)))
@@ -207,6 +207,17 @@ def value_and_grad(loss_fn: Callable, mode: str = "reverse", names: list[str] | 
         return (loss, aux), grads
 
     return evaluate
+
+
+def jitted_value_and_grad(loss_fn: Callable, mode: str, names: list[str] | None, label: str) -> Callable:
+    """`jax.jit(value_and_grad(loss_fn, mode, names))` whose programs come from the program
+    cache (`jaxloco.sim.programs.CachedJit`, keyed by `loss_fn` by value, `label` and the
+    call signature): a later process evaluates an MJX objective without tracing its
+    differentiated rollout again. A loss that cannot be keyed (code from outside jaxloco)
+    gets the plain jit."""
+    from jaxloco.sim import programs
+
+    return programs.CachedJit(loss_fn, f"tune {label} {mode} {names}", lambda: value_and_grad(loss_fn, mode, names))
 
 
 def _optimizer(spec: TuneSpec):
