@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import os
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,8 +66,6 @@ def directory_bytes(path: Path) -> int:
 
 
 STALE_TMP_S = 3600.0  # [s] a temporary file this old is a crashed writer's, not a live one's
-
-
 JAX_CACHE_SUFFIX = "-cache"  # the entries of JAX's compilation cache
 PROGRAM_SUFFIX = ".bin"  # the entries of the program cache (`jaxloco.sim.programs`)
 TMP_SUFFIX = ".tmp"  # its files being written
@@ -81,8 +80,6 @@ def prune_cache(root: Path, max_bytes: int | None, *, suffix: str, tmp_suffix: s
     `*{tmp_suffix}` files older than `STALE_TMP_S` (writers that died). Returns the
     removed paths. Safe beside other processes: a file removed meanwhile is skipped, and
     a reader whose entry is gone compiles or traces it again."""
-    import time
-
     now = time.time() if now is None else now
     entries, removed = [], []
     for f in root.iterdir() if root.is_dir() else ():

@@ -207,15 +207,11 @@ def _unpack(flat, layout) -> simdata.SimData:
 def _jitted_tick(scenario: Scenario, layout, args: tuple):
     """The jitted, vmapped tick of a scenario on the packed data, for arguments shaped
     like `args` = (params, ctrl_state, env_state, packed data); it returns (ctrl_state,
-    env_state, [ctrl | mocap_pos | mocap_quat | bad], record). Kept per scenario object
-    and call signature (reused across calls; the signature is read once per rollout, not
-    per period) and on disk (`programs.load_or_export`, keyed by `programs.program_key`),
-    so a later process runs it without tracing; a scenario that cannot be keyed gets the
-    plain jit."""
+    env_state, [ctrl | mocap_pos | mocap_quat | bad], record). A `programs.CachedJit` per
+    scenario object and layout (reused across calls, and on disk for later processes),
+    resolved once per rollout, so the periods do not read the call signature."""
     ticks = per_scenario(_TICKS, scenario, dict)
-    leaves, tree = jax.tree_util.tree_flatten(args)
-    signature = (layout, tree, tuple((jax.typeof(x), str(getattr(x, "sharding", None))) for x in leaves))
-    if signature not in ticks:
+    if layout not in ticks:
         def make():
             tick = tick_fn(scenario)
 
@@ -229,9 +225,8 @@ def _jitted_tick(scenario: Scenario, layout, args: tuple):
 
             return jax.vmap(packed)
 
-        key = programs.program_key(scenario, args, f"native tick {layout}")
-        ticks[signature] = jax.jit(make()) if key is None else programs.load_or_export(make, key, args)
-    return ticks[signature]
+        ticks[layout] = programs.CachedJit(scenario, f"native tick {layout}", make)
+    return ticks[layout].resolve(*args)
 
 
 def _step(batch: mujoco.batch.Batch, ids: np.ndarray, nstep: int, alive: np.ndarray, t_div: np.ndarray) -> None:

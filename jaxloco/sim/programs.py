@@ -212,15 +212,18 @@ class CachedJit:
     """`jax.jit(make_fn())` whose programs come from the program cache: for each call
     signature (the arguments' tree, shapes, dtypes and shardings) one key, and the
     program loaded or exported once (`load_or_export`); a scenario that cannot be keyed
-    gets the plain jit. For functions called a few times per run (a rollout's inits and
-    metrics): each call flattens its arguments once more than `jax.jit` does."""
+    gets the plain jit. Calling it reads the signature each time (fine for functions
+    called a few times per run: a rollout's inits and metrics, a tuning step); a caller
+    that calls it in a loop with one signature takes `resolve(*args)` once instead."""
 
     def __init__(self, scenario: Any, label: str, make_fn: Callable[[], Callable]):
         self._scenario, self._label, self._make_fn = scenario, label, make_fn
         self._by_signature: dict[Any, Callable] = {}
         self._plain: Callable | None = None
 
-    def __call__(self, *args):
+    def resolve(self, *args) -> Callable[..., Any]:
+        """The function for arguments shaped like `args` (loaded, exported or the plain
+        jit), to call with arguments of that signature."""
         leaves, tree = jax.tree_util.tree_flatten(args)
         signature = (tree, tuple((jax.typeof(x), str(getattr(x, "sharding", None))) for x in leaves))
         fn = self._by_signature.get(signature)
@@ -233,4 +236,7 @@ class CachedJit:
             else:
                 fn = load_or_export(self._make_fn, key, args)
             self._by_signature[signature] = fn
-        return fn(*args)
+        return fn
+
+    def __call__(self, *args):
+        return self.resolve(*args)(*args)
