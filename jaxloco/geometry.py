@@ -15,6 +15,7 @@ validity mask.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import jax
@@ -196,9 +197,12 @@ def unique_mask(points: Array, mask: Array) -> Array:
     """`mask` with repeated points (within tolerance) dropped, keeping the first copy."""
     tol = _tolerance(points, mask)
     n = points.shape[0]
-    d = jnp.max(jnp.abs(points[:, None, :] - points[None, :, :]), axis=-1)
-    earlier = jnp.tril(jnp.ones((n, n), bool), k=-1)  # earlier[i, j]: j < i
-    dup = jnp.any(earlier & (d <= tol) & mask[None, :], axis=1)
+    rows = jnp.arange(n)
+    dup = jnp.zeros(n, bool)
+    coords = [points[:, a] for a in range(points.shape[1])]
+    for j in range(n - 1):  # every point against p_j, on N-vectors (an (N, N, D) array was 7x slower)
+        d = functools.reduce(jnp.maximum, [jnp.abs(c - c[j]) for c in coords])
+        dup = dup | ((rows > j) & (d <= tol) & mask[j])
     return mask & ~dup
 
 
@@ -292,123 +296,100 @@ def _small_hull_edges(x: list[Array], y: list[Array], mk: list[Array], tol: Arra
     return tuple(list(column) for column in zip(*steps))
 
 
-def _hull_distance(q: Array, points: Array, mask: Array) -> tuple[Array, Array, Array]:
-    """`hull_signed_distance` and its gradients (w.r.t. q (2,) and points (N, 2)), from
-    per-point scalars (the loops below are unrolled at trace time: under vmap every
-    operation is elementwise over the batch, which XLA fuses into vectorised loops).
+def _support_directions(xi: Array, yi: Array, x: list[Array], y: list[Array], tol2: Array,
+                        skip: int | None = None) -> tuple[Array, Array, Array, Array]:
+    """For point(s) p_i = (xi, yi) (scalars, or N-vectors of every point at once): the
+    most clockwise other point's offset e = p_j - p_i (a gift-wrap step without tie rules:
+    points within sqrt(tol2) of p_i are skipped, ties keep the first), whether one was
+    found, and the support value h = max_k u . p_k of the outward unit normal u = (e_y,
+    -e_x) / |e| over the points x, y (per-point scalars; the loops are unrolled at trace
+    time; `skip` leaves out p_i itself in the scalar form). From a hull vertex e runs
+    along its counter-clockwise hull edge; from any other point it is a line whose h is
+    only larger (see `_support_distance`). Returns (e_x, e_y, found, h)."""
+    ex, ey, found = jnp.zeros_like(xi), jnp.zeros_like(xi), jnp.zeros_like(xi, dtype=bool)
+    for k in range(len(x)):
+        if k == skip:
+            continue
+        ax, ay = x[k] - xi, y[k] - yi
+        cand = ax * ax + ay * ay > tol2
+        better = cand & (~found | (ex * ay - ey * ax < 0))  # p_k right of the best line so far
+        ex, ey, found = jnp.where(better, ax, ex), jnp.where(better, ay, ey), found | cand
+    inv = jax.lax.rsqrt(jnp.where(found, ex * ex + ey * ey, 1.0))
+    ux, uy = ey * inv, -ex * inv
+    h = ux * x[0] + uy * y[0]
+    for k in range(1, len(x)):
+        h = jnp.maximum(h, ux * x[k] + uy * y[k])
+    return ex, ey, found, h
 
-    The hull edges come from `_small_hull_edges` (a gift-wrap step from every point,
-    `hull_edges`' rules, O(N^2)). Inside, the value is the smallest distance
-    from q to a hull edge's line; otherwise minus the distance to the nearest hull edge
-    or point. A collinear set has both directions of its extreme segment, so no inside."""
+
+def _support_distance(q: Array, points: Array, mask: Array, unrolled: bool) -> tuple[Array, Array, Array]:
+    """`hull_signed_distance` and its gradients (w.r.t. q (2,) and points (N, 2)) as the
+    smallest support gap min_u h(u) - u . q over a few unit directions u, with h(u) =
+    max_k u . p_k the hull's support function.
+
+    For every unit u, h(u) - u . q is at least the signed distance from q to the hull's
+    boundary (inside: the distance to the nearest supporting line; outside: minus the
+    distance to the hull, by the separating line), with equality at the outward normal of
+    the nearest edge, or outside a vertex at the unit vector from that vertex to q. So
+    the candidates are each point's gift-wrap direction (`_support_directions`: from a
+    hull vertex, its edge's normal; from an interior point an extra direction that cannot
+    win) and the direction from the nearest point to q (outside a vertex, that vertex is
+    the nearest point). Unlike `_hull_edges_all_pairs` nothing has to be verified as a
+    hull edge, and collinear or repeated points need no tie rules: O(N^2) work in about
+    20 operations per pair instead of 45. Masked rows are replaced by copies of the
+    nearest point (they change no support value).
+
+    `unrolled`: per-point scalars (O(N^2) operations: fastest up to UNROLL_MAX_POINTS,
+    slow to compile beyond); otherwise every point's step on N-vectors at once (O(N)
+    operations on N-vectors). A collinear set has both normals of its line: nothing is
+    inside it; a single point gives minus the distance to it; no point -inf.
+    Gradients: those of the winning line's distance (inside or outside an edge: the line
+    through p_i and its direction's end p_j, foot parameter t) or of the distance to the
+    nearest point; the choice itself is not differentiated."""
     n = points.shape[0]
     dt = points.dtype
-    tol = jax.lax.stop_gradient(_tolerance(points, mask))
     big = jnp.asarray(jnp.finfo(dt).max, dt)
-    zero = jnp.zeros((), dt)
-    rel = jax.lax.stop_gradient(points - q[None, :])  # gradients come from the closed forms below
-    x, y, mk = [rel[k, 0] for k in range(n)], [rel[k, 1] for k in range(n)], [mask[k] for k in range(n)]
-    # best inside (hull edge line) and outside (hull edge segment or point) so far:
-    # value, endpoints i, j, foot parameter t, unit vector (the edge's inward normal inside,
-    # q minus its nearest point outside, before normalisation)
-    in_d, in_i, in_j, in_t, in_nx, in_ny = big, 0, 0, zero, zero, zero
-    out_d2, out_i, out_j, out_t, out_x, out_y = big, 0, 0, zero, zero, zero
-    hull = jnp.asarray(False)
-    for i, (j, ex, ey, edge) in enumerate(zip(*_small_hull_edges(x, y, mk, tol))):
-        e2 = jnp.where(edge, ex * ex + ey * ey, 1.0)
-        inv = jax.lax.rsqrt(e2)
-        nx, ny = -ey * inv, ex * inv  # left (inward) unit normal
-        d = -(nx * x[i] + ny * y[i])  # n . (q - p_i), q at the origin
-        t_line = -(x[i] * ex + y[i] * ey) / e2
-        closer = edge & (d < in_d)
-        in_d, in_t = jnp.where(closer, d, in_d), jnp.where(closer, t_line, in_t)
-        in_nx, in_ny = jnp.where(closer, nx, in_nx), jnp.where(closer, ny, in_ny)
-        in_i, in_j = jnp.where(closer, i, in_i), jnp.where(closer, j, in_j)
-        t = jnp.clip(t_line, 0.0, 1.0)
-        cx, cy = x[i] + t * ex, y[i] + t * ey  # nearest point of the edge to q
-        c2 = cx * cx + cy * cy
-        closer = edge & (c2 < out_d2)
-        out_d2, out_t = jnp.where(closer, c2, out_d2), jnp.where(closer, t, out_t)
-        out_x, out_y = jnp.where(closer, -cx, out_x), jnp.where(closer, -cy, out_y)
-        out_i, out_j = jnp.where(closer, i, out_i), jnp.where(closer, j, out_j)
-        hull = hull | edge
-    for k in range(n):  # single points (and the vertices, already on the edges)
-        c2 = x[k] * x[k] + y[k] * y[k]
-        closer = mk[k] & (c2 < out_d2)
-        out_d2, out_t = jnp.where(closer, c2, out_d2), jnp.where(closer, 0.0, out_t)
-        out_x, out_y = jnp.where(closer, -x[k], out_x), jnp.where(closer, -y[k], out_y)
-        out_i, out_j = jnp.where(closer, k, out_i), jnp.where(closer, k, out_j)
-    return _signed_distance_and_gradients(mask, hull, (in_d, in_t, in_nx, in_ny, in_i, in_j),
-                                          (out_d2, out_t, out_x, out_y, out_i, out_j))
-
-
-def _signed_distance_and_gradients(mask: Array, hull: Array, nearest_line: tuple, nearest_point: tuple
-                                   ) -> tuple[Array, Array, Array]:
-    """The value and gradients of `_hull_distance` from its selections: `nearest_line`
-    (distance d, foot parameter t, inward unit normal, endpoints i, j) of the nearest hull
-    edge line, `nearest_point` (squared distance, t, q minus the point, i, j) of the
-    nearest hull edge point or single point; `hull`: whether there is any edge."""
-    in_d, in_t, in_nx, in_ny, in_i, in_j = nearest_line
-    out_d2, out_t, out_x, out_y, out_i, out_j = nearest_point
-    n, dt = mask.shape[0], in_d.dtype
-    inside = hull & (in_d > 0)
-    ok = out_d2 > 0
-    out_d = jnp.where(ok, jnp.sqrt(jnp.where(ok, out_d2, 1.0)), 0.0)
-    w = jnp.stack([out_x, out_y]) / jnp.where(ok, out_d, 1.0)  # unit, from the nearest point to q
-    n_in = jnp.stack([in_nx, in_ny])
-    value = jnp.where(jnp.any(mask), jnp.where(inside, in_d, -out_d), -jnp.inf)
-    # d(distance to the line i->j)/d(q, p_i, p_j) = n, -(1 - t) n, -t n; outside, with the
-    # nearest point c = p_i + t (p_j - p_i): -(w, -(1 - t) w, -t w)
-    g_q = jnp.where(inside, n_in, -w)
-    a = jnp.where(inside, -(1.0 - in_t) * n_in, (1.0 - out_t) * w)
-    b = jnp.where(inside, -in_t * n_in, out_t * w)
-    gi, gj = jnp.where(inside, in_i, out_i), jnp.where(inside, in_j, out_j)
-    rows = jnp.arange(n)
-    g_p = (rows == gi).astype(dt)[:, None] * a[None, :] + (rows == gj).astype(dt)[:, None] * b[None, :]
-    live = jnp.any(mask)
-    return value, jnp.where(live, g_q, 0.0), jnp.where(live, g_p, 0.0)
-
-
-def _hull_distance_vectorized(q: Array, points: Array, mask: Array) -> tuple[Array, Array, Array]:
-    """`_hull_distance` with every point's gift-wrap step at once (`_gift_wrap_from` over
-    N-vectors, the loop over the other points unrolled): O(N^2) work in O(N) operations,
-    so the program stays small at 8-16 points, where the scalar form's O(N^2) operations
-    compile slowly. The same edges, selections and tie-breaks (the first nearest)."""
-    n = points.shape[0]
-    dt = points.dtype
     tol = jax.lax.stop_gradient(_tolerance(points, mask))
-    big = jnp.asarray(jnp.finfo(dt).max, dt)
-    rel = jax.lax.stop_gradient(points - q[None, :])  # gradients come from the closed forms
-    px, py = rel[:, 0], rel[:, 1]
+    rel = jax.lax.stop_gradient(points - q[None, :])  # q at the origin; gradients by the closed forms
     rows = jnp.arange(n)
-    j, ex, ey, edge = _gift_wrap_from(rows, px, py, mask, [px[k] for k in range(n)], [py[k] for k in range(n)],
-                                      [mask[k] for k in range(n)], tol)
-    e2 = jnp.where(edge, ex * ex + ey * ey, 1.0)
-    inv = jax.lax.rsqrt(e2)
-    nx, ny = -ey * inv, ex * inv  # left (inward) unit normals
-    d = jnp.where(edge, -(nx * px + ny * py), big)  # n . (q - p_i), q at the origin
-    t_line = -(px * ex + py * ey) / e2
 
     def pick(index, values):  # values[index] as a masked sum (no gather)
         return jnp.sum(jnp.where(rows == index, values, 0), axis=-1)
 
-    in_i = jnp.argmin(d)
-    nearest_line = (jnp.min(d), pick(in_i, t_line), pick(in_i, nx), pick(in_i, ny), in_i, pick(in_i, j))
-    t = jnp.clip(t_line, 0.0, 1.0)
-    cx, cy = px + t * ex, py + t * ey  # each edge's nearest point to q
-    c2 = jnp.where(edge, cx * cx + cy * cy, big)
-    p2 = jnp.where(mask, px * px + py * py, big)
-    e_i, p_i = jnp.argmin(c2), jnp.argmin(p2)
-    point = jnp.min(p2) < jnp.min(c2)  # a single point (or vertex) only when strictly nearer
-    nearest_point = (
-        jnp.minimum(jnp.min(p2), jnp.min(c2)),
-        jnp.where(point, 0.0, pick(e_i, t)),
-        jnp.where(point, -pick(p_i, px), -pick(e_i, cx)),
-        jnp.where(point, -pick(p_i, py), -pick(e_i, cy)),
-        jnp.where(point, p_i, e_i),
-        jnp.where(point, p_i, pick(e_i, j)),
-    )
-    return _signed_distance_and_gradients(mask, jnp.any(edge), nearest_line, nearest_point)
+    r2 = jnp.where(mask, rel[:, 0] * rel[:, 0] + rel[:, 1] * rel[:, 1], big)
+    near = jnp.argmin(r2)
+    near_x, near_y = pick(near, rel[:, 0]), pick(near, rel[:, 1])
+    px, py = jnp.where(mask, rel[:, 0], near_x), jnp.where(mask, rel[:, 1], near_y)
+    x, y = [px[k] for k in range(n)], [py[k] for k in range(n)]
+    if unrolled:
+        steps = [_support_directions(x[i], y[i], x, y, tol * tol, skip=i) for i in range(n)]
+        ex, ey, found, h = (jnp.stack(column) for column in zip(*steps))
+    else:
+        ex, ey, found, h = _support_directions(px, py, x, y, tol * tol)
+    h = jnp.where(mask & found, h, big)
+    edge = jnp.argmin(h)
+    # the nearest point's direction: u = (q - p) / |q - p|; q on a point: no direction
+    # (an edge through it gives 0 when it is on the boundary; alone it is the distance 0)
+    d_near = jnp.sqrt(jnp.min(r2))
+    on_point = d_near == 0
+    wx, wy = -near_x / jnp.where(on_point, 1.0, d_near), -near_y / jnp.where(on_point, 1.0, d_near)
+    h_near = jnp.max(wx * px + wy * py)
+    h_near = jnp.where(on_point, jnp.where(jnp.any(mask & found), big, 0.0), h_near)
+    by_edge = jnp.min(h) <= h_near
+    # the winner's unit direction s (outward normal or from the point to q), its line's
+    # endpoints i, j and foot parameter t: value = s . (p_i - q) at t = 0 ... 1
+    ei_x, ei_y, xi, yi = pick(edge, ex), pick(edge, ey), pick(edge, px), pick(edge, py)
+    e2 = jnp.where(by_edge, ei_x * ei_x + ei_y * ei_y, 1.0)
+    inv = jax.lax.rsqrt(e2)
+    s = jnp.where(by_edge, jnp.stack([ei_y * inv, -ei_x * inv]), jnp.stack([wx, wy]))
+    far = jnp.argmin(jnp.where(mask, (px - xi - ei_x) ** 2 + (py - yi - ei_y) ** 2, big))  # p_j = p_i + e
+    i, j = jnp.where(by_edge, edge, near), jnp.where(by_edge, far, near)
+    t = jnp.where(by_edge, -(xi * ei_x + yi * ei_y) / e2, 0.0)
+    live = jnp.any(mask)
+    value = jnp.where(live, jnp.minimum(jnp.min(h), h_near), -jnp.inf)
+    g_p = ((rows == i).astype(dt)[:, None] * ((1.0 - t) * s)[None, :]
+           + (rows == j).astype(dt)[:, None] * (t * s)[None, :])
+    return value, jnp.where(live, -s, 0.0), jnp.where(live, g_p, 0.0)
 
 
 def small_hull_edges(points: Array, mask: Array) -> tuple[Array, Array]:
@@ -432,7 +413,7 @@ def small_hull_edges(points: Array, mask: Array) -> tuple[Array, Array]:
 
 
 def _with_closed_form_jvp(distance: Callable[[Array, Array, Array], tuple[Array, Array, Array]]):
-    """`hull_signed_distance` by `distance` (`_hull_distance` or its vectorised form),
+    """`hull_signed_distance` by `distance` (`_support_distance`, unrolled or not),
     with the closed-form derivative of the distance to the nearest edge's line (inside)
     or nearest edge point (outside) that `distance` returns: exact between changes of the
     nearest edge, zero for masked and interior points, O(N) to evaluate; the selection
@@ -452,15 +433,16 @@ def _with_closed_form_jvp(distance: Callable[[Array, Array, Array], tuple[Array,
     return signed_distance
 
 
-_hull_signed_distance_unrolled = _with_closed_form_jvp(_hull_distance)
-_hull_signed_distance_vectorized = _with_closed_form_jvp(_hull_distance_vectorized)
+_hull_signed_distance_unrolled = _with_closed_form_jvp(functools.partial(_support_distance, unrolled=True))
+_hull_signed_distance_vectorized = _with_closed_form_jvp(functools.partial(_support_distance, unrolled=False))
 
 
 # Up to this many points `hull_signed_distance` (and `small_hull_edges`) run on per-point
-# scalars (`_hull_distance`: 1.6e7 margins/s at 4 points against 8.4e6 for the vectorised
-# form, float64, one core; its program grows with N^2, 50 s to compile at N = 16), beyond
-# on N-vectors (`_hull_distance_vectorized`: 4.6e6 at 8 points, 2.0e6 at 16, compiled in
-# 0.4-0.9 s; the all-pairs form 1.5e5 and 2.8e4). Default (ours).
+# scalars (`_support_distance(unrolled=True)`: 3.2e7 margins/s at 4 points, 1.6e7 at 6,
+# against 2.1e7 and 6.2e6 on N-vectors; float64, batch 1e5 on 2 cores; the program grows
+# with N^2), beyond on N-vectors (3.2e6 at 16; the all-pairs form 3.0e4). Default (ours).
+# The gift-wrap with verified maximal edges (`small_hull_edges`, 1.3e6 at 16) stays for
+# the margins that need the edges themselves (NESM, longitudinal).
 UNROLL_MAX_POINTS = 6
 
 
@@ -469,9 +451,10 @@ def hull_signed_distance(q: Array, points: Array, mask: Array) -> Array:
     points: positive inside, negative outside (minus the distance to the hull). A
     segment or a single point gives <= 0; no points gives -inf. Gradients flow through
     the coordinates of the nearest edge or point; masked and interior points get none.
-    O(N^2): a gift-wrap step from every point, on per-point scalars up to
-    UNROLL_MAX_POINTS points, on N-vectors beyond (`_hull_signed_distance_all_pairs`,
-    O(N^3), gives the same values)."""
+    O(N^2): the smallest support gap over each point's gift-wrap direction and the
+    nearest point's (`_support_distance`), on per-point scalars up to UNROLL_MAX_POINTS
+    points, on N-vectors beyond (`_hull_signed_distance_all_pairs`, O(N^3), gives the
+    same values)."""
     n = points.shape[0]
     if n == 0:
         return jnp.asarray(-jnp.inf, points.dtype)

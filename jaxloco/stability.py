@@ -39,7 +39,11 @@ def vertical_frame(up: Array | None, dtype) -> Array:
 
 
 def _vertical_coordinates(cog: Array, contacts: Array, up: Array | None) -> tuple[Array, Array]:
-    """The COG (3,) and the contacts (N, 3) in `vertical_frame(up)` (z along up)."""
+    """The COG (3,) and the contacts (N, 3) in `vertical_frame(up)` (z along up); as
+    given for None (no product with the identity: it halved the static margin's rate
+    at 4 contacts)."""
+    if up is None:
+        return cog, contacts
     B = vertical_frame(up, contacts.dtype)
     return B @ cog, contacts @ B.T
 
@@ -94,13 +98,24 @@ def axis_energy_rise(c: Array, a: Array, b: Array) -> Array:
     the contacts a and b until the COG is above the axis: the highest point of its circle
     about the axis minus its present height (points in a frame whose z is up, see
     `vertical_frame`). The unsigned energy margin of one tipping axis (the NE stability
-    margin of that edge, Hirose et al.); finite gradients also for a == b."""
-    e = b - a
-    elen = geo._safe_norm(e)
-    e = e / jnp.where(elen > 0, elen, 1.0)
-    r = c - a
-    R = r - jnp.dot(r, e) * e  # from the axis to the COG, normal to it
-    rho = jnp.sqrt(jnp.dot(R, R) + jnp.finfo(c.dtype).tiny)
+    margin of that edge, Hirose et al.); finite gradients also for a == b. Points (..., 3),
+    broadcast against each other."""
+    return _energy_rise(*(jnp.moveaxis(v, -1, 0) for v in (c, a, b)))
+
+
+def _energy_rise(c: tuple, a: tuple, b: tuple) -> Array:
+    """`axis_energy_rise` on coordinates: c, a, b are (x, y, z) triples of arrays that
+    broadcast (N-vectors, N x N pairs: no reductions over a 3-axis, which XLA vectorises
+    badly)."""
+    e = [bk - ak for ak, bk in zip(a, b)]
+    e2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
+    ok = e2 > 0
+    inv = jnp.where(ok, jax.lax.rsqrt(jnp.where(ok, e2, 1.0)), 1.0)  # finite gradient at a == b
+    e = [ek * inv for ek in e]
+    r = [ck - ak for ak, ck in zip(a, c)]
+    along = r[0] * e[0] + r[1] * e[1] + r[2] * e[2]
+    R = [rk - along * ek for rk, ek in zip(r, e)]  # from the axis to the COG, normal to it
+    rho = jnp.sqrt(R[0] * R[0] + R[1] * R[1] + R[2] * R[2] + jnp.finfo(R[0].dtype).tiny)
     return rho * jnp.sqrt(jnp.clip(1.0 - e[2] * e[2], 0.0, 1.0)) - R[2]
 
 
@@ -108,7 +123,7 @@ def _ne_edge_margins(cog: Array, contacts: Array, up: Array | None) -> tuple[Arr
     """Per-edge energy margin h_max - h_0 (m), signed by the side of the COG."""
     c, p = _vertical_coordinates(cog, contacts, up)
     # axis i -> j for every pair (finite gradient on the i == j diagonal)
-    rise = jax.vmap(jax.vmap(lambda a, b: axis_energy_rise(c, a, b), (None, 0)), (0, None))(p, p)
+    rise = _energy_rise(tuple(c), tuple(p[:, k, None] for k in range(3)), tuple(p[None, :, k] for k in range(3)))
     side = _edge_line_distances(c[:2], p[:, :2])
     return jnp.where(side >= 0, rise, -rise), p[:, :2]
 
@@ -157,10 +172,10 @@ def _ne_successor_margins(cog: Array, contacts: Array, mask: Array, up: Array | 
     which `axis_energy_rise` keeps finite."""
     c, p = _vertical_coordinates(cog, contacts, up)
     succ, edge = geo.small_hull_edges(p[:, :2], mask)
-    chosen = succ[:, None] == jnp.arange(contacts.shape[0])[None, :]
-    b = jnp.sum(jnp.where(chosen[:, :, None], p[None, :, :], 0.0), axis=1)
-    rise = jax.vmap(lambda a, b_: axis_energy_rise(c, a, b_))(p, b)
-    side = geo.cross2(b[:, :2] - p[:, :2], c[:2] - p[:, :2])  # the COG's side, times |edge|
+    a = tuple(p[:, k] for k in range(3))
+    b = tuple(sum(jnp.where(succ == j, a[k][j], 0.0) for j in range(contacts.shape[0])) for k in range(3))
+    rise = _energy_rise(tuple(c), a, b)
+    side = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])  # the COG's side, times |edge|
     return jnp.where(side >= 0, rise, -rise), edge
 
 
