@@ -196,18 +196,44 @@ def ne_stability_margin_smooth(
 
 
 # ------------------------------------------------------------ longitudinal stability margin
-def _longitudinal_terms(cog, contacts, direction, up, eps):
-    q, _, p2, _ = _split(cog, contacts, up)
-    B = vertical_frame(up, contacts.dtype)
-    d3 = jnp.concatenate([direction, jnp.zeros(3 - direction.shape[0], direction.dtype)])
-    d = (B @ d3)[:2]
+def _travel_direction(direction: Array, up: Array | None, dtype) -> tuple[Array, Array]:
+    """The unit horizontal travel direction (d_x, d_y) in `vertical_frame(up)`."""
+    d3 = jnp.concatenate([direction, jnp.zeros(3 - direction.shape[0], direction.dtype)]).astype(dtype)
+    d = d3[:2] if up is None else (vertical_frame(up, dtype) @ d3)[:2]
     d = d / jnp.linalg.norm(d)
-    e = p2[None, :, :] - p2[:, None, :]
-    elen = geo._safe_norm(e)  # finite gradient on the i == j diagonal
-    outward = jnp.stack([e[..., 1], -e[..., 0]], axis=-1) / jnp.where(elen > 0, elen, 1.0)[..., None]
-    along = jnp.abs(outward @ d)
-    dist = _edge_line_distances(q, p2)
-    return dist / jnp.maximum(along, eps), p2
+    return d[0], d[1]
+
+
+def _longitudinal_term(q: tuple, a: tuple, b: tuple, d: tuple, eps: float) -> Array:
+    """The signed distance from q along the travel line d to the line a -> b (2D (x, y)
+    pairs of broadcasting arrays): the distance from q to the line (left positive)
+    divided by |n . d|, n the line's unit normal, floored at `eps`; finite gradients also
+    for a == b (the term is then 0)."""
+    ex, ey = b[0] - a[0], b[1] - a[1]
+    e2 = ex * ex + ey * ey
+    ok = e2 > 0
+    inv = jnp.where(ok, jax.lax.rsqrt(jnp.where(ok, e2, 1.0)), 1.0)
+    along = jnp.abs(ey * d[0] - ex * d[1]) * inv
+    dist = (ex * (q[1] - a[1]) - ey * (q[0] - a[0])) * inv
+    return dist / jnp.maximum(along, eps)
+
+
+def _longitudinal_terms(cog, contacts, direction, up, eps):
+    """Every pair's `_longitudinal_term` (N, N) of the axis i -> j, and the 2D contacts."""
+    q, _, p2, _ = _split(cog, contacts, up)
+    d = _travel_direction(direction, up, p2.dtype)
+    a, b = (p2[:, None, 0], p2[:, None, 1]), (p2[None, :, 0], p2[None, :, 1])
+    return _longitudinal_term((q[0], q[1]), a, b, d, eps), p2
+
+
+def _longitudinal_successor_terms(cog, contacts, mask, direction, up, eps) -> tuple[Array, Array]:
+    """`_longitudinal_term` (N,) of the axes p_i -> p_succ[i] and whether each is a
+    support edge (`geometry.small_hull_edges`): N terms instead of every pair's N^2."""
+    q, _, p2, _ = _split(cog, contacts, up)
+    succ, edge = geo.small_hull_edges(p2, mask)
+    a = (p2[:, 0], p2[:, 1])
+    b = tuple(sum(jnp.where(succ == j, a[k][j], 0.0) for j in range(p2.shape[0])) for k in range(2))
+    return _longitudinal_term((q[0], q[1]), a, b, _travel_direction(direction, up, p2.dtype), eps), edge
 
 
 def longitudinal_margin(
@@ -220,8 +246,18 @@ def longitudinal_margin(
     Signed: for a COG outside the polygon it is minus the distance along the travel line
     to the line of the violated edge (edges parallel to the travel line count with
     |n.d| floored at `eps`, so a COG beside the polygon gives a large negative value)."""
+    if contacts.shape[0] > geo.UNROLL_MAX_POINTS:
+        return _min_over_edges(*_longitudinal_successor_terms(cog, contacts, mask, direction, up, eps))
     terms, p2 = _longitudinal_terms(cog, contacts, direction, up, eps)
     return _min_over_edges(terms, geo.hull_edges(p2, mask))
+
+
+def _longitudinal_margin_all_pairs(cog: Array, contacts: Array, mask: Array, direction: Array,
+                                   up: Array | None = None, eps: float = 1e-6) -> Array:
+    """`longitudinal_margin` over the all-pairs edges (`_hull_edges_all_pairs`, O(N^3)):
+    the reference the tests hold it to."""
+    terms, p2 = _longitudinal_terms(cog, contacts, direction, up, eps)
+    return _min_over_edges(terms, geo._hull_edges_all_pairs(p2, mask))
 
 
 def longitudinal_margin_smooth(
