@@ -19,18 +19,25 @@ __all__ = ["vmap_in_blocks"]
 
 
 def vmap_in_blocks(fn: Callable[..., Any], *, block: int | None = 128,
-                   in_axes: int | None | Sequence[int | None] = 0) -> Callable[..., Any]:
+                   in_axes: int | None | Sequence[int | None] = 0,
+                   groups: int | None = None) -> Callable[..., Any]:
     """`jax.vmap(fn, in_axes)` for positional arguments batched on axis 0 (`in_axes`: 0,
-    or one 0 / None per argument; an argument may be a pytree), run as a `lax.map` over
+    or one 0 / None per argument; an argument may be a pytree), run as a loop over
     vmapped blocks of `block` members when the batch is larger (None: one vmap).
 
-    Block j holds members j, j + n_blocks, j + 2 n_blocks, ..., so a batch sharded over
-    devices along its axis keeps every device busy within each block (use a `block`
-    divisible by the device count). The last block is padded by repeating the last
-    member; the outputs (any pytree, batch axis first) are cut back to the batch size.
+    The batch is split into `groups` equal, contiguous parts (default: the number of JAX
+    devices when it divides both the batch and `block`, else 1), the parts a batch
+    sharded over the devices already has; every block takes block / groups members from
+    each part, so each device works on its own members within every block and nothing
+    moves between devices. Each part is padded on its own by repeating its last member;
+    the outputs (any pytree, batch axis first) are cut back to the batch. The blocks are
+    read and written in place by a `fori_loop` (no transposed copy of the batch).
+    Results do not depend on `block` or `groups`.
     """
     if block is not None and (int(block) != block or block < 1):
         raise ValueError(f"block must be a positive int or None, got {block!r}")
+    if groups is not None and (int(groups) != groups or groups < 1):
+        raise ValueError(f"groups must be a positive int or None, got {groups!r}")
 
     def run(*args):
         axes = (in_axes,) * len(args) if in_axes is None or isinstance(in_axes, int) else tuple(in_axes)
@@ -42,27 +49,48 @@ def vmap_in_blocks(fn: Callable[..., Any], *, block: int | None = 128,
         size = leaves[0].shape[0]
         if block is None or size <= block:
             return jax.vmap(fn, in_axes=axes)(*args)
-        n_blocks = -(-size // block)
-        padded = n_blocks * block
+        g = groups or _default_groups(size, block)
+        if size % g or block % g:
+            raise ValueError(f"groups ({g}) must divide the batch ({size}) and the block ({block})")
+        per, width = size // g, block // g  # members per part, and per part in each block
+        n_blocks = -(-per // width)
+        padded = n_blocks * width
 
-        def to_blocks(x):  # (B, ...) -> (n_blocks, block, ...)
-            x = jnp.asarray(x)
-            if padded > size:
-                x = jnp.concatenate([x, jnp.repeat(x[-1:], padded - size, axis=0)])
-            return jnp.swapaxes(x.reshape(block, n_blocks, *x.shape[1:]), 0, 1)
+        def to_blocks(x):  # (B, ...) -> (g, width, n_blocks, ...); member k * n_blocks + j in block j
+            x = jnp.asarray(x).reshape(g, per, *x.shape[1:])
+            if padded > per:
+                x = jnp.concatenate([x, jnp.repeat(x[:, -1:], padded - per, axis=1)], axis=1)
+            return x.reshape(g, width, n_blocks, *x.shape[2:])
 
-        def from_blocks(y):
-            return jnp.swapaxes(y, 0, 1).reshape(padded, *y.shape[2:])[:size]
+        def from_blocks(y):  # (g, width, n_blocks, ...) -> (B, ...)
+            return y.reshape(g, padded, *y.shape[3:])[:, :per].reshape(size, *y.shape[3:])
 
         batched = [i for i, ax in enumerate(axes) if ax == 0]
+        members = [jax.tree_util.tree_map(to_blocks, args[i]) for i in batched]
 
-        def one_block(members):
+        def one_block(j):
             full = list(args)
             for i, m in zip(batched, members):
-                full[i] = m
+                full[i] = jax.tree_util.tree_map(
+                    lambda x: jax.lax.dynamic_index_in_dim(x, j, axis=2, keepdims=False).reshape(
+                        block, *x.shape[3:]), m)
             return jax.vmap(fn, in_axes=axes)(*full)
 
-        members = [jax.tree_util.tree_map(to_blocks, args[i]) for i in batched]
-        return jax.tree_util.tree_map(from_blocks, jax.lax.map(one_block, members))
+        shapes = jax.eval_shape(one_block, 0)
+        out = jax.tree_util.tree_map(lambda a: jnp.zeros((g, width, n_blocks, *a.shape[1:]), a.dtype), shapes)
+
+        def body(j, out):
+            y = one_block(j)
+            return jax.tree_util.tree_map(
+                lambda o, v: jax.lax.dynamic_update_index_in_dim(o, v.reshape(g, width, *v.shape[1:]), j, axis=2),
+                out, y)
+
+        return jax.tree_util.tree_map(from_blocks, jax.lax.fori_loop(0, n_blocks, body, out))
 
     return run
+
+
+def _default_groups(size: int, block: int) -> int:
+    """The number of JAX devices if it divides the batch and the block, else 1."""
+    n = jax.device_count()
+    return n if size % n == 0 and block % n == 0 else 1
