@@ -110,13 +110,14 @@ def _energy_rise(c: tuple, a: tuple, b: tuple) -> Array:
     e = [bk - ak for ak, bk in zip(a, b)]
     e2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
     ok = e2 > 0
-    inv = jnp.where(ok, jax.lax.rsqrt(jnp.where(ok, e2, 1.0)), 1.0)  # finite gradient at a == b
-    e = [ek * inv for ek in e]
+    inv2 = jnp.where(ok, 1.0 / jnp.where(ok, e2, 1.0), 0.0)  # 1 / |e|^2; a == b: no axis direction
     r = [ck - ak for ak, ck in zip(a, c)]
-    along = r[0] * e[0] + r[1] * e[1] + r[2] * e[2]
+    along = (r[0] * e[0] + r[1] * e[1] + r[2] * e[2]) * inv2
     R = [rk - along * ek for rk, ek in zip(r, e)]  # from the axis to the COG, normal to it
-    rho = jnp.sqrt(R[0] * R[0] + R[1] * R[1] + R[2] * R[2] + jnp.finfo(R[0].dtype).tiny)
-    return rho * jnp.sqrt(jnp.clip(1.0 - e[2] * e[2], 0.0, 1.0)) - R[2]
+    # |R| sqrt(1 - e_z^2 / |e|^2) in one square root: |R|^2 (e_x^2 + e_y^2) / |e|^2
+    level = jnp.where(ok, (e[0] * e[0] + e[1] * e[1]) * inv2, 1.0)
+    rho2 = (R[0] * R[0] + R[1] * R[1] + R[2] * R[2]) * level
+    return jnp.sqrt(rho2 + jnp.finfo(rho2.dtype).tiny) - R[2]
 
 
 def _ne_edge_margins(cog: Array, contacts: Array, up: Array | None) -> tuple[Array, Array]:
@@ -124,7 +125,7 @@ def _ne_edge_margins(cog: Array, contacts: Array, up: Array | None) -> tuple[Arr
     c, p = _vertical_coordinates(cog, contacts, up)
     # axis i -> j for every pair (finite gradient on the i == j diagonal)
     rise = _energy_rise(tuple(c), tuple(p[:, k, None] for k in range(3)), tuple(p[None, :, k] for k in range(3)))
-    side = _edge_line_distances(c[:2], p[:, :2])
+    side = geo.cross2(p[None, :, :2] - p[:, None, :2], c[None, None, :2] - p[:, None, :2])  # sign only
     return jnp.where(side >= 0, rise, -rise), p[:, :2]
 
 
