@@ -40,17 +40,26 @@ def daqp_loop(data):
 
 
 def proxsuite_loop(data):
+    """proxsuite's dense solver on the problem in scaled variables x = D x~ (D = x_scale,
+    the scaling jaxloco.qp gets too; prepared outside the timed loop, as daqp's arrays):
+    unscaled, its infeasibility test stops the contact QPs (forces of 10-500 N) after
+    5 iterations as "primal infeasible"."""
     import proxsuite
 
     N, n = data["q"].shape
     xs, ok = np.zeros((N, n)), np.zeros(N, bool)
-    t0 = time.perf_counter()
+    scale = np.broadcast_to(data.get("x_scale", np.ones(n)), (N, n))
+    probs = []
     for i in range(N):
-        G = data["G"][i]
-        r = proxsuite.proxqp.dense.solve(data["Q"][i], data["q"][i], data["A"][i], data["b"][i], G,
-                                         np.full(len(data["h"][i]), -1e20), data["h"][i],
-                                         eps_abs=1e-9, eps_rel=0.0)
-        xs[i] = r.x
+        D = scale[i]
+        probs.append((np.ascontiguousarray(D[:, None] * data["Q"][i] * D[None, :]), D * data["q"][i],
+                      np.ascontiguousarray(data["A"][i] * D[None, :]), data["b"][i],
+                      np.ascontiguousarray(data["G"][i] * D[None, :]), np.full(len(data["h"][i]), -1e20),
+                      data["h"][i]))
+    t0 = time.perf_counter()
+    for i, (H, g, A, b, C, lo, up) in enumerate(probs):
+        r = proxsuite.proxqp.dense.solve(H, g, A, b, C, lo, up, eps_abs=1e-9, eps_rel=0.0)
+        xs[i] = scale[i] * r.x
         ok[i] = str(r.info.status).endswith("SOLVED")
     return xs, ok, time.perf_counter() - t0
 
@@ -98,7 +107,10 @@ def moreau_batch(data):
     solver.setup(P_vals, A_vals)
     sol = solver.solve(data["q"], bs)
     t = time.perf_counter() - t0
-    status = np.asarray([str(s) for s in np.atleast_1d(solver.info.status)])
+    # SolverStatus is an IntEnum: str() of a member is its number, its name says "Solved"
+    # (np.atleast_1d would turn the list of members into plain ints)
+    raw = solver.info.status
+    status = np.asarray([getattr(s, "name", str(s)) for s in (raw if isinstance(raw, (list, tuple)) else [raw])])
     solved = np.array(["solved" in v.lower() or "optimal" in v.lower() for v in status])
     return np.asarray(sol.x), np.broadcast_to(solved, (N,)) if solved.size == 1 else solved, t
 
