@@ -31,7 +31,7 @@ def vmap_in_blocks(fn: Callable[..., Any], *, block: int | None = 128,
     each part, so each device works on its own members within every block and nothing
     moves between devices. Each part is padded on its own by repeating its last member;
     the outputs (any pytree, batch axis first) are cut back to the batch. The blocks are
-    read and written in place by a `fori_loop` (no transposed copy of the batch).
+    read by a dynamic index in a `scan` (no transposed copy of the batch; fn is traced once).
     Results do not depend on `block` or `groups`.
     """
     if block is not None and (int(block) != block or block < 1):
@@ -62,9 +62,6 @@ def vmap_in_blocks(fn: Callable[..., Any], *, block: int | None = 128,
                 x = jnp.concatenate([x, jnp.repeat(x[:, -1:], padded - per, axis=1)], axis=1)
             return x.reshape(g, width, n_blocks, *x.shape[2:])
 
-        def from_blocks(y):  # (g, width, n_blocks, ...) -> (B, ...)
-            return y.reshape(g, padded, *y.shape[3:])[:, :per].reshape(size, *y.shape[3:])
-
         batched = [i for i, ax in enumerate(axes) if ax == 0]
         members = [jax.tree_util.tree_map(to_blocks, args[i]) for i in batched]
 
@@ -76,16 +73,16 @@ def vmap_in_blocks(fn: Callable[..., Any], *, block: int | None = 128,
                         block, *x.shape[3:]), m)
             return jax.vmap(fn, in_axes=axes)(*full)
 
-        shapes = jax.eval_shape(one_block, 0)
-        out = jax.tree_util.tree_map(lambda a: jnp.zeros((g, width, n_blocks, *a.shape[1:]), a.dtype), shapes)
+        def step(_, j):  # one trace of fn (an eval_shape for preallocated outputs would be a second)
+            return None, one_block(j)
 
-        def body(j, out):
-            y = one_block(j)
-            return jax.tree_util.tree_map(
-                lambda o, v: jax.lax.dynamic_update_index_in_dim(o, v.reshape(g, width, *v.shape[1:]), j, axis=2),
-                out, y)
+        _, ys = jax.lax.scan(step, None, jnp.arange(n_blocks))  # leaves (n_blocks, block, ...)
 
-        return jax.tree_util.tree_map(from_blocks, jax.lax.fori_loop(0, n_blocks, body, out))
+        def from_blocks(y):  # (n_blocks, g * width, ...) -> (B, ...): member k * n_blocks + j of each part
+            y = jnp.moveaxis(y.reshape(n_blocks, g, width, *y.shape[2:]), 0, 2)
+            return y.reshape(g, padded, *y.shape[3:])[:, :per].reshape(size, *y.shape[3:])
+
+        return jax.tree_util.tree_map(from_blocks, ys)
 
     return run
 
