@@ -165,6 +165,12 @@ def _min_over_edges(margins: Array, edges: Array) -> Array:
     return jnp.where(jnp.any(edges), jnp.min(jnp.where(edges, margins, jnp.inf), initial=jnp.inf), -jnp.inf)
 
 
+def _at_successors(succ: Array, coords: tuple) -> tuple:
+    """Each coordinate array (N,) read at the successors `succ` (N,), as masked sums (no
+    gather, and no product with the garbage of masked rows)."""
+    return tuple(sum(jnp.where(succ == j, c[j], 0.0) for j in range(succ.shape[0])) for c in coords)
+
+
 def _ne_successor_margins(cog: Array, contacts: Array, mask: Array, up: Array | None) -> tuple[Array, Array]:
     """The signed energy margins (N,) [m] of the axes p_i -> p_succ[i] and whether each is
     a support edge (`geometry.small_hull_edges`): N axes instead of every pair's N^2. The
@@ -174,7 +180,7 @@ def _ne_successor_margins(cog: Array, contacts: Array, mask: Array, up: Array | 
     c, p = _vertical_coordinates(cog, contacts, up)
     succ, edge = geo.small_hull_edges(p[:, :2], mask)
     a = tuple(p[:, k] for k in range(3))
-    b = tuple(sum(jnp.where(succ == j, a[k][j], 0.0) for j in range(contacts.shape[0])) for k in range(3))
+    b = _at_successors(succ, a)
     rise = _energy_rise(tuple(c), a, b)
     side = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])  # the COG's side, times |edge|
     return jnp.where(side >= 0, rise, -rise), edge
@@ -233,7 +239,7 @@ def _longitudinal_successor_terms(cog, contacts, mask, direction, up, eps) -> tu
     q, _, p2, _ = _split(cog, contacts, up)
     succ, edge = geo.small_hull_edges(p2, mask)
     a = (p2[:, 0], p2[:, 1])
-    b = tuple(sum(jnp.where(succ == j, a[k][j], 0.0) for j in range(p2.shape[0])) for k in range(2))
+    b = _at_successors(succ, a)
     return _longitudinal_term((q[0], q[1]), a, b, _travel_direction(direction, up, p2.dtype), eps), edge
 
 

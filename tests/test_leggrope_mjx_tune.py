@@ -56,9 +56,8 @@ def test_friction_use_on_synthetic_records():
 def mjx_loss():
     """shear_relief -> (loss, aux, dloss/dshear_relief) of the objective (forward mode, as
     the runner uses it)."""
-
-    loss = mjx_tuning.make_loss(SETTINGS)
-    f = runner.jitted_value_and_grad(loss, "forward", ["shear_relief"], "leggrope.shear_relief")
+    f = runner.jitted_value_and_grad(mjx_tuning.make_loss(SETTINGS), "forward", ["shear_relief"],
+                                     "leggrope.shear_relief")
 
     def evaluate(gain: float):
         (loss, aux), g = f({"shear_relief": jnp.float64(gain), "twist_relief": jnp.float64(0.02)})
