@@ -214,8 +214,9 @@ def hull_edges(points: Array, mask: Array) -> Array:
 
     Degenerate sets: all points collinear -> both directions of the extreme segment;
     one point (or none) -> no edges. The selection is piecewise constant (no gradient).
-    From the successors of `small_hull_edges` (a gift-wrap step from every point,
-    O(N^2)); `_hull_edges_all_pairs` (O(N^3)) gives the same matrix."""
+    From the successors of `small_hull_edges` (a gift-wrap step, a support test and the
+    farthest point on the line, from every point: O(N^2)); `_hull_edges_all_pairs`
+    (O(N^3)) gives the same matrix."""
     n = points.shape[0]
     succ, edge = small_hull_edges(points, mask)
     return edge[:, None] & (succ[:, None] == jnp.arange(n)[None, :])
@@ -242,58 +243,47 @@ def _hull_edges_all_pairs(points: Array, mask: Array) -> Array:
     return pair & jnp.all(ok_k, axis=-1)
 
 
-def _gift_wrap_from(i, xi: Array, yi: Array, mki: Array, x: list[Array], y: list[Array], mk: list[Array],
-                    tol: Array) -> tuple[Array, Array, Array, Array]:
-    """One gift-wrap step with `hull_edges`' rules from p_i = (xi, yi) (mask mki) over the
-    points given as per-point scalars x, y, mk (stop-gradient; the loop over them is
-    unrolled at trace time): the most clockwise other point j, points within `tol` of the
-    best one's line counting as on it (then the farthest along wins: maximal edges); then
-    whether i -> j is a hull edge: every masked point lies left of its line or within
-    `tol` of it, and those within `tol` lie between p_i and p_j. Points within `tol` of
-    p_i are skipped. Returns (j, e_x, e_y, edge), e = p_j - p_i.
+def _maximal_successor(i, xi: Array, yi: Array, mki: Array, x: list[Array], y: list[Array], mk: list[Array],
+                       tol: Array) -> Array:
+    """From p_i = (xi, yi) (mask mki) over the points given as per-point scalars x, y, mk
+    (stop-gradient; the loops are unrolled at trace time): the far end j of the support
+    line through p_i, and whether that line supports the points. Three passes, none with
+    tie rules:
+    1. the most clockwise other point (a gift-wrap step; points within `tol` of p_i are
+       skipped, ties keep the first): its offset e runs along the hull edge from p_i when
+       p_i is on the hull's boundary;
+    2. the support value h = max_k u . p_k of u = (e_y, -e_x) (|e| times the outward
+       normal): the line supports the points when p_i is within `tol` of it, h - u . p_i
+       <= tol |e| (every masked point left of the line or within `tol` of it);
+    3. among the points within `tol` of that line, the farthest along e (ties keep the
+       first): the end of the maximal edge.
+    A point in the middle of a hull edge passes too; `small_hull_edges` keeps only the
+    lines from hull vertices (the successors of supporting points). Returns j where the
+    line supports the points, else -1.
 
     `i` is a point's index (int; xi, yi, mki its scalars), or `jnp.arange(N)` with xi, yi,
-    mki the (N,) arrays of every point: then every point's step at once, O(N) operations
-    on N-vectors instead of O(N^2) on scalars. p_i itself needs no skipping: it is
-    within `tol` of itself, and lies on every line through it."""
+    mki the (N,) arrays of every point: then every point's passes at once, O(N)
+    operations on N-vectors instead of O(N^2) on scalars."""
+    others = [k for k in range(len(x)) if not (isinstance(i, int) and k == i)]
     tol2 = tol * tol
-    zero = jnp.zeros_like(xi)
-    ex, ey, j, found = zero, zero, jnp.asarray(i), jnp.zeros_like(mki)
-    for k in range(len(x)):
-        if isinstance(i, int) and k == i:
-            continue
+    ex, ey, found = jnp.zeros_like(xi), jnp.zeros_like(xi), jnp.zeros_like(mki)
+    for k in others:
         ax, ay = x[k] - xi, y[k] - yi
-        a2, b2 = ax * ax + ay * ay, ex * ex + ey * ey
-        cand = mk[k] & (a2 > tol2)
-        turn = ex * ay - ey * ax  # |p_best - p_i| times p_k's distance left of that line
-        on_line = turn * turn <= tol2 * b2
-        clockwise = (turn < 0) & ~on_line
-        farther = on_line & (ex * ax + ey * ay > 0) & (a2 > b2)
-        better = cand & (~found | clockwise | farther)
-        ex, ey = jnp.where(better, ax, ex), jnp.where(better, ay, ey)
-        j, found = jnp.where(better, k, j), found | cand
-    e2 = jnp.where(found, ex * ex + ey * ey, 1.0)
-    band = tol * jnp.sqrt(e2)  # |e| times the tolerance
-    edge = mki & found
-    for k in range(len(x)):
-        if isinstance(i, int) and k == i:
-            continue
-        rx, ry = x[k] - xi, y[k] - yi
-        left = ex * ry - ey * rx  # |e| times p_k's distance left of the line i -> j
-        along = ex * rx + ey * ry  # |e|^2 times p_k's position along the edge
-        on_line = left * left <= tol2 * e2
-        between = (along >= -band) & (along <= e2 + band)
-        edge = edge & (~mk[k] | ((left >= 0) | on_line) & (~on_line | between))
-    return j, ex, ey, edge
-
-
-def _small_hull_edges(x: list[Array], y: list[Array], mk: list[Array], tol: Array
-                      ) -> tuple[list[Array], list[Array], list[Array], list[Array]]:
-    """The counter-clockwise hull edges of a few points given as per-point scalars
-    (stop-gradient coordinates x, y, mask mk; unrolled at trace time, O(N^2) scalar
-    operations): for each point i `_gift_wrap_from(i)`, as lists (succ, e_x, e_y, edge)."""
-    steps = [_gift_wrap_from(i, x[i], y[i], mk[i], x, y, mk, tol) for i in range(len(x))]
-    return tuple(list(column) for column in zip(*steps))
+        cand = mk[k] & (ax * ax + ay * ay > tol2)
+        better = cand & (~found | (ex * ay - ey * ax < 0))  # p_k right of the best line so far
+        ex, ey, found = jnp.where(better, ax, ex), jnp.where(better, ay, ey), found | cand
+    low = jnp.asarray(-jnp.finfo(xi.dtype).max, xi.dtype)
+    s = [jnp.where(mk[k], ey * x[k] - ex * y[k], low) for k in range(len(x))]
+    h = functools.reduce(jnp.maximum, s)
+    band = tol * jnp.sqrt(ex * ex + ey * ey)
+    supports = mki & found & (h - (ey * xi - ex * yi) <= band)
+    on_line = h - band
+    j, best = jnp.asarray(i), ex * xi + ey * yi
+    for k in others:
+        along = ex * x[k] + ey * y[k]
+        better = (s[k] >= on_line) & (along > best)
+        j, best = jnp.where(better, k, j), jnp.where(better, along, best)
+    return jnp.where(supports, j, -1)
 
 
 def _support_directions(xi: Array, yi: Array, x: list[Array], y: list[Array], tol2: Array,
@@ -395,21 +385,29 @@ def _support_distance(q: Array, points: Array, mask: Array, unrolled: bool) -> t
 def small_hull_edges(points: Array, mask: Array) -> tuple[Array, Array]:
     """The counter-clockwise hull edges of the masked 2D points as successors: (succ (N,)
     int, edge (N,) bool), edge[i] when p_i -> p_succ[i] is a maximal hull edge (the edges
-    of `hull_edges`, one per hull vertex). O(N^2): a gift-wrap step from every point
-    (`_gift_wrap_from`), on per-point scalars up to UNROLL_MAX_POINTS points, on
-    N-vectors beyond. The selection is piecewise constant (no gradient)."""
+    of `hull_edges`, one per hull vertex; of repeated points the first copy). O(N^2): the
+    passes of `_maximal_successor` from every point, on per-point scalars up to
+    UNROLL_MAX_POINTS points, on N-vectors beyond. An edge's start must itself be the
+    successor of a supporting point: that drops the lines from points in the middle of an
+    edge and from later copies of a vertex, with no duplicate or tie test. The selection
+    is piecewise constant (no gradient)."""
     n = points.shape[0]
     if n == 0:
         return jnp.zeros((0,), jnp.int32), jnp.zeros((0,), bool)
     p = jax.lax.stop_gradient(points)
-    mask = unique_mask(p, mask)  # one edge per hull vertex, as `hull_edges`
     tol = _tolerance(p, mask)
     x, y, mk = [p[k, 0] for k in range(n)], [p[k, 1] for k in range(n)], [mask[k] for k in range(n)]
     if n > UNROLL_MAX_POINTS:
-        succ, _, _, edge = _gift_wrap_from(jnp.arange(n), p[:, 0], p[:, 1], mask, x, y, mk, tol)
-        return succ, edge
-    succ, _, _, edges = _small_hull_edges(x, y, mk, tol)
-    return jnp.stack(succ), jnp.stack(edges)
+        ends = _maximal_successor(jnp.arange(n), p[:, 0], p[:, 1], mask, x, y, mk, tol)
+    else:
+        ends = jnp.stack([_maximal_successor(i, x[i], y[i], mk[i], x, y, mk, tol) for i in range(n)])
+    # One array out of the passes, so that XLA computes them once (with two outputs it
+    # fused the passes into each consumer: 2.5x the work at 8 points). The successors
+    # marked by a scatter: compares of every row against every end ran 5x slower at 8.
+    vertex = jnp.zeros(n, bool).at[jnp.where(ends >= 0, ends, n)].set(True, mode="drop")  # -1 would wrap
+    edge = (ends >= 0) & vertex
+    rows = jnp.arange(n)
+    return jnp.where(edge, ends, rows), edge
 
 
 def _with_closed_form_jvp(distance: Callable[[Array, Array, Array], tuple[Array, Array, Array]]):
@@ -441,8 +439,9 @@ _hull_signed_distance_vectorized = _with_closed_form_jvp(functools.partial(_supp
 # scalars (`_support_distance(unrolled=True)`: 3.2e7 margins/s at 4 points, 1.6e7 at 6,
 # against 2.1e7 and 6.2e6 on N-vectors; float64, batch 1e5 on 2 cores; the program grows
 # with N^2), beyond on N-vectors (3.2e6 at 16; the all-pairs form 3.0e4). Default (ours).
-# The gift-wrap with verified maximal edges (`small_hull_edges`, 1.3e6 at 16) stays for
-# the margins that need the edges themselves (NESM, longitudinal).
+# The maximal edges themselves (`small_hull_edges`, for the NESM and the longitudinal
+# margin): 3.8e7 per s at 4 points (unrolled), 0.9e7-1.35e7 at 8 and 3.1e6-3.6e6 at 16
+# (N-vectors; the verified gift-wrap before 6 Dec 2026: 1.2e7, 6.4e6 and 1.8e6).
 UNROLL_MAX_POINTS = 6
 
 

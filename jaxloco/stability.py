@@ -166,17 +166,16 @@ def _min_over_edges(margins: Array, edges: Array) -> Array:
 
 
 def _at_successors(succ: Array, coords: tuple) -> tuple:
-    """Each coordinate array (N,) read at the successors `succ` (N,), as masked sums (no
-    gather, and no product with the garbage of masked rows)."""
-    return tuple(sum(jnp.where(succ == j, c[j], 0.0) for j in range(succ.shape[0])) for c in coords)
+    """Each coordinate array (N,) read at the successors `succ` (N,) (a gather: 1.4x the
+    NESM's rate at 16 contacts against masked sums over every row)."""
+    return tuple(c[succ] for c in coords)
 
 
 def _ne_successor_margins(cog: Array, contacts: Array, mask: Array, up: Array | None) -> tuple[Array, Array]:
     """The signed energy margins (N,) [m] of the axes p_i -> p_succ[i] and whether each is
     a support edge (`geometry.small_hull_edges`): N axes instead of every pair's N^2. The
-    successor's coordinates are selected with a masked sum (no gather, and no product
-    with the garbage of masked rows); a non-edge row's axis is degenerate (succ[i] = i),
-    which `axis_energy_rise` keeps finite."""
+    successor's coordinates are gathered (`_at_successors`); a non-edge row's axis is
+    degenerate (succ[i] = i), which `axis_energy_rise` keeps finite."""
     c, p = _vertical_coordinates(cog, contacts, up)
     succ, edge = geo.small_hull_edges(p[:, :2], mask)
     a = tuple(p[:, k] for k in range(3))
