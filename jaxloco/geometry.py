@@ -441,7 +441,7 @@ _hull_signed_distance_vectorized = _with_closed_form_jvp(functools.partial(_supp
 # with N^2), beyond on N-vectors (3.2e6 at 16; the all-pairs form 3.0e4). Default (ours).
 # The maximal edges themselves (`small_hull_edges`, for the NESM and the longitudinal
 # margin): 3.8e7 per s at 4 points (unrolled), 0.9e7-1.35e7 at 8 and 3.1e6-3.6e6 at 16
-# (N-vectors; the verified gift-wrap before 6 Dec 2026: 1.2e7, 6.4e6 and 1.8e6).
+# (N-vectors; the verified gift-wrap until 5 Dec 2026: 1.2e7, 6.4e6 and 1.8e6).
 UNROLL_MAX_POINTS = 6
 
 
