@@ -398,7 +398,11 @@ def small_hull_edges(points: Array, mask: Array) -> tuple[Array, Array]:
     tol = _tolerance(p, mask)
     x, y, mk = [p[k, 0] for k in range(n)], [p[k, 1] for k in range(n)], [mask[k] for k in range(n)]
     if n > UNROLL_MAX_POINTS:
-        ends = _maximal_successor(jnp.arange(n), p[:, 0], p[:, 1], mask, x, y, mk, tol)
+        # the coordinates as their own (N,) arrays: read from the (N, 2) or (N, 3) rows
+        # inside the passes' fused loop they cost 1.6x at 16 points (NESM 1.7e6 -> 2.6e6/s)
+        px, py = jax.lax.optimization_barrier((p[:, 0], p[:, 1]))
+        x, y = [px[k] for k in range(n)], [py[k] for k in range(n)]
+        ends = _maximal_successor(jnp.arange(n), px, py, mask, x, y, mk, tol)
     else:
         ends = jnp.stack([_maximal_successor(i, x[i], y[i], mk[i], x, y, mk, tol) for i in range(n)])
     # One array out of the passes, so that XLA computes them once (with two outputs it
