@@ -243,15 +243,35 @@ def _hull_edges_all_pairs(points: Array, mask: Array) -> Array:
     return pair & jnp.all(ok_k, axis=-1)
 
 
+def _most_clockwise(xi: Array, yi: Array, x: list[Array], y: list[Array], tol2: Array,
+                    mk: list[Array] | None = None, skip: int | None = None) -> tuple[Array, Array, Array]:
+    """A gift-wrap step without tie rules from p_i = (xi, yi) (scalars, or N-vectors of
+    every point at once) over the points x, y (per-point scalars; masks mk, None: all
+    real; the loop is unrolled at trace time; `skip` leaves out p_i itself in the scalar
+    form): the offset e = p_j - p_i of the most clockwise other point (points within
+    sqrt(tol2) of p_i are skipped, ties keep the first) and whether one was found.
+    Returns (e_x, e_y, found)."""
+    ex, ey, found = jnp.zeros_like(xi), jnp.zeros_like(xi), jnp.zeros_like(xi, dtype=bool)
+    for k in range(len(x)):
+        if k == skip:
+            continue
+        ax, ay = x[k] - xi, y[k] - yi
+        cand = ax * ax + ay * ay > tol2
+        if mk is not None:
+            cand = mk[k] & cand
+        better = cand & (~found | (ex * ay - ey * ax < 0))  # p_k right of the best line so far
+        ex, ey, found = jnp.where(better, ax, ex), jnp.where(better, ay, ey), found | cand
+    return ex, ey, found
+
+
 def _maximal_successor(i, xi: Array, yi: Array, mki: Array, x: list[Array], y: list[Array], mk: list[Array],
                        tol: Array) -> Array:
     """From p_i = (xi, yi) (mask mki) over the points given as per-point scalars x, y, mk
     (stop-gradient; the loops are unrolled at trace time): the far end j of the support
     line through p_i, and whether that line supports the points. Three passes, none with
     tie rules:
-    1. the most clockwise other point (a gift-wrap step; points within `tol` of p_i are
-       skipped, ties keep the first): its offset e runs along the hull edge from p_i when
-       p_i is on the hull's boundary;
+    1. the most clockwise other point (`_most_clockwise`): its offset e runs along the
+       hull edge from p_i when p_i is on the hull's boundary;
     2. the support value h = max_k u . p_k of u = (e_y, -e_x) (|e| times the outward
        normal): the line supports the points when p_i is within `tol` of it, h - u . p_i
        <= tol |e| (every masked point left of the line or within `tol` of it);
@@ -264,14 +284,8 @@ def _maximal_successor(i, xi: Array, yi: Array, mki: Array, x: list[Array], y: l
     `i` is a point's index (int; xi, yi, mki its scalars), or `jnp.arange(N)` with xi, yi,
     mki the (N,) arrays of every point: then every point's passes at once, O(N)
     operations on N-vectors instead of O(N^2) on scalars."""
-    others = [k for k in range(len(x)) if not (isinstance(i, int) and k == i)]
-    tol2 = tol * tol
-    ex, ey, found = jnp.zeros_like(xi), jnp.zeros_like(xi), jnp.zeros_like(mki)
-    for k in others:
-        ax, ay = x[k] - xi, y[k] - yi
-        cand = mk[k] & (ax * ax + ay * ay > tol2)
-        better = cand & (~found | (ex * ay - ey * ax < 0))  # p_k right of the best line so far
-        ex, ey, found = jnp.where(better, ax, ex), jnp.where(better, ay, ey), found | cand
+    skip = i if isinstance(i, int) else None
+    ex, ey, found = _most_clockwise(xi, yi, x, y, tol * tol, mk, skip)
     low = jnp.asarray(-jnp.finfo(xi.dtype).max, xi.dtype)
     s = [jnp.where(mk[k], ey * x[k] - ex * y[k], low) for k in range(len(x))]
     h = functools.reduce(jnp.maximum, s)
@@ -279,7 +293,7 @@ def _maximal_successor(i, xi: Array, yi: Array, mki: Array, x: list[Array], y: l
     supports = mki & found & (h - (ey * xi - ex * yi) <= band)
     on_line = h - band
     j, best = jnp.asarray(i), ex * xi + ey * yi
-    for k in others:
+    for k in (k for k in range(len(x)) if k != skip):
         along = ex * x[k] + ey * y[k]
         better = (s[k] >= on_line) & (along > best)
         j, best = jnp.where(better, k, j), jnp.where(better, along, best)
@@ -289,21 +303,13 @@ def _maximal_successor(i, xi: Array, yi: Array, mki: Array, x: list[Array], y: l
 def _support_directions(xi: Array, yi: Array, x: list[Array], y: list[Array], tol2: Array,
                         skip: int | None = None) -> tuple[Array, Array, Array, Array]:
     """For point(s) p_i = (xi, yi) (scalars, or N-vectors of every point at once): the
-    most clockwise other point's offset e = p_j - p_i (a gift-wrap step without tie rules:
-    points within sqrt(tol2) of p_i are skipped, ties keep the first), whether one was
-    found, and the support value h = max_k u . p_k of the outward unit normal u = (e_y,
+    most clockwise other point's offset e = p_j - p_i (`_most_clockwise`), whether one
+    was found, and the support value h = max_k u . p_k of the outward unit normal u = (e_y,
     -e_x) / |e| over the points x, y (per-point scalars; the loops are unrolled at trace
     time; `skip` leaves out p_i itself in the scalar form). From a hull vertex e runs
     along its counter-clockwise hull edge; from any other point it is a line whose h is
     only larger (see `_support_distance`). Returns (e_x, e_y, found, h)."""
-    ex, ey, found = jnp.zeros_like(xi), jnp.zeros_like(xi), jnp.zeros_like(xi, dtype=bool)
-    for k in range(len(x)):
-        if k == skip:
-            continue
-        ax, ay = x[k] - xi, y[k] - yi
-        cand = ax * ax + ay * ay > tol2
-        better = cand & (~found | (ex * ay - ey * ax < 0))  # p_k right of the best line so far
-        ex, ey, found = jnp.where(better, ax, ex), jnp.where(better, ay, ey), found | cand
+    ex, ey, found = _most_clockwise(xi, yi, x, y, tol2, skip=skip)
     inv = jax.lax.rsqrt(jnp.where(found, ex * ex + ey * ey, 1.0))
     ux, uy = ey * inv, -ex * inv
     h = ux * x[0] + uy * y[0]
@@ -396,14 +402,15 @@ def small_hull_edges(points: Array, mask: Array) -> tuple[Array, Array]:
         return jnp.zeros((0,), jnp.int32), jnp.zeros((0,), bool)
     p = jax.lax.stop_gradient(points)
     tol = _tolerance(p, mask)
-    x, y, mk = [p[k, 0] for k in range(n)], [p[k, 1] for k in range(n)], [mask[k] for k in range(n)]
+    mk = [mask[k] for k in range(n)]
     if n > UNROLL_MAX_POINTS:
         # the coordinates as their own (N,) arrays: read from the (N, 2) or (N, 3) rows
         # inside the passes' fused loop they cost 1.6x at 16 points (NESM 1.7e6 -> 2.6e6/s)
         px, py = jax.lax.optimization_barrier((p[:, 0], p[:, 1]))
         x, y = [px[k] for k in range(n)], [py[k] for k in range(n)]
         ends = _maximal_successor(jnp.arange(n), px, py, mask, x, y, mk, tol)
-    else:
+    else:  # scalars read straight from the rows (slices of a barrier's arrays cost here)
+        x, y = [p[k, 0] for k in range(n)], [p[k, 1] for k in range(n)]
         ends = jnp.stack([_maximal_successor(i, x[i], y[i], mk[i], x, y, mk, tol) for i in range(n)])
     # One array out of the passes, so that XLA computes them once (with two outputs it
     # fused the passes into each consumer: 2.5x the work at 8 points). The successors
