@@ -240,3 +240,7 @@ class CachedJit:
 
     def __call__(self, *args):
         return self.resolve(*args)(*args)
+
+    def lower(self, *args) -> Any:
+        """`jax.jit(make_fn()).lower(*args)`: the program traced afresh, to inspect it."""
+        return jax.jit(self._make_fn()).lower(*args)

@@ -75,7 +75,7 @@ def prepare(spec: SweepSpec, batch_fn: Callable[..., Any] | None = None) -> Prep
     host = analysis.executor == "host"
     fn = batch_fn if batch_fn is not None else analysis.batch_fn(dict(spec.fixed))
     if not host:
-        fn = jax.jit(fn)
+        fn = jitted_batch(analysis.name, fn)
     versions = info.versions()
     provenance = {
         "analysis": analysis.name,
@@ -102,6 +102,17 @@ def prepare(spec: SweepSpec, batch_fn: Callable[..., Any] | None = None) -> Prep
         x64=bool(jax.config.jax_enable_x64),
         keys_by_seed=keys_by_seed,
     )
+
+
+def jitted_batch(analysis_name: str, fn: Callable[..., Any]) -> Callable[..., Any]:
+    """`jax.jit(fn)` for a JAX analysis' batch function, its programs kept on disk
+    (`jaxloco.sim.programs.CachedJit`, keyed by `fn` by value: the analysis' code and the
+    sweep's fixed values), so that a later process loads the traced program instead of
+    tracing the analysis again (seconds for a rollout under `vmap`). A batch function
+    holding code from outside jaxloco (a user's analysis) is traced every time."""
+    from jaxloco.sim import programs
+
+    return programs.CachedJit(fn, f"sweep batch {analysis_name}", lambda: fn)
 
 
 def _check_swept(spec: SweepSpec) -> None:
