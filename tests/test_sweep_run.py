@@ -14,6 +14,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from jaxloco.analysis import Analysis, Metric, Param, Summary, register
+from jaxloco.analysis import get as get_analysis
 from jaxloco.errors import SpecError
 from jaxloco.sweep import (
     AnalysisError,
@@ -550,3 +551,43 @@ def test_a_simulation_builds_its_scenario_once_per_set_of_plain_values():
     assert made == [{"horizon": 1.0, "mode": "a"}, {"horizon": 2.0, "mode": "a"}]  # columns never reach it
     assert [s for s, _ in ran] == ["scenario 1", "scenario 1", "scenario 2", "scenario 1"]
     assert all(p["key"] is keys for _, p in ran)  # the rows' keys, added by the framework
+
+
+def test_a_later_sweep_loads_the_traced_batch_program_and_gets_the_same_table(tmp_path, monkeypatch):
+    """A JAX analysis' batch program is kept in the program cache (`chunks.jitted_batch`,
+    `jaxloco.sim.programs`): the first sweep traces it and keeps it on disk, the same sweep
+    again (as in a new process) loads it without tracing and gives the same table bit for
+    bit, as does a run with the cache off (traced as before). The toy analysis, whose code
+    is in this test module, is traced every time and leaves nothing on disk."""
+    from jaxloco.sim import programs
+
+    cache = tmp_path / "programs"
+    monkeypatch.setenv(programs.ENV_SWITCH, str(cache))
+    traced: list[str] = []
+
+    def listener(event: str, duration: float, **kwargs) -> None:
+        if event == "/jax/core/compile/jaxpr_trace_duration":
+            traced.append(kwargs.get("fun_name", ""))
+
+    spec = {"sweep": {"analysis": "octopus.terrain_classification", "name": "cached", "chunk_size": 2,
+                      "formats": ["parquet"]},
+            "fixed": {"samples": 8}, "params": {"height": [0.2, 0.3, 0.4]}}
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        tables = [run(spec, output=tmp_path / "first", progress=False).table]
+        assert traced.count("batch") == 1 and len(list(cache.glob("*.bin"))) == 1
+        tables.append(run(spec, output=tmp_path / "later", progress=False).table)
+        assert traced.count("batch") == 1  # loaded, not traced
+        monkeypatch.setenv(programs.ENV_SWITCH, "0")
+        tables.append(run(spec, output=tmp_path / "plain", progress=False).table)
+        assert traced.count("batch") == 2
+        monkeypatch.setenv(programs.ENV_SWITCH, str(cache))
+        run(toy_spec(tmp_path / "toy"), progress=False)
+        run(toy_spec(tmp_path / "toy_again"), progress=False)
+        assert traced.count("batch") == 4 and len(list(cache.glob("*.bin"))) == 1
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+    metrics = [m.name for m in get_analysis("octopus.terrain_classification").metrics] + ["status"]
+    for other in tables[1:]:
+        for name in metrics:
+            assert other.column(name).equals(tables[0].column(name)), name

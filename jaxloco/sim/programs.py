@@ -188,6 +188,7 @@ def load_or_export(make_fn: Callable[[], Callable], key: str, args: tuple) -> Ca
             out_leaves, out_box["tree"] = jax.tree_util.tree_flatten(fn(*jax.tree_util.tree_unflatten(tree, xs)))
             return out_leaves
 
+        flat.__name__ = flat.__qualname__ = getattr(fn, "__name__", "flat")  # JAX's logs and events name it so
         try:
             loaded = export.export(jax.jit(flat))(*leaves), out_box["tree"]
         except Exception:  # not exportable: trace as usual
