@@ -36,7 +36,9 @@ it off. Used by the MJX backend (`jaxloco.sim.mjx.run`: the whole rollout) and t
 one (`jaxloco.sim.native`: the initial states, the controller's init, the per-period
 tick and the metrics), and by the tune runner (`jaxloco.tune.runner.jitted_value_and_grad`:
 an objective's loss and gradient, the loss closure keyed by value), so that an MJX
-objective's differentiated rollout is not traced again either.
+objective's differentiated rollout is not traced again either, and by the sweeps
+(`jaxloco.sweep.chunks.jitted_batch`: a JAX analysis' batch function, keyed by value,
+which holds the analysis' code and the sweep's fixed values).
 """
 
 from __future__ import annotations
