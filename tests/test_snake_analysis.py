@@ -22,6 +22,7 @@ import jaxloco.sweep
 import jaxloco.tune
 from jaxloco import specs
 from jaxloco.robots.snake import analysis, control, experiments, params, tuning
+from jaxloco.sweep import chunks
 
 SWEEPS = specs.DIRECTORY  # the bundled specs
 HORIZON, DT = 2.0, 0.05
@@ -48,7 +49,7 @@ def _row_values(i: int) -> dict[str, jax.Array]:
 def rows():
     """(batch metrics, [run_one metrics and records per row])."""
     fixed = {k: v for k, v in DEFAULTS.items() if k not in SWEPT} | {"horizon": HORIZON, "dt": DT}
-    batch_fn = jax.jit(analysis.KV.batch_fn(fixed))
+    batch_fn = chunks.jitted_batch(analysis.KV.name, analysis.KV.batch_fn(fixed))  # as a sweep jits it
     swept = {k: jnp.asarray(v, jnp.int32 if k == "mode_order" else jnp.float64) for k, v in SWEPT.items()}
     keys = jnp.zeros((3, 2), jnp.uint32)
     batch = {k: np.asarray(v) for k, v in batch_fn(swept, keys).items()}

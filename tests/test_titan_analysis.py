@@ -14,7 +14,7 @@ import pytest
 from jaxloco import analysis
 from jaxloco.robots.titan import analysis as ta
 from jaxloco.robots.titan import gait, params
-from jaxloco.sweep import SpecError, spec_from_dict
+from jaxloco.sweep import SpecError, chunks, spec_from_dict
 
 # small maps and two cycles keep the compilations short
 FIXED = {**ta.STRIDE.defaults(), "n_cycles": 2, "map_nx": 100, "map_ny": 80}
@@ -42,7 +42,7 @@ ROWS = [
 
 @cache
 def _batch():
-    return jax.jit(ta.STRIDE.batch_fn(FIXED))
+    return chunks.jitted_batch(ta.STRIDE.name, ta.STRIDE.batch_fn(FIXED))  # as a sweep jits it
 
 
 @pytest.fixture(scope="module")
