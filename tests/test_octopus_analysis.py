@@ -13,7 +13,7 @@ from compile_count import run_counting
 from jaxloco import analysis
 from jaxloco.robots.octopus import analysis as oa
 from jaxloco.robots.octopus.params import ROLLER_RADIUS
-from jaxloco.sweep import SpecError, run, spec_from_dict
+from jaxloco.sweep import SpecError, chunks, run, spec_from_dict
 
 DEFAULTS = {p.name: p.default for p in oa.PARAMS}
 SWEEPABLE = [p.name for p in oa.PARAMS if p.sweepable]
@@ -23,7 +23,8 @@ SAMPLES = 64
 
 @cache
 def _batch(samples: int):
-    return jax.jit(oa.TERRAIN_CLASSIFICATION.batch_fn({**DEFAULTS, "samples": samples}))
+    fn = oa.TERRAIN_CLASSIFICATION.batch_fn({**DEFAULTS, "samples": samples})
+    return chunks.jitted_batch(oa.TERRAIN_CLASSIFICATION.name, fn)  # as a sweep jits it
 
 
 def _swept(rows: list[dict]) -> dict[str, jax.Array]:

@@ -23,6 +23,7 @@ from jaxloco.errors import SpecError
 from jaxloco.robots.titan import analysis as ta
 from jaxloco.robots.titan import params as titan_params
 from jaxloco.robots.titan import tuning
+from jaxloco.sweep import chunks
 
 SWEEPS = specs.DIRECTORY  # the bundled specs
 SETTINGS = {p.name: p.default for p in tuning.SETTINGS} | {"n_cycles": 2, "map_nx": 110}
@@ -53,7 +54,7 @@ def analysis_rows() -> dict[str, np.ndarray]:
     pts = [*POINTS, HELD, (titan_params.L_STD, titan_params.W_STD)]
     swept = {"l_std": jnp.asarray([p[0] for p in pts]), "w_std": jnp.asarray([p[1] for p in pts])}
     keys = jax.vmap(jax.random.PRNGKey)(jnp.arange(len(pts)))
-    out = jax.jit(ta.STRIDE.batch_fn(fixed))(swept, keys)
+    out = chunks.jitted_batch(ta.STRIDE.name, ta.STRIDE.batch_fn(fixed))(swept, keys)  # as a sweep jits it
     return {k: np.asarray(v) for k, v in out.items()}
 
 
