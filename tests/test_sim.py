@@ -141,6 +141,89 @@ def test_mjx_gradient_matches_finite_differences(short_scenario):
     np.testing.assert_allclose(g, fd, rtol=0.05, atol=1e-5)
 
 
+def _with_a_sensing_controller(sc):
+    """`sc` with a controller whose state starts from forward-dynamics quantities (the
+    subtree COM, the actuator forces, the sensors) and integrates them, so that the
+    records show which data each tick saw."""
+    from jaxloco.sim.scenario import Controller
+
+    def observe(data):
+        return {"time": data.time, "q": data.qpos[7:], "com": data.subtree_com[1], "force": data.actuator_force,
+                "sensors": data.sensordata}
+
+    def init(p, obs):
+        return {"com0": obs["com"], "effort": jnp.sum(jnp.abs(obs["force"])), "n": jnp.zeros((), jnp.int32)}
+
+    def step(p, c, obs):
+        c = {"com0": c["com0"], "effort": c["effort"] + jnp.sum(jnp.abs(obs["force"])), "n": c["n"] + 1}
+        action = sc.initial_state(p, jax.random.PRNGKey(0)).ctrl  # the standing pose
+        return c, action.at[0].add(0.3 * jnp.sin(20.0 * obs["time"]) + 1e-3 * obs["com"][2])
+
+    def record(p, data, obs, c, e):
+        return {"qpos": data.qpos, "height": data.qpos[2], "com": obs["com"], "effort": c["effort"],
+                "sensors": obs["sensors"]}
+
+    return sc.with_(controller=Controller(init, step), observe=observe, record=record)
+
+
+def _plain_mjx_rollout(sc, params, key):
+    """The oracle: `mjx.forward`, the controller's init, then per control period one
+    tick and `substeps` x `mjx.step`, written as a Python loop of jitted pieces (the
+    actuators' filter states start at their controls, as in both backends)."""
+    from jaxloco.sim import data as simdata
+    from jaxloco.sim.mjx import mjx
+    from jaxloco.sim.scenario import tick_fn
+
+    mx = mjx.put_model(sc.model)
+    mx = mx.tree_replace({f.name: jnp.asarray(getattr(sc.model, f.name)).at[f.index].set(f.value(params))
+                          for f in sc.model_fields})
+    s0 = sc.initial_state(params, key)
+    d = mjx.make_data(mx).replace(qpos=s0.qpos, qvel=s0.qvel, ctrl=s0.ctrl, mocap_pos=s0.mocap_pos,
+                                  mocap_quat=s0.mocap_quat, act=initial_activation(sc.model, s0.ctrl))
+    d = jax.jit(mjx.forward)(mx, d)
+    cstate, estate = sc.controller.init(params, sc.observe(simdata.from_mjx(d))), jnp.zeros(())
+    tick, step = jax.jit(tick_fn(sc)), jax.jit(mjx.step)
+    records = []
+    for k in range(sc.horizon):
+        cstate, estate, ctrl, mocap_pos, mocap_quat, rec, bad = tick(params, cstate, estate, simdata.from_mjx(d))
+        assert not bad
+        if k % sc.record_every == 0:
+            records.append(rec)
+        d = d.replace(ctrl=ctrl, mocap_pos=mocap_pos, mocap_quat=mocap_quat)
+        for _ in range(sc.substeps):
+            d = step(mx, d)
+    records = jax.tree_util.tree_map(lambda *r: np.stack(r), *records)
+    return records, d, cstate
+
+
+def test_the_mjx_rollout_computes_forward_init_then_ticks_and_steps():
+    """The rollout's single loop (the initial forward dynamics as its first iteration's
+    physics, the controller started inside it, the last iteration's control discarded)
+    against the plain sequence written out: every record, the final state and the
+    controller's final state agree to float64 rounding; three records of two periods
+    each, two physics steps per period, the robot dropping onto the box."""
+    from jaxloco.sim import mjx as mjx_backend
+
+    sc = _with_a_sensing_controller(standing_scenario(horizon=6, substeps=2, record_every=2))
+    key = jax.random.PRNGKey(3)
+    params = {"ground": jnp.float64(0.0), "offset": jnp.float64(0.05), "mu": jnp.float64(0.8),
+              "kick": jnp.float64(-0.3), "key": key}
+    records, _, final = jax.jit(mjx_backend.rollout_fn(sc))(params, key)
+    want, d, cstate = _plain_mjx_rollout(sc, params, key)
+    assert records["qpos"].shape == (3, sc.model.nq)
+    for name in want:
+        np.testing.assert_allclose(records[name], want[name], rtol=1e-10, atol=1e-12, err_msg=name)
+    np.testing.assert_allclose(final.data.qpos, d.qpos, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(final.data.qvel, d.qvel, rtol=1e-10, atol=1e-9)
+    np.testing.assert_allclose(final.data.sensordata, d.sensordata, rtol=1e-10, atol=1e-9)
+    np.testing.assert_allclose(final.data.time, d.time, rtol=1e-12)
+    assert int(final.ctrl_state["n"]) == sc.horizon == int(cstate["n"])
+    np.testing.assert_allclose(final.ctrl_state["effort"], cstate["effort"], rtol=1e-10)
+    np.testing.assert_allclose(final.ctrl_state["com0"], cstate["com0"], rtol=1e-12)
+    assert bool(final.alive)
+    assert np.abs(np.diff(records["com"][:, 2])).max() > 1e-4  # it moved
+
+
 def test_mjx_refuses_mass_fields():
     from jaxloco.sim import mjx as mjx_backend
 

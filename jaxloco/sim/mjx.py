@@ -34,10 +34,11 @@ import contextlib
 import io
 import time
 import warnings
-from typing import Any
+from typing import Any, Callable
 
 import jax
 import jax.numpy as jnp
+import mujoco
 import numpy as np
 
 with contextlib.redirect_stdout(io.StringIO()):  # mujoco.mjx prints "Failed to import warp" without NVIDIA Warp
@@ -68,12 +69,30 @@ def check_supported(scenario: Scenario) -> None:
 
 def rollout_fn(scenario: Scenario):
     """`run(params, key) -> (records, metrics, final)` for ONE simulation, pure JAX:
-    vmap, jit, shard or differentiate it. records map each signal to (n_records, ...)."""
+    vmap, jit, shard or differentiate it. records map each signal to (n_records, ...).
+
+    The program holds MuJoCo's forward dynamics once: the rollout is one loop over
+    control periods k = 0..N (N = n_records x record_every), each first the physics of
+    period k - 1 (`physics`: substeps x `mjx.step`, written as `mjx.forward` and then
+    the integrator, from the controls written into the data) and then the control of
+    period k (`control`: the controller's tick and its record). In iteration 0 the
+    physics is a step of zero length that keeps the solver's warm start, which computes
+    what `mjx.forward` computes and leaves the state as it was, and the control first
+    starts the controller (`init`); in the last one (k = N) the control is skipped. That
+    computes what `mjx.forward`, `init` and then N x (tick, `mjx.step` x substeps)
+    compute (`tests/test_sim.py` checks it against that sequence written out), without
+    a second copy of the forward dynamics in the program for the initial `mjx.forward`
+    (`docs/simulation.md`, "One forward dynamics per program": a third less to compile).
+    The switches are `lax.cond`s on the loop index, which is the same for every
+    simulation of a batch, so under `vmap` they stay branches and the branch not taken
+    costs nothing."""
     check_supported(scenario)
     mx = mjx.put_model(scenario.model)
-    tick = tick_fn(scenario)
-    init = init_fn(scenario)
-    substeps, every = scenario.substeps, scenario.record_every
+    tick = jax.jit(tick_fn(scenario))  # jitted: each is traced once, for the carry's shapes and in the loop
+    init = jax.jit(init_fn(scenario))
+    integrate = _integrator(scenario.model)
+    substeps, every, n_records = scenario.substeps, scenario.record_every, scenario.n_records
+    n_periods = n_records * every
 
     def run(params, key):
         m = mx.tree_replace(model_field_values(scenario, params)) if scenario.model_fields else mx
@@ -89,31 +108,75 @@ def rollout_fn(scenario: Scenario):
         )
         if scenario.model.na:
             d = d.replace(act=initial_activation(scenario.model, s0.ctrl.astype(dtype)))
-        d = mjx.forward(m, d)
-        cstate, estate = init(params, simdata.from_mjx(d))
+        cstate, estate = _placeholder(jax.eval_shape(init, params, simdata.from_mjx(d)))
+        tick_out = jax.eval_shape(tick, params, cstate, estate, simdata.from_mjx(d))
 
-        def period(carry, _):
-            d, cstate, estate, alive, t_div = carry
+        def substep(first: jax.Array, x):
+            """One physics step (`mjx.step`: `mjx.forward`, then the integrator); in
+            iteration 0 the forward dynamics alone, as a step of zero length that keeps
+            the solver's warm start (so repeating it changes nothing). The data keep
+            `mjx.make_data`'s dtypes (`mjx.forward` writes some index fields as int64)."""
+            y = mjx.forward(m, x)
+            y = integrate(m.tree_replace({"opt.timestep": jnp.where(first, 0.0, m.opt.timestep)}), y)
+            y = y.replace(qacc_warmstart=jnp.where(first, x.qacc_warmstart, y.qacc_warmstart))
+            return jax.tree_util.tree_map(lambda new, old: new.astype(old.dtype), y, x)
+
+        def physics(k, d, alive):
+            """The physics of period k - 1 (from the controls its control wrote into d);
+            in iteration 0 the initial forward dynamics."""
+            advance = lambda d: jax.lax.fori_loop(0, substeps, lambda _, x: substep(k == 0, x), d)
+            d1 = jax.lax.cond(k > n_periods, lambda x: x, advance, d)
+            return jax.tree_util.tree_map(lambda new, old: jnp.where(alive, new, old), d1, d)
+
+        def control(k, d, cstate, estate, alive, t_div):
+            """The control of period k (the controller started in iteration 0); skipped in
+            the last iteration (k = N)."""
             data = simdata.from_mjx(d)
-            cstate, estate, ctrl, mocap_pos, mocap_quat, rec, bad = tick(params, cstate, estate, data)
+            cstate, estate = jax.lax.cond(k == 0, lambda: init(params, data), lambda: (cstate, estate))
+            idle = lambda: (cstate, estate, *_placeholder(tick_out[2:]))  # no action, no record, not bad
+            cstate, estate, ctrl, mocap_pos, mocap_quat, rec, bad = jax.lax.cond(
+                k < n_periods, lambda: tick(params, cstate, estate, data), idle)
             t_div = jnp.where(alive & bad, data.time, t_div)
             alive = alive & ~bad
-            d1 = d.replace(ctrl=ctrl.astype(dtype), mocap_pos=mocap_pos.astype(dtype),
-                           mocap_quat=mocap_quat.astype(dtype))
-            d1 = jax.lax.fori_loop(0, substeps, lambda _, x: mjx.step(m, x), d1)
-            d = jax.tree_util.tree_map(lambda new, old: jnp.where(alive, new, old), d1, d)
+            apply = alive & (k < n_periods)
+            act = [jnp.where(apply, new.astype(dtype), old) for new, old in
+                   ((ctrl, d.ctrl), (mocap_pos, d.mocap_pos), (mocap_quat, d.mocap_quat))]
+            d = d.replace(ctrl=act[0], mocap_pos=act[1], mocap_quat=act[2])
+            return d, cstate, estate, alive, t_div, rec
+
+        def period(carry, k):
+            d, cstate, estate, alive, t_div = carry
+            d = physics(k, d, alive)
+            d, cstate, estate, alive, t_div, rec = control(k, d, cstate, estate, alive, t_div)
             return (d, cstate, estate, alive, t_div), rec
 
-        def block(carry, _):
-            carry, recs = jax.lax.scan(period, carry, None, length=every)
+        def block(carry, b):
+            carry, recs = jax.lax.scan(period, carry, b * every + jnp.arange(every))
             return carry, jax.tree_util.tree_map(lambda r: r[0], recs)
 
         carry0 = _like_key((d, cstate, estate, jnp.asarray(True), jnp.asarray(jnp.nan, dtype)), key)
-        (d, cstate, estate, alive, t_div), records = jax.lax.scan(block, carry0, None, length=scenario.n_records)
+        (d, cstate, estate, alive, t_div), records = jax.lax.scan(block, carry0, jnp.arange(n_records + 1))
+        records = jax.tree_util.tree_map(lambda r: r[:-1], records)  # the last block: the final physics
         final = Final(simdata.from_mjx(d), cstate, estate, alive, t_div)
         return records, scenario.summarize(params, records, final), final
 
     return run
+
+
+def _integrator(model) -> Callable:
+    """MJX's integrator of `model.opt.integrator`, the second half of `mjx.step`
+    (`mjx.step` = `mjx.forward`, then this)."""
+    integrators = {mujoco.mjtIntegrator.mjINT_EULER: mjx.euler, mujoco.mjtIntegrator.mjINT_RK4: mjx.rungekutta4,
+                   mujoco.mjtIntegrator.mjINT_IMPLICITFAST: mjx.implicit}
+    kind = mujoco.mjtIntegrator(model.opt.integrator)
+    if kind not in integrators:
+        raise ValueError(f"mjx backend: MJX has no {kind.name} integrator (use Euler, RK4 or implicitfast)")
+    return integrators[kind]
+
+
+def _placeholder(shapes: Any) -> Any:
+    """Zeros of the shapes and dtypes of `jax.eval_shape`'s result."""
+    return jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), shapes)
 
 
 def _like_key(tree: Any, key: jax.Array) -> Any:
