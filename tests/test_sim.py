@@ -20,7 +20,7 @@ from jaxloco.robots.leggrope.params import default_params
 from jaxloco.robots.leggrope.scenarios import standing_scenario
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.rollout import rollout, stack_params
-from jaxloco.sim.scenario import ModelField, initial_activation
+from jaxloco.sim.scenario import ModelField, initial_activation, model_field_values
 
 
 @pytest.fixture(scope="module")
@@ -174,9 +174,7 @@ def _plain_mjx_rollout(sc, params, key):
     from jaxloco.sim.mjx import mjx
     from jaxloco.sim.scenario import tick_fn
 
-    mx = mjx.put_model(sc.model)
-    mx = mx.tree_replace({f.name: jnp.asarray(getattr(sc.model, f.name)).at[f.index].set(f.value(params))
-                          for f in sc.model_fields})
+    mx = mjx.put_model(sc.model).tree_replace(model_field_values(sc, params))
     s0 = sc.initial_state(params, key)
     d = mjx.make_data(mx).replace(qpos=s0.qpos, qvel=s0.qvel, ctrl=s0.ctrl, mocap_pos=s0.mocap_pos,
                                   mocap_quat=s0.mocap_quat, act=initial_activation(sc.model, s0.ctrl))
