@@ -92,6 +92,42 @@ def test_a_loaded_program_is_touched_and_a_write_prunes_the_oldest(tmp_path, mon
     assert not stale.exists() and first.exists() and (tmp_path / f"k2{runtime.PROGRAM_SUFFIX}").exists()
 
 
+def test_a_cached_program_compiles_once_for_fresh_inputs_and_other_programs_outputs(tmp_path, monkeypatch):
+    """`jax.jit` lowers committed and uncommitted arguments to different programs; the
+    cached program's runner commits fresh inputs, so a program called with new arrays,
+    NumPy arrays and then the committed outputs of another program (a tuning step)
+    lowers once. Inside an outer trace it is left to the outer program."""
+    import jax
+    import numpy as np
+    from compile_count import LOWERING_EVENT
+
+    from jaxloco.sim import programs
+
+    monkeypatch.setenv(programs.ENV_SWITCH, str(tmp_path))
+    lowered = []
+
+    def listener(event, duration, **kwargs):
+        if event == LOWERING_EVENT:
+            lowered.append(kwargs.get("fun_name"))
+
+    x = jnp.arange(3.0) + 0.25  # uncommitted
+    run = programs.load_or_export(lambda: lambda v, w: v * w, "k_commit", (x, x))
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        first = run(x, x)
+        other = jax.jit(lambda v: v + 1.0)(first)  # the output of a program run on committed inputs
+        results = [first, run(np.asarray(x), x), run(other, x), run(other, other)]
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+    assert other.committed
+    assert lowered.count("jit(call)") == 1, lowered  # the cached program (exported.call), once
+    np.testing.assert_array_equal(results[0], x * x)
+    np.testing.assert_array_equal(results[2], np.asarray(other) * np.asarray(x))
+    assert all(r.committed for r in results)
+    traced = jax.jit(lambda v: run(v, v))(x)
+    np.testing.assert_array_equal(traced, x * x)
+
+
 def test_a_tune_objectives_evaluate_is_loaded_by_a_later_process(tmp_path, monkeypatch):
     """`runner.jitted_value_and_grad` (what `runner.make_evaluate` jits) keys the loss by
     value: a loss built again (as in a new process) is evaluated from the kept program

@@ -206,9 +206,35 @@ def load_or_export(make_fn: Callable[[], Callable], key: str, args: tuple) -> Ca
     call = jax.jit(exported.call)
 
     def run(*xs):
-        return jax.tree_util.tree_unflatten(out_tree, call(*jax.tree_util.tree_leaves(xs)))
+        return jax.tree_util.tree_unflatten(out_tree, call(*committed(jax.tree_util.tree_leaves(xs))))
 
     return run
+
+
+def committed(leaves: list) -> list:
+    """`leaves` with every uncommitted one (a NumPy array, a Python number, a JAX array
+    not yet placed) committed to the one device the committed leaves share (JAX's
+    default device when none is committed); unchanged when the committed leaves span
+    several devices (a sharded batch places its inputs itself) or when any is traced
+    (the program is then part of an outer one, which places its own inputs).
+
+    Why: `jax.jit` lowers committed and uncommitted arguments to different programs, so
+    one cached program called first with fresh arrays and later with outputs of another
+    program (a tuning step: the gradients, then the updated values) compiled twice;
+    for an MJX rollout that is 30-40 s each on 2 cores."""
+    if any(isinstance(x, jax.core.Tracer) for x in leaves):
+        return leaves
+    devices = {d for x in leaves if isinstance(x, jax.Array) and x.committed for d in x.sharding.device_set}
+    if len(devices) > 1:
+        return leaves
+    target = next(iter(devices)) if devices else None
+    out = []
+    for x in leaves:
+        if not (isinstance(x, jax.Array) and x.committed):
+            x = jax.numpy.asarray(x)
+            x = jax.device_put(x, target if target is not None else next(iter(x.sharding.device_set)))
+        out.append(x)
+    return out
 
 
 class CachedJit:
