@@ -28,6 +28,10 @@ Method (in the caller's units; the caller, `jaxloco.qp`, scales the problem firs
    stop on a residual: s and z are floored at sqrt(eps) in every step, as in qpax, which
    keeps the factorization well-conditioned but also keeps the complementarity of
    inactive rows near 1e-8, so a stopping test would need to know the problem's scale.
+   (Tried on 6 Dec 2026, with the residuals of the scaled problem: a per-member stop as
+   a vmapped `while_loop` ran 57,000-63,000 contact QPs/s against 85,000 for the fixed
+   20 iterations, and a stop at 1e-6 left answers 5e-4 from clarabel's, since the
+   margin variable has no curvature.)
 4. The equality multipliers come from stationarity by least squares,
    y = -R^-1 Y^T (Q x + q + G^T z).
 
