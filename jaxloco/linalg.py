@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 Array = jax.Array
 
@@ -89,13 +88,6 @@ def spd_solve(M: Array, B: Array) -> Array:
     return X[:, 0] if vector else X
 
 
-def packed_lower_pairs(k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Row and column indices of the lower triangle of a (k, k) matrix, row by row:
-    (0, 0), (1, 0), (1, 1), (2, 0), ... (k(k+1)/2 entries; static NumPy arrays)."""
-    rows, cols = np.tril_indices(k)
-    return rows, cols
-
-
 def cholesky_scalars(M: Array) -> list:
     """Lower-triangular L (rows as lists of scalars, L[i][j] for j <= i), L L^T = M.
 
@@ -105,7 +97,8 @@ def cholesky_scalars(M: Array) -> list:
 
 def cholesky_packed_scalars(lower: Array, k: int) -> list:
     """`cholesky_scalars` of the symmetric (k, k) matrix whose lower triangle is
-    `lower` (k(k+1)/2,), packed row by row as `packed_lower_pairs` orders it."""
+    `lower` (k(k+1)/2,), packed row by row as `np.tril_indices(k)` orders it:
+    (0, 0), (1, 0), (1, 1), (2, 0), ..."""
     return _cholesky_scalars(lambda i, j: lower[i * (i + 1) // 2 + j], k)
 
 

@@ -46,6 +46,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxloco import linalg
 
@@ -122,7 +123,7 @@ def _reduce(Q, q, G, h, x0, Z) -> _Reduced:
     Qr = Z.T @ QZ
     Qr = 0.5 * (Qr + Qr.T)
     Gr = G @ Z
-    rows, cols = linalg.packed_lower_pairs(Z.shape[1])
+    rows, cols = np.tril_indices(Z.shape[1])
     return _Reduced(Qr, Z.T @ (Q @ x0 + q), Gr, h - G @ x0, Qr[rows, cols], Gr[:, rows] * Gr[:, cols],
                     jnp.concatenate([Gr, Qr]))
 

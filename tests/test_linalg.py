@@ -95,7 +95,7 @@ def test_scalar_cholesky_and_solve_match_numpy():
     dense = np.array([[float(L[i][j]) if j <= i else 0.0 for j in range(7)] for i in range(7)])
     np.testing.assert_allclose(dense, np.linalg.cholesky(M), rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(linalg.cho_solve_scalars(L, jnp.asarray(r)), np.linalg.solve(M, r), rtol=1e-10)
-    rows, cols = linalg.packed_lower_pairs(7)
+    rows, cols = np.tril_indices(7)
     assert len(rows) == 28 and all(i >= j for i, j in zip(rows, cols))
     packed = linalg.cholesky_packed_scalars(jnp.asarray(M[rows, cols]), 7)  # row by row: (0,0), (1,0), (1,1), ...
     assert all(float(packed[i][j]) == float(L[i][j]) for i in range(7) for j in range(i + 1))
