@@ -317,6 +317,32 @@ def test_paper_climb_and_release_rules_are_eqs_28_29():
     assert bool(clm.paper_release_step(p, q, jnp.array([0.0, 0.1, 0.0, 0.0]))[2])
 
 
+def test_the_common_axis_reading_turns_the_front_booms_down_and_the_rear_ones_up():
+    """`climb_common_axis` = 1: Eq. 28's +Delta_E on the authors' common boom axis (their
+    transfer lifts the rear booms to +0.6 rad and the front ones to -0.6) lowers the front
+    EPRAs and raises the rear ones in {R} (forward kinematics); the release turns each
+    boom back to the start pose's angle from the side it climbed, and is done only there."""
+    p = {k: jnp.asarray(v) for k, v in scenarios.PARAM_DEFAULTS.items()}
+    p = {**p, "climb_common_axis": jnp.asarray(1.0)}
+    de = float(p["delta_e"])
+    q = jnp.asarray(clm.start_pose()[0])
+    flips = jnp.array([1.4, 1.4, 0.0, 0.0])
+    q2, _ = clm.paper_climb_step(p, q, flips, flips, jnp.zeros(4), jnp.asarray(False))
+    np.testing.assert_allclose(q2[:, 1] - q[:, 1], [de, de, -de, -de])
+    kp = params.default_params()
+    dz = np.asarray(kin.arm_tips(kp, q2)[:, 2] - kin.arm_tips(kp, q)[:, 2])
+    assert np.all(dz[:2] < 0) and np.all(dz[2:] > 0), dz
+    climbed = q.at[:, 1].add(jnp.array([0.3, 0.5 * de, -0.3, -0.5 * de]))
+    q3, _, back = clm.paper_release_step(p, climbed, jnp.zeros(4))
+    np.testing.assert_allclose(q3[:, 1], q[:, 1] + jnp.array([0.3 - de, 0.0, -0.3 + de, 0.0]), atol=1e-12)
+    assert not bool(back)
+    # a rear boom turned *down* (below the start in the authors' frame) is not theirs to release
+    down = q.at[3, 1].add(0.2)
+    q4, _, back = clm.paper_release_step(p, down, jnp.zeros(4))
+    np.testing.assert_allclose(q4, down)
+    assert bool(back)
+
+
 def test_clm_stops_at_a_pit_and_picks_new_targets():
     """Arm stop Case 3 (paper, "Arm stop"): on a 0.4 m platform whose far edge is 0.8 m
     ahead, with no ground beyond it ("pit"), a front arm's target falls in the pit; the

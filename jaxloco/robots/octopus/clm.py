@@ -26,7 +26,7 @@ level lift or `paper_climb_step`), `release_step` (or `paper_release_step`), `cr
 Where this differs from the paper (the open gap, measured in docs/octopus.md): the
 default CLIMB is our level lift, not Eqs. 28-29. The paper's climb is built
 (`climb_paper` = 1, `paper_climb_step`, `paper_release_step`) but in our simulation it
-has not yet climbed a step of 200, 300 or 400 mm in any of about 460 gain / reading /
+has not yet climbed a step of 200, 300 or 400 mm in any of about 490 gain / reading /
 PREPARE-posture combinations: the booms lift the nose to the pitch that booms alone
 give (0.54 rad on 400 mm; the paper's is 0.60, closed form in docs/octopus.md), the
 front arm rollers roll back to the edge, and the robot stalls leaning on the edge with
@@ -238,6 +238,9 @@ PARAM_DEFAULTS: dict[str, float] = {
     # paper climb: 1 = Eq. 29 turns the rear flippers too; 0 = the front ones (A is the front flipper command
     # of "Crawler controls")
     "climb_rear_flippers": _P.default("climb_rear_flippers"),
+    # paper climb: 1 = Eq. 28's +Delta_E on the authors' common boom axis (front booms down, rear ones up);
+    # 0 = every boom down
+    "climb_common_axis": _P.default("climb_common_axis"),
     # CRAWL (an addition, see the module docstring): low steps climbed by crawlers and flippers
     "crawl_max_h": _P.default("crawl_max_h"),  # [m] confirmed steps up to this height (paper: < 250 mm w/o arms)
     "crawl_speed": _P.default("speed"),  # [m/s] crawler speed in CRAWL (the CCM baseline's)
@@ -306,10 +309,14 @@ def paper_climb_step(p, q_cmd: Array, flip_cmd: Array, flip_q: Array, flip_tau: 
         (`flip_encoder`): a flipper pressed on the terrain pushes with the servo torque of
         Delta_F instead of winding its command to the joint limit;
       * the crawler rule of the front flippers keeps running (`climb_yield`): with |T'| >
-        T0 they yield by Delta_A against the torque (Case 2).
+        T0 they yield by Delta_A against the torque (Case 2);
+      * "+Delta_E" on the authors' common boom axis (`climb_common_axis`, see
+        `_authors_boom_sign`): the front booms turn down and the rear ones up. Not the
+        default: the text says every boom turns down, and H is measured from the rear
+        EPRAs, which this reading lifts (docs/octopus.md, 6 Dec 2026).
     Once on top, the commands hold (the RELEASE takes over)."""
     dt = q_cmd.dtype
-    q = q_cmd.at[:, 1].add(jnp.where(on_top, 0.0, p["delta_e"]))
+    q = q_cmd.at[:, 1].add(jnp.where(on_top, 0.0, p["delta_e"] * _authors_boom_sign(p, dt)))
     turn = jnp.asarray(FRONT4) | (p["climb_rear_flippers"] > 0)
     prev = jnp.where(p["flip_encoder"] > 0, flip_q.astype(dt), flip_cmd)
     yielding = (p["climb_yield"] > 0) & (jnp.abs(flip_tau) > p["T0"])
@@ -327,11 +334,23 @@ def paper_release_step(p, q_cmd: Array, flip_cmd: Array) -> tuple[Array, Array, 
     boom and flipper is back."""
     dt = q_cmd.dtype
     home = jnp.asarray(HOME_BOOM, dt)
-    boom = q_cmd[:, 1]
-    q = q_cmd.at[:, 1].set(jnp.where(boom > home, jnp.maximum(boom - p["delta_e"], home), boom))
+    sign = _authors_boom_sign(p, dt)
+    authors = sign * (q_cmd[:, 1] - home)  # theta_2' in the authors' frame (zero at the start pose)
+    authors = jnp.where(authors > 0.0, jnp.maximum(authors - p["delta_e"], 0.0), authors)
+    q = q_cmd.at[:, 1].set(home + sign * authors)
     flip = jnp.where(flip_cmd < 0.0, jnp.minimum(flip_cmd + p["delta_f"], 0.0), flip_cmd)
-    back = jnp.all(boom <= home + 1e-6) & jnp.all(flip_cmd >= 0.0)
+    back = jnp.all(authors <= 1e-6) & jnp.all(flip_cmd >= 0.0)
     return q, flip, back
+
+
+def _authors_boom_sign(p, dtype) -> Array:
+    """(4,) +-1: a boom's angle in the authors' frame over ours (ours: > 0 turns every
+    boom down). `climb_common_axis` = 1: every boom turns about one common axis (the
+    authors build every joint frame "with the same direction as {W}"; their transfer
+    lifts the rear booms to A_B = +0.6 rad and the front ones to -0.6), so the rear
+    booms' sign is flipped and Eq. 28's +Delta_E turns them up; 0: every boom down."""
+    rear = jnp.asarray(~FRONT) & (p["climb_common_axis"] > 0)
+    return jnp.where(rear, -1.0, 1.0).astype(dtype)
 
 
 def _crawl_step(p, st: CrawlState, q_cmd: Array, flip: Array, pitch: Array, t: Array, stalled: Array,

@@ -206,6 +206,9 @@ PARAMETERS = ParamTable("octopus", (
           "running in CLIMB", "", lo=0.0, hi=1.0),
     Param("climb_rear_flippers", 0.0, "paper climb reading: 1 = Eq. 29 turns the rear "
           "flippers too, 0 = the front ones (A of 'Crawler controls')", "", lo=0.0, hi=1.0),
+    Param("climb_common_axis", 0.0, "paper climb reading: 1 = Eq. 28's +Delta_E turns every boom about the "
+          "authors' common axis (the transfer's A_B: +0.6 rear, -0.6 front), so the front booms turn down and the "
+          "rear ones up; 0 = every boom down", "", lo=0.0, hi=1.0),
     Param("s_from_touch", 0.0, "paper climb reading: 1 = S (Eq. 18) from the front flippers' "
           "touch-down on the step top, 0 = from the CLIMB start", "", lo=0.0, hi=1.0),
     Param("prepare_rear_init", 1.0, "PREPARE places the rear arms at their Table 2 start "
