@@ -95,7 +95,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -343,31 +343,34 @@ def state_geometry(qpos: Array, qvel: Array, params: snake_params.SnakeParams | 
 
 
 # ----------------------------------------------------------------------- controllers
+class CommandState(NamedTuple):
+    """The state of a controller made by `make_controller`: the policy's own state and
+    its last command (recorded by the scenario)."""
+
+    policy: Any  # the policy's state (a pytree)
+    phi_target: Array  # (12,) joint targets [rad]
+    rho_dot: Array  # (7,) base wheel speeds [rad/s]
+    grounded: Array  # (7,) bool, the mode's grounded pairs
+
+
 def make_controller(init: Callable[[Mapping[str, Any], Any], Any], policy: Policy, name: str = "snake") -> Controller:
     """A `Controller` from a policy that outputs the control law's quantities:
     init(params, obs) -> state, policy(params, state, obs) -> (state, phi_target (12,),
     rho_dot (7,) [rad/s], grounded (7,) bool). The action is `actuator_command` with
-    params["lift_height"]. The controller's state is a dict: "policy" (the policy's
-    state) and the last command "phi_target", "rho_dot", "grounded" (recorded by the
-    scenario)."""
+    params["lift_height"]. The controller's state is a `CommandState`."""
 
     def c_init(p, obs):
         dtype = obs["phi"].dtype
-        return {
-            "policy": init(p, obs),
-            "phi_target": obs["phi"],
-            "rho_dot": jnp.zeros(snake_params.N_W, dtype),
-            "grounded": obs["contact"],
-        }
+        return CommandState(init(p, obs), obs["phi"], jnp.zeros(snake_params.N_W, dtype), obs["contact"])
 
     def c_step(p, state, obs):
-        s, phi_t, rho, grounded = policy(p, state["policy"], obs)
+        s, phi_t, rho, grounded = policy(p, state.policy, obs)
         dtype = obs["phi"].dtype
         phi_t = jnp.asarray(phi_t, dtype)
         rho = jnp.asarray(rho, dtype)
         grounded = jnp.asarray(grounded, bool)
         ctrl = actuator_command(phi_t, rho, grounded, jnp.asarray(p["lift_height"], dtype))
-        return {"policy": s, "phi_target": phi_t, "rho_dot": rho, "grounded": grounded}, ctrl
+        return CommandState(s, phi_t, rho, grounded), ctrl
 
     return Controller(init=c_init, step=c_step, name=name)
 
@@ -559,16 +562,16 @@ def snake_scenario(
         g = obs
         contact = obs["contact"]
         dtype = obs["phi"].dtype
-        if isinstance(c, dict) and "phi_target" in c:
-            cmd = (c["phi_target"], c["rho_dot"], c["grounded"])
+        if isinstance(c, CommandState):
+            cmd = (c.phi_target, c.rho_dot, c.grounded)
         else:
             cmd = (
                 jnp.zeros(snake_params.N_PHI, dtype),
                 jnp.zeros(snake_params.N_W, dtype),
                 jnp.zeros(snake_params.N_W, bool),
             )
-        policy = c.get("policy") if isinstance(c, dict) else None
-        intent = {"intent": policy["intent"]} if isinstance(policy, dict) and "intent" in policy else {}
+        own = c.policy if isinstance(c, CommandState) else None
+        intent = {"intent": own.intent} if hasattr(own, "intent") else {}
         return {
             "head": obs["head"],
             "tip": obs["tip"],

@@ -142,7 +142,7 @@ def reach_controller(control_dt: float = CONTROL_DT) -> Controller:
     def init(p, obs):
         s = inner.init(p, obs)
         hold = jnp.asarray(snake_params.INITIAL_PHI, obs["phi"].dtype)
-        return {**s, "policy": {**s["policy"], "phi_cmd": hold}, "phi_target": hold}
+        return s._replace(policy=s.policy._replace(phi_cmd=hold), phi_target=hold)
 
     return Controller(init=init, step=inner.step, name="reach_fb_tip")
 

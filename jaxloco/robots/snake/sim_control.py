@@ -29,7 +29,7 @@ commanding the switching state at a joint limit), off by default.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -81,6 +81,19 @@ def control_params(p: Mapping[str, Array]) -> control.ControlParams:
     )
 
 
+class TaskSpaceState(NamedTuple):
+    """The state of `task_space_controller`'s policy."""
+
+    est: kinsim.SnakeState  # the feedforward estimate of the robot (Sec. IV-C2)
+    target: kinsim.Target  # the operator's script of w_d
+    mode: control.ModeState  # fixing / switching state (`control.update_mode`)
+    phi_cmd: Array  # (12,) the joint targets sent last [rad]
+    chosen: Array  # () int32, the mode the look-ahead chose for this slot
+    slot: Array  # () int32, the switching slot it was chosen in (-1: none)
+    operator: Any  # `operator.step`'s state
+    intent: Array  # (6,) the pose the operator wants for the controlled point
+
+
 def task_space_controller(control_dt: float, point: str = "tip", feedback: bool = False,
                           prediction: predictive.Prediction | None = None) -> Controller:
     """The Eq. 12 controller as a `jaxloco.sim` controller (module docstring); `point`:
@@ -106,22 +119,21 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
             delta = jnp.stack([jnp.asarray(p[k], dtype) for k in DELTA_KEYS])
             target = kinsim.Target(wt0, delta, jnp.asarray(p["t0"], dtype), jnp.asarray(p["duration"], dtype))
         seen0 = seen_pose(obs)
-        return {"est": est, "target": target, "mode": control.initial_mode_state(dtype), "phi_cmd": obs["phi"],
-                "chosen": jnp.asarray(1, jnp.int32), "slot": jnp.asarray(-1, jnp.int32),
-                "operator": operator.initial_state(seen0), "intent": seen0}
+        return TaskSpaceState(est, target, control.initial_mode_state(dtype), obs["phi"], jnp.asarray(1, jnp.int32),
+                              jnp.asarray(-1, jnp.int32), operator.initial_state(seen0), seen0)
 
     def policy(p, s, obs):
         t = obs["time"]
         cp = control_params(p)
         cp = cp.with_(k_eta=jnp.where(t < p["hold_until"], 0.0, cp.k_eta))
-        est = s["est"]
+        est = s.est
         if feedback:
             w, phi = seen_pose(obs), obs["phi"]
         else:
             w, phi = kinsim.point_pose(est, point=point), est.phi
         op, command = operator.step(
-            s["operator"],
-            s["target"],
+            s.operator,
+            s.target,
             t,
             seen_pose(obs),
             operator.base_limit_ratio(obs["phi"]),
@@ -133,8 +145,8 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
             p["operator_min_switch"],
         )
         cp = cp.with_(switch_at=jnp.where(command.switching, -jnp.inf, cp.switch_at))
-        mode, sigma = control.update_mode(t, phi, s["mode"], cp)
-        chosen, slot = s["chosen"], s["slot"]
+        mode, sigma = control.update_mode(t, phi, s.mode, cp)
+        chosen, slot = s.chosen, s.slot
         if prediction is not None:
             b = obs["base"]  # link 7's measured pose; the estimate's without feedback
             view = kinsim.SnakeState(jnp.stack([b[0], b[1], b[5]]) if feedback else est.base, phi, est.rho)
@@ -150,12 +162,11 @@ def task_space_controller(control_dt: float, point: str = "tip", feedback: bool 
         mats = kinematics.augmented_matrices(w, phi, grounded, point=point)
         terms = control.control_terms(w, phi, wd, wd_dot, grounded, cp, None, point, mats)
         lim = jnp.asarray(control.PHI_LIMITS, phi.dtype)
-        phi_cmd = jnp.clip(s["phi_cmd"] + dt * terms.u[: snake_params.N_PHI], -lim, lim)
+        phi_cmd = jnp.clip(s.phi_cmd + dt * terms.u[: snake_params.N_PHI], -lim, lim)
         rho_dot = jnp.clip(terms.u[snake_params.N_PHI :], -p["wheel_speed_max"], p["wheel_speed_max"])
         if not feedback:
             est, _ = kinsim.integrate(est, terms.u, mats, jnp.asarray(dt, phi.dtype), None, point)
-        state = {"est": est, "target": s["target"], "mode": mode, "phi_cmd": phi_cmd, "chosen": chosen, "slot": slot,
-                 "operator": op, "intent": command.intent}
+        state = TaskSpaceState(est, s.target, mode, phi_cmd, chosen, slot, op, command.intent)
         return state, phi_cmd, rho_dot, grounded
 
     return scenarios.make_controller(init, policy, name=f"task_space_{'fb' if feedback else 'ff'}_{point}")
