@@ -44,6 +44,9 @@ paper's CCM was two operators' joysticks). The observation is the one built by
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -92,48 +95,52 @@ def _approach(current, target, rate, dt):
     return current + jnp.clip(target - current, -rate * dt, rate * dt)
 
 
+class CcmState(NamedTuple):
+    """The CCM policy's state."""
+
+    phase: jax.Array  # () int32, index into PHASE_NAMES
+    tau_f: jax.Array  # () low-passed mean front flipper torque [N m]
+    tau0: jax.Array  # () its baseline, taken while settling [N m]
+    flip: jax.Array  # (4,) flipper commands [rad]
+    t_phase: jax.Array  # () time the phase began [s]
+
+
 def make_controller(control_dt: float = CONTROL_DT) -> Controller:
     arms = jnp.asarray(ARMS_STOWED.reshape(-1))
 
     def init(p, obs):
         tau = jnp.mean(obs["flipper_tau"][:2])
         flip = jnp.stack([p["front_up"], p["front_up"], 0.0 * p["front_up"], 0.0 * p["front_up"]])
-        return {
-            "phase": jnp.asarray(APPROACH, jnp.int32),
-            "tau_f": tau,
-            "tau0": tau,
-            "flip": flip.astype(jnp.result_type(float)),
-            "t_phase": jnp.zeros(()),
-        }
+        return CcmState(jnp.asarray(APPROACH, jnp.int32), tau, tau, flip.astype(jnp.result_type(float)), jnp.zeros(()))
 
     def step(p, s, obs):
         t = obs["time"]
         pitch = pitch_of(obs["quat"])
         tau_front = jnp.mean(obs["flipper_tau"][:2])
         alpha = control_dt / (TORQUE_TAU + control_dt)
-        tau_f = s["tau_f"] + alpha * (tau_front - s["tau_f"])
-        settling = (s["phase"] == APPROACH) & (t - s["t_phase"] < p["settle_s"])
-        tau0 = jnp.where(settling, tau_f, s["tau0"])
-        phase = s["phase"]
+        tau_f = s.tau_f + alpha * (tau_front - s.tau_f)
+        settling = (s.phase == APPROACH) & (t - s.t_phase < p["settle_s"])
+        tau0 = jnp.where(settling, tau_f, s.tau0)
+        phase = s.phase
         hit = ~settling & ((jnp.abs(tau_f - tau0) > p["torque_trigger"]) | (pitch > p["pitch_trigger"]))
         nxt = jnp.where((phase == APPROACH) & hit, LOWER, phase)
         nxt = jnp.where((nxt == LOWER) & (pitch > p["pitch_push"]), PUSH, nxt)
         nxt = jnp.where((nxt == PUSH) & (pitch < p["pitch_level"]), LEVEL, nxt)
-        nxt = jnp.where((phase == LEVEL) & (t - s["t_phase"] > p["level_s"]), APPROACH, nxt)
-        below_edge = (phase == LOWER) & (t - s["t_phase"] > p["hook_s"]) & (pitch < p["pitch_trigger"])
+        nxt = jnp.where((phase == LEVEL) & (t - s.t_phase > p["level_s"]), APPROACH, nxt)
+        below_edge = (phase == LOWER) & (t - s.t_phase > p["hook_s"]) & (pitch < p["pitch_trigger"])
         nxt = jnp.where(below_edge, RAISE, nxt)
         nxt = jnp.where((phase == RAISE) & (pitch > p["pitch_hook"]), LOWER, nxt)
         # flipper targets per phase (front l, front r, rear l, rear r)
         front = jnp.where(phase == APPROACH, p["front_up"], jnp.where(phase == LEVEL, 0.0, p["front_down"]))
         front = jnp.where(phase == RAISE, params.FLIPPER_LIMIT, front)
-        rear = jnp.where((phase == PUSH) | ((phase == LEVEL) & (t - s["t_phase"] < 2.0)), p["rear_push"], 0.0)
+        rear = jnp.where((phase == PUSH) | ((phase == LEVEL) & (t - s.t_phase < 2.0)), p["rear_push"], 0.0)
         target = jnp.stack([front, front, rear, rear])
-        flip = _approach(s["flip"], target, p["lower_rate"], control_dt)
+        flip = _approach(s.flip, target, p["lower_rate"], control_dt)
         flip = jnp.where(phase == APPROACH, target, flip)
         speed = p["speed"]
         action = jnp.concatenate([jnp.stack([speed, speed]), flip, arms.astype(flip.dtype)])
-        t_phase = jnp.where(nxt != phase, t, s["t_phase"])
-        new = {"phase": nxt.astype(jnp.int32), "tau_f": tau_f, "tau0": tau0, "flip": flip, "t_phase": t_phase}
+        t_phase = jnp.where(nxt != phase, t, s.t_phase)
+        new = CcmState(nxt.astype(jnp.int32), tau_f, tau0, flip, t_phase)
         return new, action
 
     return Controller(init, step, name="ccm")

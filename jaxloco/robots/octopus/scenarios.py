@@ -404,10 +404,8 @@ def make_scenario(
 
 
 def _phase(c) -> jax.Array:
-    """The controller phase of a controller state: a dict's "phase" (ccm) or a NamedTuple's
-    `phase` field (clm.ClmState); -1 for a controller without phases."""
-    if isinstance(c, dict):
-        return c.get("phase", jnp.asarray(-1, jnp.int32))
+    """The controller phase of a controller state: its `phase` field (ccm.CcmState,
+    clm.ClmState); -1 for a controller without phases."""
     return getattr(c, "phase", jnp.asarray(-1, jnp.int32))
 
 
