@@ -4,7 +4,7 @@ perturbed runs each, printed beside the paper's numbers: the `octopus.paper` ana
 octopus_paper`), then the same tasks with our options (not the paper's method) and with
 the operator layer, and the rollout throughput.
 
-    python benchmarks/octopus_experiments.py [N] [--quick | --options]
+    python benchmarks/octopus_experiments.py [N] [--quick | --options | --common-axis]
 
 Row sets:
   * paper: the five tasks on the paper's method (CLM climbing by Eqs. 28-29, never in
@@ -13,8 +13,10 @@ Row sets:
   * ours, level lift + CRAWL: two terraces from the front with `crawl_max_h` = 0.25 m
     (low terraces climbed by crawlers and flippers, arms carried);
   * operator: the CLM tasks on the paper's method with the operator steering
-    (`operator_gain` = 0.2 m/s per rad: the CLM cannot measure the yaw, a person can).
---quick runs the paper set only, --options every set but it.
+    (`operator_gain` = 0.2 m/s per rad: the CLM cannot measure the yaw, a person can);
+  * paper, common axis: the climbing tasks on the paper's method with Eq. 28 read on the
+    authors' common boom axis (`climb_common_axis` = 1: the rear booms turn up).
+--quick runs the paper set only, --options every set but it, --common-axis that set only.
 Perturbations (seeded, from the row's seed): start distance 0.7 +- 0.1 m, heading
 +- 0.05 rad, friction 0.8 +- 0.2. Cells: mean over the runs (worst run) / the paper's value.
 """
@@ -38,6 +40,7 @@ ROW_SETS = (
     ("ours, level lift", CLM_TASKS, {"climb_paper": 0.0}),
     ("ours, level lift + CRAWL", ("step2_front",), {"climb_paper": 0.0, "crawl_max_h": 0.25}),
     ("operator", CLM_TASKS, {"operator_gain": 0.2}),
+    ("paper, common axis", ("step1_clm", "step2_front", "step2_side"), {"climb_common_axis": 1.0}),
 )
 
 
@@ -54,7 +57,8 @@ def run_set(tasks, fixed: dict, n: int, out: str):
 def main(argv: list[str]) -> None:
     args = [a for a in argv[1:] if not a.startswith("--")]
     n = int(args[0]) if args else 20
-    sets = ROW_SETS[:1] if "--quick" in argv else ROW_SETS[1:] if "--options" in argv else ROW_SETS
+    sets = (ROW_SETS[:1] if "--quick" in argv else ROW_SETS[-1:] if "--common-axis" in argv
+            else ROW_SETS[1:] if "--options" in argv else ROW_SETS)
     print(f"OCTOPUS paper experiments, {n} perturbed runs per row; cells: mean (worst) / paper")
     head = (f"{'set':<26} {'task':<12} {'success':>14} | {'max pitch':>18} | {'max |roll|':>18} | "
             f"{'min margin':>21} | {'time s':>6} | failures")
