@@ -157,3 +157,35 @@ def test_a_tune_objectives_evaluate_is_loaded_by_a_later_process(tmp_path, monke
     for other in (second, plain, via_runner):
         for a, b in zip(jax.tree_util.tree_leaves(first), jax.tree_util.tree_leaves(other)):
             assert jnp.array_equal(a, b)
+
+
+def test_a_programs_source_digest_covers_the_core_and_the_robots_its_pickle_names(tmp_path):
+    """`programs.source_digest` of a package tree: an edit to the core or to a named
+    robot changes it, an edit to another robot does not; a pickle naming a robot counts
+    that robot, one naming a module that imports robots (the render package) counts all."""
+    from jaxloco.sim import programs
+
+    root = tmp_path / "pkg"
+    for rel in ("core.py", "robots/__init__.py", "robots/a/__init__.py", "robots/a/x.py",
+                "robots/b/__init__.py", "robots/b/y.py", "robots/notes/readme.py"):
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_text(f"# {rel}\n")
+    robots = programs.robot_packages(root)
+    assert robots == ("a", "b")  # a directory without __init__.py is not a robot
+
+    def digest(named):
+        programs.source_digest.cache_clear()
+        return programs.source_digest(root, frozenset(named))
+
+    a0, b0, none0 = digest({"a"}), digest({"b"}), digest(())
+    (root / "robots/b/y.py").write_text("# edited\n")
+    assert digest({"a"}) == a0 and digest(()) == none0 and digest({"b"}) != b0
+    (root / "robots/a/x.py").write_text("# edited\n")
+    assert digest({"a"}) != a0 and digest(()) == none0
+    (root / "core.py").write_text("# edited\n")
+    assert digest(()) != none0
+    programs.source_digest.cache_clear()
+
+    assert programs.robots_named(b"...jaxloco.robots.a.x...", robots) == {"a"}
+    assert programs.robots_named(b"jaxloco.sim.native", robots) == set()
+    assert programs.robots_named(b"jaxloco.render.replay", robots) == {"a", "b"}

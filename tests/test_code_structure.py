@@ -149,3 +149,33 @@ def test_no_issue_numbers_in_code():
              for root in roots for path in sorted(root.rglob("*")) if path.suffix in (".py", ".toml")
              for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1) if pattern.search(line)]
     assert found == []
+
+
+def _robot_of(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[2] if len(parts) > 2 and parts[:2] == ["jaxloco", "robots"] else None
+
+
+def test_robot_code_is_imported_only_by_its_own_robot_and_the_listed_importers():
+    """The program cache keys a robot's programs by its own package's source and the
+    rest of jaxloco (`jaxloco.sim.programs.source_digest`): sound only if no robot imports
+    another robot and every module outside the robots that imports one is listed in
+    `programs.ROBOT_IMPORTERS` (a pickle naming it counts every robot)."""
+    from jaxloco.sim import programs
+
+    importers = tuple(name.decode() for name in programs.ROBOT_IMPORTERS)
+    offending = []
+    for name, path in MODULES.items():
+        own = _robot_of(name)
+        for module, _, line in _imports(name, path):
+            robot = _robot_of(module)
+            if robot is None or robot == own:
+                continue
+            if own is not None or not name.startswith(importers):
+                offending.append(f"{name}:{line} imports {module}")
+    assert offending == []
+
+
+def test_the_importer_guard_sees_a_robot_import():
+    assert _robot_of("jaxloco.robots.snake.control") == "snake"
+    assert _robot_of("jaxloco.sim.programs") is None

@@ -12,9 +12,14 @@ its results are the same as the traced one's, bit for bit.
 
 The key (`program_key`) is a SHA-256 of:
   * the scenario by value (`cloudpickle`: its model, arrays and settings, and the code
-    of the closures it holds), together with the source of every module of `jaxloco`
-    (functions defined at module level are pickled by reference, so their code comes
-    in through the source);
+    of the closures it holds), together with the source of the `jaxloco` modules it can
+    run (functions defined at module level are pickled by reference, so their code comes
+    in through the source): every module outside `jaxloco/robots/<robot>/`, and the
+    packages of the robots the pickle names (`source_digest`). No robot package imports
+    another (`tests/test_code_structure.py`), so an edit to one robot's code leaves the
+    other robots' programs cached; a pickle that names a module importing robot code
+    from outside the robots (`ROBOT_IMPORTERS`: the render package, the registry) counts
+    every robot;
   * the input leaves' shapes, dtypes, shardings and tree structure, the extra settings
     of the caller (block size), the platform, every JAX flag (`jax.config.values`:
     float64, matmul precision, PRNG, ...), and the versions of Python, jax, jaxlib,
@@ -72,15 +77,39 @@ def cache_dir() -> Path | None:
     return runtime.program_cache_dir(jax.config.jax_compilation_cache_dir)
 
 
+# modules outside jaxloco/robots that import robot code: a pickle naming one counts every robot
+ROBOT_IMPORTERS = (b"jaxloco.render", b"jaxloco.registry")
+
+
 @functools.cache
-def _jaxloco_source_digest() -> str:
-    """SHA-256 over the path and bytes of every .py file of the jaxloco package."""
-    root = Path(__file__).resolve().parents[1]
+def robot_packages(root: Path) -> tuple[str, ...]:
+    """The robot packages under `root`/robots (directories with an __init__.py), sorted."""
+    return tuple(sorted(d.name for d in (root / "robots").iterdir() if (d / "__init__.py").is_file()))
+
+
+def robots_named(blob: bytes, robots: tuple[str, ...]) -> frozenset[str]:
+    """The robots whose package `blob` (a pickle) names, or all of them when it names a
+    module in `ROBOT_IMPORTERS`."""
+    if any(name in blob for name in ROBOT_IMPORTERS):
+        return frozenset(robots)
+    return frozenset(r for r in robots if f"jaxloco.robots.{r}".encode() in blob)
+
+
+@functools.cache
+def source_digest(root: Path, robots: frozenset[str]) -> str:
+    """SHA-256 over the path and bytes of every .py file of the package at `root` except
+    those of the robot packages (`root`/robots/<robot>/) not in `robots`."""
+    skip = {root / "robots" / r for r in robot_packages(root)} - {root / "robots" / r for r in robots}
     h = hashlib.sha256()
     for f in sorted(root.rglob("*.py")):
+        if any(d in f.parents for d in skip):
+            continue
         h.update(str(f.relative_to(root)).encode())
         h.update(f.read_bytes())
     return h.hexdigest()
+
+
+_ROOT = Path(__file__).resolve().parents[1]
 
 
 @functools.cache
@@ -133,7 +162,8 @@ def program_key(scenario: Any, args: tuple, extra: str = "") -> str | None:
         return None
     h = hashlib.sha256()
     flags = repr(sorted((k, repr(v)) for k, v in jax.config.values.items()))  # x64, matmul precision, PRNG, ...
-    for part in (blob, _jaxloco_source_digest().encode(), _versions().encode(), str(tree).encode(),
+    source = source_digest(_ROOT, robots_named(blob, robot_packages(_ROOT)))
+    for part in (blob, source.encode(), _versions().encode(), str(tree).encode(),
                  jax.default_backend().encode(), extra.encode(), flags.encode()):
         h.update(hashlib.sha256(part).digest())
     for leaf in leaves:
