@@ -57,8 +57,10 @@ def run_set(tasks, fixed: dict, n: int, out: str):
 def main(argv: list[str]) -> None:
     args = [a for a in argv[1:] if not a.startswith("--")]
     n = int(args[0]) if args else 20
-    sets = (ROW_SETS[:1] if "--quick" in argv else ROW_SETS[-1:] if "--common-axis" in argv
-            else ROW_SETS[1:] if "--options" in argv else ROW_SETS)
+    by_flag = {"--quick": ("paper",), "--common-axis": ("paper, common axis",),
+               "--options": tuple(label for label, _, _ in ROW_SETS if label != "paper")}
+    labels = next((by_flag[f] for f in by_flag if f in argv), tuple(label for label, _, _ in ROW_SETS))
+    sets = [s for s in ROW_SETS if s[0] in labels]
     print(f"OCTOPUS paper experiments, {n} perturbed runs per row; cells: mean (worst) / paper")
     head = (f"{'set':<26} {'task':<12} {'success':>14} | {'max pitch':>18} | {'max |roll|':>18} | "
             f"{'min margin':>21} | {'time s':>6} | failures")

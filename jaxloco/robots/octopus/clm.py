@@ -335,9 +335,10 @@ def paper_release_step(p, q_cmd: Array, flip_cmd: Array) -> tuple[Array, Array, 
     dt = q_cmd.dtype
     home = jnp.asarray(HOME_BOOM, dt)
     sign = _authors_boom_sign(p, dt)
-    authors = sign * (q_cmd[:, 1] - home)  # theta_2' in the authors' frame (zero at the start pose)
-    authors = jnp.where(authors > 0.0, jnp.maximum(authors - p["delta_e"], 0.0), authors)
-    q = q_cmd.at[:, 1].set(home + sign * authors)
+    boom = q_cmd[:, 1]
+    authors = sign * (boom - home)  # theta_2' in the authors' frame (zero at the start pose)
+    released = jnp.where(authors > p["delta_e"], boom - sign * p["delta_e"], home)
+    q = q_cmd.at[:, 1].set(jnp.where(authors > 0.0, released, boom))
     flip = jnp.where(flip_cmd < 0.0, jnp.minimum(flip_cmd + p["delta_f"], 0.0), flip_cmd)
     back = jnp.all(authors <= 1e-6) & jnp.all(flip_cmd >= 0.0)
     return q, flip, back
