@@ -187,3 +187,16 @@ def test_a_programs_source_digest_covers_the_core_and_the_robots_its_pickle_name
     assert programs.robots_named(b"...jaxloco.robots.a.x...", robots) == {"a"}
     assert programs.robots_named(b"jaxloco.sim.native", robots) == set()
     assert programs.robots_named(b"jaxloco.render.replay", robots) == {"a", "b"}
+
+
+def test_the_suites_xla_flags_are_added_unless_already_named():
+    """tests/conftest.py adds SUITE_XLA_FLAGS to $XLA_FLAGS with the fast compile; a flag the
+    user set wins, and other flags are kept."""
+    from conftest import SUITE_XLA_FLAGS, with_xla_flags
+
+    assert with_xla_flags("", ("--a=false",)) == "--a=false"
+    assert with_xla_flags(" --b=1 ", ("--a=false",)) == "--b=1 --a=false"
+    assert with_xla_flags("--a=true --b=1", ("--a=false",)) == "--a=true --b=1"
+    fast = os.environ.get("JAX_DISABLE_MOST_OPTIMIZATIONS", "").lower() not in ("0", "false", "")
+    named = {f.split("=", 1)[0] for f in os.environ.get("XLA_FLAGS", "").split()}
+    assert all(f.split("=", 1)[0] in named for f in SUITE_XLA_FLAGS) or not fast

@@ -214,7 +214,8 @@ def test_reach_analysis_batch_equals_single_rows():
     for i in range(3):
         row = fn({k: v[i:i + 1] for k, v in swept.items()}, keys[i:i + 1])
         for name, value in row.items():  # the physics is bit-identical; XLA's reductions may round differently
-            np.testing.assert_allclose(value, batch[name][i:i + 1], rtol=1e-12, atol=0.0, err_msg=name)
+            # (final_error 1.3e-12 relative, 2e-15 m, with XLA's legacy CPU emitters)
+            np.testing.assert_allclose(value, batch[name][i:i + 1], rtol=1e-11, atol=0.0, err_msg=name)
     assert list(batch["status"]) == [0, 0, 0]
     assert np.all(batch["max_error"] >= batch["final_error"]) and np.all(batch["max_error"] > 0.002)
 
