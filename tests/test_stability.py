@@ -556,3 +556,18 @@ def test_longitudinal_margin_equals_the_all_pairs_form(size):
     np.testing.assert_array_equal(np.isfinite(got), finite)
     np.testing.assert_allclose(got[finite], ref[finite], atol=1e-12, rtol=0)
     assert (got > 0).sum() > 50 and (got < 0).sum() > 20
+
+
+def test_the_minimum_over_edges_reads_only_the_minimisers_tangents():
+    """Forward mode: a larger edge whose tangent is not finite (sqrt at 0) does not touch
+    the derivative, which `jnp.min`'s 0/1-indicator product would make NaN; ties average."""
+
+    def f(x):
+        margins = jnp.stack([x, jnp.sqrt(x - 0.5) + 1.0, -x])  # the third is not an edge
+        return sm._min_over_edges(margins, jnp.array([True, True, False]))
+
+    value, tangent = jax.jvp(f, (0.5,), (1.0,))
+    assert float(value) == 0.5 and float(tangent) == 1.0
+    ties = jax.jvp(lambda x: sm._min_over_edges(jnp.stack([x, 2 * x - 0.5]), jnp.array([True, True])), (0.5,), (1.0,))
+    assert float(ties[0]) == 0.5 and float(ties[1]) == 1.5
+    assert float(sm._min_over_edges(jnp.array([1.0, jnp.inf]), jnp.array([False, False]))) == -np.inf
