@@ -104,7 +104,10 @@ def _run_on_small_settings(path: Path, out: Path, monkeypatch) -> None:
 
 
 # One class per notebook: pytest-xdist (--dist loadscope) hands each class to a worker of
-# its own, so the five kernels run side by side rather than one after the other.
+# its own, so the five kernels run side by side rather than one after the other. They are
+# handed out in the order below (tests/conftest.py): the longest first, and the overview
+# last, whose sweeps (one per robot, the robot notebooks' small settings) then load the
+# programs the robot notebooks traced and compiled (program and compilation caches).
 @pytest.mark.slow
 class _RunsTopToBottom:
     stem = ""
@@ -113,24 +116,24 @@ class _RunsTopToBottom:
         _run_on_small_settings(ROOT / "notebooks" / f"{self.stem}.ipynb", tmp_path, monkeypatch)
 
 
-class TestOverviewNotebook(_RunsTopToBottom):
-    stem = "overview"
+class TestSnakeNotebook(_RunsTopToBottom):
+    stem = "snake"
 
 
 class TestLeggropeSlopeNotebook(_RunsTopToBottom):
     stem = "leggrope_slope"
 
 
-class TestOctopusNotebook(_RunsTopToBottom):
-    stem = "octopus"
-
-
 class TestTitanNotebook(_RunsTopToBottom):
     stem = "titan"
 
 
-class TestSnakeNotebook(_RunsTopToBottom):
-    stem = "snake"
+class TestOctopusNotebook(_RunsTopToBottom):
+    stem = "octopus"
+
+
+class TestOverviewNotebook(_RunsTopToBottom):
+    stem = "overview"
 
 
 def test_every_notebook_has_its_test_class():

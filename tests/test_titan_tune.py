@@ -4,8 +4,9 @@ while loops) against central differences, the loss and aux against the titan.str
 sweep analysis' own metrics (its batch function, `gait.sweep_plan`) and the closed form
 of a fully held plan, a 3-step `jaxloco.tune.run`, and the committed spec.
 
-One compiled `value_and_grad` (default case, 2 cycles) serves the gradient, agreement and
-tune tests: the tune run's program is the same and comes from JAX's compilation cache."""
+One jitted `value_and_grad` (default case, 2 cycles), the tune runner's own for the tune
+test's spec (`runner.make_evaluate`), serves the gradient, agreement and tune tests: the
+tune run reuses its trace and compiled program."""
 
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from jaxloco.robots.titan import analysis as ta
 from jaxloco.robots.titan import params as titan_params
 from jaxloco.robots.titan import tuning
 from jaxloco.sweep import chunks
+from jaxloco.tune import runner
 
 SWEEPS = specs.DIRECTORY  # the bundled specs
 SETTINGS = {p.name: p.default for p in tuning.SETTINGS} | {"n_cycles": 2, "map_nx": 110}
@@ -34,9 +36,21 @@ HELD = (0.3, 0.8)  # the standard start is below S_NE^c: every cycle held
 H = 1e-6  # [m] central-difference step (inside one piece of the plan)
 
 
+def _tune_spec(**tune) -> dict:
+    """The 3-step tune of `test_three_adam_steps_lower_the_loss` at SETTINGS."""
+    return {
+        "tune": {"objective": "titan.stride", "params": ["l_std", "w_std"], "steps": 3, "learning_rate": 0.1,
+                 "formats": ["parquet"], **tune},
+        "settings": {k: SETTINGS[k] for k in ("n_cycles", "map_nx")},
+    }
+
+
 @cache
 def _evaluate():
-    return jax.jit(jax.value_and_grad(tuning.STRIDE_TUNE.make_loss(SETTINGS), has_aux=True))
+    """The runner's jitted reverse-mode `values -> ((loss, aux), grads)` for `_tune_spec()`."""
+    spec = jaxloco.tune.spec_from_dict(_tune_spec())
+    assert dict(spec.settings) == SETTINGS
+    return runner.make_evaluate(spec)
 
 
 def _values(l_std, w_std):
@@ -154,12 +168,7 @@ def test_fully_held_plan_has_the_closed_form_loss(analysis_rows):
 
 # ---------------------------------------------------------------------------------- tune
 def test_three_adam_steps_lower_the_loss(tmp_path, analysis_rows):
-    spec = {
-        "tune": {"objective": "titan.stride", "params": ["l_std", "w_std"], "steps": 3, "learning_rate": 0.1,
-                 "formats": ["parquet"]},
-        "settings": {k: SETTINGS[k] for k in ("n_cycles", "map_nx")},
-    }
-    res = jaxloco.tune.run(spec, progress=False, out=tmp_path / "out", configure_jax=False)
+    res = jaxloco.tune.run(_tune_spec(), progress=False, out=tmp_path / "out", configure_jax=False)
     curve = res.curve.to_pydict()
     assert curve["step"] == [0, 1, 2, 3]
     initial, best, paper = res.row("initial"), res.row("tuned"), res.row("default (ours)")
