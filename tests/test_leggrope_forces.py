@@ -2,6 +2,7 @@
 rigid-block friction limit atan(mu), and the paper's example cycle (theta = pi/12,
 psi = 0; Figs. 7-9)."""
 
+import functools
 import math
 
 import clarabel
@@ -24,17 +25,34 @@ WEIGHT = float(P.total_mass) * GRAVITY
 
 
 def _step_problem(theta, psi, i, params=P, tau_b=None):
-    terrain = gait.simple_slope(jnp.asarray(theta), jnp.asarray(psi))
+    """The step QP (Q, q, A, b, G, h), dynamics, step info and leg modes of step `i` of
+    the cycle planned on the slope (theta, psi), as one jitted program (op by op it
+    compiled ~800 one-operation programs)."""
+    return _step_problem_jit(theta, psi, i, params, np.zeros(12) if tau_b is None else tau_b)
+
+
+@jax.jit
+def _step_problem_jit(theta, psi, i, params, tau_b):
+    terrain = gait.simple_slope(theta, psi)
     plan = gait.plan_cycle(params, WALK, terrain, CFG)
-    info = gait.step_info(jnp.asarray(i), CFG, params.dt)
+    info = gait.step_info(i, CFG, params.dt)
     dyn = forces.step_dynamics(params, WALK, plan, terrain, info, CFG)
-    ramp = jnp.where(info.phase == 1, 15.0 * (1 - info.fraction), 0.5 * WEIGHT * math.cos(theta) * info.fraction)
+    ramp = jnp.where(info.phase == 1, 15.0 * (1 - info.fraction), 0.5 * WEIGHT * jnp.cos(theta) * info.fraction)
     modes = forces.leg_modes(info, ramp)
-    r_ref = 0.5 * WEIGHT * math.cos(theta)
-    tau_b = jnp.zeros(12) if tau_b is None else tau_b
-    A, b, Gm, h = forces.build_constraints(params, dyn, modes, jnp.asarray(r_ref), jnp.asarray(-SET.s_tol * WEIGHT))
-    Q, q = forces.controller_cost(params, dyn, tau_b, jnp.asarray(float(params.h_c)), SET)
+    r_ref = 0.5 * WEIGHT * jnp.cos(theta)
+    A, b, Gm, h = forces.build_constraints(params, dyn, modes, r_ref, jnp.asarray(-SET.s_tol * WEIGHT))
+    Q, q = forces.controller_cost(params, dyn, tau_b, jnp.asarray(params.h_c, jnp.float64), SET)
     return (Q, q, A, b, Gm, h), dyn, info, modes
+
+
+def _solve(problem, params=P, iterations=SET.iterations):
+    """`qp.solve` of a step problem (jitted) with the controller's scaling and tolerance."""
+    return _solve_jit(problem, forces.x_scale(params, jnp.float64), iterations)
+
+
+@functools.partial(jax.jit, static_argnums=2)
+def _solve_jit(problem, x_scale, iterations):
+    return qp.solve(*problem, x_scale=x_scale, iterations=iterations, tol=SET.tol)
 
 
 def _clarabel(Q, q, A, b, Gm, h):
@@ -53,7 +71,7 @@ def _clarabel(Q, q, A, b, Gm, h):
 @pytest.mark.parametrize("step", [5, 60, 105, 140, 170, 185, 410])  # phases A, A, B, C, C, D, C
 def test_step_qp_matches_clarabel(step):
     problem, _, info, _ = _step_problem(0.2, 0.5, step, tau_b=jnp.linspace(-1.0, 1.0, 12))
-    ours = qp.solve(*problem, x_scale=forces.x_scale(P, jnp.float64), iterations=SET.iterations, tol=SET.tol)
+    ours = _solve(problem)
     ref = _clarabel(*problem)
     assert bool(ours.ok) and "Solved" in str(ref.status)
     # forces, s and r agree to a millionth of the robot's weight
@@ -86,7 +104,7 @@ def test_static_friction_limit_is_atan_mu(mu):
     for theta, feasible in ((limit - 0.004, True), (limit + 0.004, False)):
         problem, _, info, _ = _step_problem(theta, 0.0, 100, params=params)
         assert int(info.phase) == 1
-        sol = qp.solve(*problem, x_scale=forces.x_scale(params, jnp.float64), iterations=30, tol=SET.tol)
+        sol = _solve(problem, params, iterations=30)
         assert bool(sol.ok) == feasible, (mu, theta)
 
 

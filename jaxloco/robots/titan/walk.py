@@ -20,6 +20,8 @@ simulated analysis `titan.walk` (`sim_analysis.py`, spec `titan_long_walk`) exec
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -35,8 +37,22 @@ STEPS_PER_CYCLE = 6
 # (benchmarks/titan_walks.py); without it a foot planned 5 cm from a frame touched it
 PLACEMENT_MARGIN = 0.05
 
-# one compilation per (map shape, n_cycles): every walk on the same grid reuses it
+# One compilation per (map shape, n_cycles): every walk on the same grid reuses it. The
+# set-up around the planner (maps, start pose, executor plan) is jitted too: run op by op
+# it compiled ~500 one-operation programs in each new process (about 16 s before the
+# first row of a titan.walk sweep, against 0.2 s jitted; benchmarks: see `plan_on_map`).
 _plan_cycles = jax.jit(titan_gait.plan_cycles, static_argnames="n_cycles")
+_frame_grid_map = jax.jit(maps.frame_grid_map, static_argnames="shape")
+_standard_start = jax.jit(titan_gait.standard_start)
+_map_to_world = jax.jit(maps.map_to_world)
+
+
+@jax.jit
+def _free_starts(params: titan_params.TitanParams, gmap: maps.GridMap, cand, direction):
+    """Whether the standard start with the COG at each candidate map xy (K, 2) along
+    `direction` has all four feet on free cells (K,)."""
+    feet = jax.vmap(lambda xy: titan_gait.standard_start(params, gmap, xy, direction).feet)(cand)
+    return ~maps.sample_forbidden(gmap, feet[..., :2]).any(axis=1)
 
 
 def sim_map(
@@ -53,13 +69,13 @@ def sim_map(
     the pad plus `margin` off the frames (the executor's placement error)."""
     origin = -0.5 * np.asarray(shape, float) * cell
     half = 0.5 * spacing
-    return maps.frame_grid_map(
-        shape,
-        jnp.asarray(origin),
-        jnp.asarray(cell),
+    return _frame_grid_map(
+        tuple(shape),
+        origin,
+        np.float64(cell),
         frame_size,
         spacing,
-        jnp.array([half, half]),
+        np.array([half, half]),
         slope,
         foot_radius=float(titan_params.FOOT_RADIUS) + margin,
     )
@@ -76,11 +92,11 @@ def executor_plan(
     n_steps = feet.shape[0]
     n_cycles = n_steps // STEPS_PER_CYCLE
     body = np.asarray(gait.cog_world, float)
-    body0 = np.asarray(maps.map_to_world(gmap, start.cog), float)
-    feet0 = np.asarray(maps.map_to_world(gmap, start.feet), float)
+    body0 = np.asarray(_map_to_world(gmap, start.cog), float)
+    feet0 = np.asarray(_map_to_world(gmap, start.feet), float)
     dirs = np.broadcast_to(np.asarray(direction, float), (n_cycles,))
     d_map = np.stack([np.cos(dirs), np.sin(dirs), np.zeros_like(dirs)], axis=1)
-    d_world = np.asarray(maps.map_to_world(gmap, jnp.asarray(d_map)), float)
+    d_world = np.asarray(_map_to_world(gmap, d_map), float)
     cycle_start = np.concatenate(
         [body0[None], body[STEPS_PER_CYCLE - 1 :: STEPS_PER_CYCLE][:-1]]
     )
@@ -129,13 +145,9 @@ def clear_start(
     ticks = np.arange(-0.5 * search, 0.5 * search + 1e-9, step)
     cand = near + np.stack(np.meshgrid(ticks, ticks, indexing="ij"), -1).reshape(-1, 2)
     cand = cand[np.argsort(np.linalg.norm(cand - near, axis=1), kind="stable")]
-    feet = jax.vmap(lambda xy: titan_gait.standard_start(params, gmap, xy, direction).feet)(
-        jnp.asarray(cand)
-    )
-    free = ~np.asarray(maps.sample_forbidden(gmap, feet[..., :2])).any(axis=1)
+    free = np.asarray(_free_starts(params, gmap, cand, direction))
     if free.any():
-        xy = jnp.asarray(cand[int(np.argmax(free))])
-        return titan_gait.standard_start(params, gmap, xy, direction)
+        return _standard_start(params, gmap, cand[int(np.argmax(free))], direction)
     start = titan_gait.standard_start(params, gmap, jnp.asarray(near), direction)
     centres = np.asarray(
         maps.cell_centres(gmap.forbidden.shape, gmap.origin, gmap.cell)
@@ -175,10 +187,10 @@ def plan_on_map(
     sets the start pose). Returns the executor plan, the planner's output and the
     executor's scalar params for the simulated terrain (theta, direction, spacing,
     beam_height, tether, s_ne_c)."""
-    dirs = jnp.broadcast_to(jnp.asarray(direction, float), (n_cycles,))
+    dirs = np.broadcast_to(np.asarray(direction, float), (n_cycles,))
     start = clear_start(params, gmap, near_xy, float(dirs[0]))
     gait = _plan_cycles(params, gmap, start, n_cycles=n_cycles, direction=dirs)
-    plan = executor_plan(gait, start, gmap, np.asarray(dirs))
+    plan = executor_plan(gait, start, gmap, dirs)
     scalars = {
         "theta": float(slope),
         "direction": 0.0,
@@ -234,19 +246,18 @@ def surveyed_map(field: scenarios.FrameField, spacing: float, frame_size: float,
     (`maps.map_from_survey`, Sec. 8.2.1 steps 2-4), on a grid centred on the origin;
     forbidden cells keep the pad plus `margin` off the surveyed frames. The survey is in
     the plane's own frame (on a slope: x up the fall line), the map's `slope` places it."""
+    return _surveyed_map(field, spacing, frame_size, noise, key, tuple(shape), float(titan_params.FOOT_RADIUS) + margin,
+                         slope)
+
+
+@functools.partial(jax.jit, static_argnames=("field", "shape"))
+def _surveyed_map(field, spacing, frame_size, noise, key, shape, foot_radius, slope) -> maps.GridMap:
+    """`surveyed_map` as one program per field and map shape (survey and map traced)."""
     nodes, centres = field_survey(field, spacing, frame_size, noise, key)
     origin = -0.5 * np.asarray(shape, float) * float(titan_params.CELL)
-    return maps.map_from_survey(
-        nodes,
-        centres,
-        frame_size,
-        frame_size,
-        shape,
-        jnp.asarray(origin),
-        jnp.asarray(float(titan_params.CELL)),
-        foot_radius=float(titan_params.FOOT_RADIUS) + margin,
-        slope=slope,
-    )
+    cell = float(titan_params.CELL)
+    return maps.map_from_survey(nodes, centres, frame_size, frame_size, shape, jnp.asarray(origin),
+                                jnp.asarray(cell), foot_radius=foot_radius, slope=slope)
 
 
 def converged(gait: titan_gait.GaitPlan, params: titan_params.TitanParams, last: int = 2) -> bool:
