@@ -2,6 +2,8 @@
 case exactly, the Table 2 patterns, exactness of the groping region against Eq. 8
 solved pointwise, and the union identities used by the planner."""
 
+from types import SimpleNamespace
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -15,6 +17,12 @@ HALF = jnp.asarray(0.5)
 # distances of many points at once (one compiled call instead of op-by-op loops)
 poly_dist = jax.jit(jax.vmap(geo.polygon_signed_distance, (0, None, None)))
 union_dist = jax.jit(jax.vmap(regions.union_signed_distance, (0, None, None)))
+# the regions jitted: one program per function and shape (run op by op, these tests
+# compiled ~1,300 one-operation programs, ~20 ms each in a new process)
+J = SimpleNamespace(**{name: jax.jit(getattr(regions, name)) for name in (
+    "cog_region", "cog_region_pattern", "grope_feasible_region", "groping_region", "groping_region_all",
+    "groping_region_fixed_cog", "groping_region_pattern", "groping_regions_fixed_cog", "_grope_weights_polygon")},
+    convex_hull=jax.jit(geo.convex_hull))
 
 
 def _same_polygon(vertices, valid, expected):
@@ -25,26 +33,26 @@ def _same_polygon(vertices, valid, expected):
 
 
 def test_cog_region_half_is_medial_triangle():
-    v, ok = regions.cog_region(PI, PJ, PK, HALF, HALF, HALF)
+    v, ok = J.cog_region(PI, PJ, PK, HALF, HALF, HALF)
     _same_polygon(v, ok, [(PI + PJ) / 2, (PJ + PK) / 2, (PK + PI) / 2])
 
 
 def test_groping_region_fixed_cog_half_is_congruent_triangle():
     pg = jnp.array([0.45, 0.3])
-    v, ok = regions.groping_region_fixed_cog(pg, PI, PJ, HALF, HALF, HALF)
+    v, ok = J.groping_region_fixed_cog(pg, PI, PJ, HALF, HALF, HALF)
     # congruent to triangle (p_g, p_i, p_j): its point reflection through p_g (Fig. 4b)
     _same_polygon(v, ok, [pg, 2 * pg - PI, 2 * pg - PJ])
 
 
 def test_groping_region_half_is_trapezoid_and_union_is_antimedial_triangle():
-    v, ok = regions.groping_region(PI, PJ, PK, HALF, HALF, HALF, HALF)
+    v, ok = J.groping_region(PI, PJ, PK, HALF, HALF, HALF, HALF)
     _same_polygon(v, ok, [PI, PJ, PK + PI - PJ, PK + PJ - PI])  # Fig. 4c
-    V, OK = regions.groping_region_all(jnp.stack([PI, PJ, PK]), jnp.full(3, 0.5), HALF)
+    V, OK = J.groping_region_all(jnp.stack([PI, PJ, PK]), jnp.full(3, 0.5), HALF)
     anti = np.array([PJ + PK - PI, PK + PI - PJ, PI + PJ - PK])  # Fig. 4d
     rng = np.random.default_rng(1)
     pts = rng.uniform(-1.5, 2.5, (400, 2))
     in_union = np.asarray(union_dist(jnp.asarray(pts), V, OK)) > 1e-9
-    tri_v, tri_ok = geo.convex_hull(jnp.asarray(anti), jnp.ones(3, bool))
+    tri_v, tri_ok = J.convex_hull(jnp.asarray(anti), jnp.ones(3, bool))
     in_anti = np.asarray(poly_dist(jnp.asarray(pts), tri_v, tri_ok)) > 1e-9
     assert in_union.sum() > 20
     np.testing.assert_array_equal(in_union, in_anti)
@@ -65,8 +73,8 @@ def test_groping_region_half_is_trapezoid_and_union_is_antimedial_triangle():
 )
 def test_table2a_patterns(h, pattern, n_vertices):
     h = tuple(jnp.asarray(x) for x in h)
-    assert int(regions.cog_region_pattern(*h)) == pattern
-    _, ok = regions.cog_region(PI, PJ, PK, *h)
+    assert int(J.cog_region_pattern(*h)) == pattern
+    _, ok = J.cog_region(PI, PJ, PK, *h)
     assert int(jnp.sum(ok)) == n_vertices
 
 
@@ -76,8 +84,8 @@ def test_table2a_patterns(h, pattern, n_vertices):
 )
 def test_table2b_patterns(h, pattern, n_vertices):
     h = tuple(jnp.asarray(x) for x in h)
-    assert int(regions.groping_region_pattern(*h)) == pattern
-    _, ok = regions.groping_region_fixed_cog(jnp.array([0.45, 0.3]), PI, PJ, *h)
+    assert int(J.groping_region_pattern(*h)) == pattern
+    _, ok = J.groping_region_fixed_cog(jnp.array([0.45, 0.3]), PI, PJ, *h)
     assert int(jnp.sum(ok)) == n_vertices
 
 
@@ -92,7 +100,7 @@ def test_groping_region_is_exactly_eq8(h):
     """Inside the polygon <=> the weights of Eq. 7 satisfy Eq. 8 (checked pointwise)."""
     hi, hj, hg = h
     pg = jnp.array([0.45, 0.3])
-    v, ok = regions.groping_region_fixed_cog(pg, PI, PJ, *map(jnp.asarray, h))
+    v, ok = J.groping_region_fixed_cog(pg, PI, PJ, *map(jnp.asarray, h))
     rng = np.random.default_rng(2)
     inside_count = 0
     pts = np.asarray(v)[np.asarray(ok)]
@@ -117,7 +125,7 @@ def test_printed_eq10_is_only_a_relaxation():
     p = (1 + a + b) * pg - a * np.asarray(PI) - b * np.asarray(PJ)
     wi, _, wg = _eq8_weights(p, pg, np.asarray(PI), np.asarray(PJ))
     assert wi > hi  # ... but h^_i = a h_grp exceeds h_ref^i: Eq. 8 is violated
-    v, ok = regions.groping_region_fixed_cog(jnp.asarray(pg), PI, PJ, *map(jnp.asarray, (hi, hj, hg)))
+    v, ok = J.groping_region_fixed_cog(jnp.asarray(pg), PI, PJ, *map(jnp.asarray, (hi, hj, hg)))
     assert float(geo.polygon_signed_distance(jnp.asarray(p), v, ok)) < 0
 
 
@@ -125,13 +133,13 @@ def test_grope_feasible_region_contains_union_and_equals_it_at_half():
     stance = jnp.stack([PI, PJ, PK])
     pg = jnp.array([0.45, 0.35])
     # h_ref = 1/2: reflection of the stance triangle through the COG
-    v, ok = regions.grope_feasible_region(pg, stance, jnp.full(3, 0.5), HALF)
+    v, ok = J.grope_feasible_region(pg, stance, jnp.full(3, 0.5), HALF)
     _same_polygon(v, ok, [2 * pg - PI, 2 * pg - PJ, 2 * pg - PK])
     # general h_ref: every point of some pi_grp,g is in the step-D region
     h = jnp.array([0.55, 0.45, 0.6])
     hg = jnp.asarray(0.45)
-    Vf, OKf = regions.groping_regions_fixed_cog(pg, stance, h, hg)
-    vd, okd = regions.grope_feasible_region(pg, stance, h, hg)
+    Vf, OKf = J.groping_regions_fixed_cog(pg, stance, h, hg)
+    vd, okd = J.grope_feasible_region(pg, stance, h, hg)
     rng = np.random.default_rng(3)
     pts = jnp.asarray(rng.uniform(-1.0, 2.0, (400, 2)))
     in_union = np.asarray(union_dist(pts, Vf, OKf)) > 1e-9
@@ -143,9 +151,9 @@ def test_groping_region_union_is_hull_of_vertex_images():
     """pi_grp (float leg k) equals the union over COGs in pi_g of pi_grp,g: every sampled
     (COG, a, b) image lies inside, and the polygon's vertices are attained."""
     h = tuple(jnp.asarray(x) for x in (0.55, 0.45, 0.6, 0.5))
-    v, ok = regions.groping_region(PI, PJ, PK, *h)
-    cog_v, cog_ok = regions.cog_region(PI, PJ, PK, *h[:3])
-    ab_v, ab_ok = regions._grope_weights_polygon(h[0], h[1], h[3])
+    v, ok = J.groping_region(PI, PJ, PK, *h)
+    cog_v, cog_ok = J.cog_region(PI, PJ, PK, *h[:3])
+    ab_v, ab_ok = J._grope_weights_polygon(h[0], h[1], h[3])
     cv, av = np.asarray(cog_v)[np.asarray(cog_ok)], np.asarray(ab_v)[np.asarray(ab_ok)]
     rng = np.random.default_rng(4)
     c = rng.dirichlet(np.ones(len(cv)), 300) @ cv

@@ -129,7 +129,7 @@ def test_foothold_offset_is_the_toes_distance_from_its_pad_in_the_slope_plane(wa
     in the collapsed pad's hole during the retry is not counted)."""
     _, r = walk
     p = {k: jnp.asarray(v[0]) for k, v in scenarios.params_batch(1, theta=THETA).items()}
-    t = control.walk_targets(p, jax.random.PRNGKey(0), gait.DESIGNS["mirrored"])
+    t = jax.jit(lambda p, key: control.walk_targets(p, key, gait.DESIGNS["mirrored"]))(p, jax.random.PRNGKey(0))
     feet0, n0 = np.asarray(t.feet0), np.asarray(t.normals0)
     first = np.nonzero((r.records["grope"][0] == 0) & (r.records["phase"][0] == control.A))[0]
     assert len(first) > 3

@@ -271,15 +271,16 @@ def test_operator_is_separate_and_off_by_default():
         np.testing.assert_allclose(operator.steer(fixed, jnp.asarray(0.2), 0.05), fixed)
     ctrl = clm.make_controller()
     op = operator.with_operator(ctrl)
+    init, step, op_step = jax.jit(ctrl.init), jax.jit(ctrl.step), jax.jit(op.step)  # one program each
     p = {k: jnp.asarray(v) for k, v in scenarios.PARAM_DEFAULTS.items()}
     obs = _obs_at(0.3)
-    s = ctrl.init(p, obs)
-    np.testing.assert_allclose(op.step(p, s, obs)[1], ctrl.step(p, s, obs)[1])
+    s = init(p, obs)
+    np.testing.assert_allclose(op_step(p, s, obs)[1], step(p, s, obs)[1])
     for yaw in (0.3, -0.3):
         obs = _obs_at(yaw, pitch=0.0, roll=0.0)
-        s = ctrl.init(p, obs)
-        a = np.asarray(op.step({**p, "operator_gain": jnp.asarray(0.1)}, s, obs)[1])
-        b = np.asarray(ctrl.step(p, s, obs)[1])
+        s = init(p, obs)
+        a = np.asarray(op_step({**p, "operator_gain": jnp.asarray(0.1)}, s, obs)[1])
+        b = np.asarray(step(p, s, obs)[1])
         if b[0] == b[1] > 0:  # driving straight: steered against the yaw
             assert np.sign(a[0] - a[1]) == np.sign(yaw)
         np.testing.assert_allclose(a[2:], b[2:])

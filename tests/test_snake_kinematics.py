@@ -18,6 +18,10 @@ MODES = np.asarray(params.MODES)
 ALL_GROUNDED = np.ones(params.N_PAIRS_BASE, bool)
 _C = jax.jit(kinematics.constraint_on_velocity, static_argnames="point")
 _AUG = jax.jit(kinematics.augmented_matrices, static_argnames="point")
+# jitted: one program each, not one per operation (~20 ms each in a new process)
+_CONSTRAINTS = jax.jit(kinematics.constraint_matrices)
+_BASE_POSE = jax.jit(kinematics.base_frame_pose)
+_TIP = jax.jit(kinematics.tip_from_head)
 
 
 def _config(seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -26,7 +30,7 @@ def _config(seed: int) -> tuple[np.ndarray, np.ndarray]:
     phi = params.INITIAL_PHI + rng.uniform(-0.3, 0.3, params.N_PHI)
     phi[params.N_H :] = rng.uniform(-0.7, 0.7, params.N_B)  # bent base
     base = np.array([rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-3, 3)])
-    w_h = np.asarray(kinematics.base_frame_pose(jnp.asarray(base), jnp.asarray(phi)))
+    w_h = np.asarray(_BASE_POSE(jnp.asarray(base), jnp.asarray(phi)))
     return w_h, phi
 
 
@@ -38,8 +42,8 @@ def _null_space(C: np.ndarray, tol: float = 1e-9) -> np.ndarray:
 
 def test_shapes_and_block_structure():
     w_h, phi = _config(0)
-    w = np.asarray(kinematics.tip_from_head(jnp.asarray(w_h)))
-    A, B = kinematics.constraint_matrices(jnp.asarray(w), jnp.asarray(phi))
+    w = np.asarray(_TIP(jnp.asarray(w_h)))
+    A, B = _CONSTRAINTS(jnp.asarray(w), jnp.asarray(phi))
     assert A.shape == (17, 6) and B.shape == (
         17,
         19,
@@ -67,7 +71,7 @@ def test_rank_per_mode(seed):
     19 - 13 = 6 = n_h + n_bar + n_tilde - 4; all grounded: 17. A_tilde has full
     column rank (not singular), as Eq. 15 needs."""
     w_h, phi = _config(seed)
-    w = kinematics.tip_from_head(jnp.asarray(w_h))
+    w = _TIP(jnp.asarray(w_h))
     C_all = np.asarray(_C(w, jnp.asarray(phi), jnp.asarray(ALL_GROUNDED)))
     assert np.linalg.matrix_rank(C_all) == 17
     for sigma in range(params.N_MODES):
@@ -83,7 +87,7 @@ def test_rank_per_mode(seed):
 
 def test_modes_are_data_vmap_equals_loop():
     w_h, phi = _config(2)
-    w, phi = kinematics.tip_from_head(jnp.asarray(w_h)), jnp.asarray(phi)
+    w, phi = _TIP(jnp.asarray(w_h)), jnp.asarray(phi)
     f = jax.jit(jax.vmap(lambda g: kinematics.augmented_matrices(w, phi, g)))
     At_v, Bt_v = f(jnp.asarray(MODES))
     for sigma in range(params.N_MODES):
@@ -149,7 +153,7 @@ def test_null_space_velocity_moves_the_robot_without_side_slip(point):
     for seed in (4, 5):
         w_h, phi = _config(seed)
         _mujoco_state(m, d, w_h, phi)
-        w = w_h if point == "head" else np.asarray(kinematics.tip_from_head(jnp.asarray(w_h)))
+        w = w_h if point == "head" else np.asarray(_TIP(jnp.asarray(w_h)))
         J = np.eye(6) if point == "head" else np.asarray(to_head(jnp.asarray(w)))
         for sigma in range(params.N_MODES):
             grounded = MODES[sigma]

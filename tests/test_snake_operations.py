@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -206,19 +207,27 @@ DOOR_POSTURES = {
 def _sideways(name):
     """Eq. 13 (k_eta = 0, mode 1) for the tip moving 0.1 m/s to the right (the door's
     arc), and the smallest singular value of B~ W^-1/2 (the kept rows)."""
+    from jaxloco.robots.snake import control
+
+    phi, base = (np.asarray(x, float) for x in DOOR_POSTURES[name])
+    cp = control.ControlParams(k_eta=0.0)
+    u, Bt, keep = _sideways_terms(phi, base, cp)
+    s = np.linalg.svd(np.asarray(Bt)[np.asarray(keep)] / np.sqrt(np.asarray(cp.weights))[None], compute_uv=False)
+    return np.asarray(u), s[-1]
+
+
+@jax.jit
+def _sideways_terms(phi, base, cp):
+    """Eq. 13's u, B~ and the kept rows (mode 1) at posture (phi, base), one program."""
     from jaxloco.robots.snake import control, kinematics
 
-    phi, base = (jnp.asarray(x, float) for x in DOOR_POSTURES[name])
     est = kinsim.SnakeState(base, phi, jnp.zeros(7))
     w = kinsim.point_pose(est)
     g = control.grounded_of(1)
-    cp = control.ControlParams(k_eta=0.0)
     At, Bt = kinematics.augmented_matrices(w, phi, g)
     wd_dot = jnp.zeros(7).at[1].set(-0.1)
     u = control.control_terms(w, phi, control.controlled_variable(w, phi), wd_dot, g, cp, None, "tip", (At, Bt)).u
-    keep = np.asarray(control.keep_rows(g))
-    s = np.linalg.svd(np.asarray(Bt)[keep] / np.sqrt(np.asarray(cp.weights))[None], compute_uv=False)
-    return np.asarray(u), s[-1]
+    return u, Bt, control.keep_rows(g)
 
 
 def test_the_doors_sideways_pull_folds_the_head_part_into_a_singular_pose():

@@ -6,6 +6,7 @@ feedforward (`control.load_feedforward`). One batch of six simulations compiled 
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -129,6 +130,7 @@ def test_load_shares_are_the_statics_of_the_support():
 
 
 def test_support_shift_follows_the_feet_slip_in_the_plane():
+    support_shift = jax.jit(control.support_shift, static_argnums=1)  # one program, not one per operation
     walk = scenarios.demo_crawl_plan(1)
     p = {k: jnp.asarray(v[0]) for k, v in scenarios.params_batch([walk]).items()}
     n_steps = walk.n_steps
@@ -139,12 +141,12 @@ def test_support_shift_follows_the_feet_slip_in_the_plane():
     swing_off = jnp.zeros((4, 3)).at[int(walk.swing[3])].set(jnp.array([0.3, 0.0, 0.4]))
     # every supporting foot slid by `slip` in the plane: the COG target moves with them, exactly
     feet = planned + slip + swing_off
-    shift = control.support_shift(p, n_steps, now, {"feet": feet})
+    shift = support_shift(p, n_steps, now, {"feet": feet})
     np.testing.assert_allclose(shift, slip, atol=1e-6)
     # the feet also rose 5 mm: the shift stays in the plane, and the COG, now lower against the
     # tipping axes, needs a slightly different shift to keep each edge's energy margin
-    risen = control.support_shift(p, n_steps, now, {"feet": feet + jnp.array([0.0, 0.0, 0.005])})
+    risen = support_shift(p, n_steps, now, {"feet": feet + jnp.array([0.0, 0.0, 0.005])})
     assert float(risen[2]) == 0.0
     assert 1e-5 < float(jnp.linalg.norm(risen - slip)) < 2e-3
-    assert float(jnp.linalg.norm(control.support_shift({**p, "support_relative": 0.0}, n_steps, now,
+    assert float(jnp.linalg.norm(support_shift({**p, "support_relative": 0.0}, n_steps, now,
                                                        {"feet": feet}))) == 0.0

@@ -22,6 +22,7 @@ free cell keeps its whole pad off the frames.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -164,6 +165,7 @@ def _frames_map(dist, size, cell, origin, slope, foot_radius, ground) -> GridMap
     )
 
 
+@functools.partial(jax.jit, static_argnames="shape")  # one program per map shape, not one per operation
 def frame_grid_map(
     shape: tuple[int, int],
     origin: Array,
@@ -287,6 +289,7 @@ def _segment_distance_2d(q: Array, a: Array, b: Array) -> Array:
     return jnp.linalg.norm(q - (a + t * ab))
 
 
+@functools.partial(jax.jit, static_argnames="shape")  # one program per map shape, not one per operation
 def map_from_survey(
     nodes: Array,
     centres: Array,

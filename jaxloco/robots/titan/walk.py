@@ -42,7 +42,6 @@ PLACEMENT_MARGIN = 0.05
 # it compiled ~500 one-operation programs in each new process (about 16 s before the
 # first row of a titan.walk sweep, against 0.2 s jitted; benchmarks: see `plan_on_map`).
 _plan_cycles = jax.jit(titan_gait.plan_cycles, static_argnames="n_cycles")
-_frame_grid_map = jax.jit(maps.frame_grid_map, static_argnames="shape")
 _standard_start = jax.jit(titan_gait.standard_start)
 _map_to_world = jax.jit(maps.map_to_world)
 
@@ -69,7 +68,7 @@ def sim_map(
     the pad plus `margin` off the frames (the executor's placement error)."""
     origin = -0.5 * np.asarray(shape, float) * cell
     half = 0.5 * spacing
-    return _frame_grid_map(
+    return maps.frame_grid_map(
         tuple(shape),
         origin,
         np.float64(cell),
