@@ -190,7 +190,8 @@ def value_and_grad(loss_fn: Callable, mode: str = "reverse", names: list[str] | 
     tangent per differentiated input). With one entry, one `jax.jvp` with a unit
     tangent: the same numbers, without `jacfwd`'s vmap over the tangents, which costs
     an MJX rollout's trace a batching pass over every `cond` of its scan body (the
-    snake's reach loss: trace 17.6 -> 7.0 s, XLA compile 28.2 -> 19.5 s, cold)."""
+    snake's reach loss, one process with an empty cache: traced in 6.7 s instead of
+    14.6, compiled in 23.1 s instead of 25.6)."""
     import jax
     import jax.numpy as jnp
 
