@@ -54,6 +54,9 @@ SCEN = [
 ]
 
 
+_standard_start = jax.jit(gait.standard_start)  # one program, not one per operation
+
+
 def _map(size, interval, off, slope=0.0):
     return titan_maps.frame_grid_map(
         SHAPE, ORIGIN, CELL, size, interval, jnp.array([off, off]), slope
@@ -69,7 +72,7 @@ def scenarios():
         )
         d = jnp.radians(jnp.array(deg, float))
         maps.append(g)
-        starts.append(gait.standard_start(PAR, g, jnp.array(xy), d[0]))
+        starts.append(_standard_start(PAR, g, jnp.array(xy), d[0]))
         dirs.append(d)
     stack = lambda xs: jax.tree_util.tree_map(lambda *a: jnp.stack(a), *xs)
     gm, st, dr = stack(maps), stack(starts), jnp.stack(dirs)
@@ -423,7 +426,8 @@ def test_grad_of_standard_stance_margin_wrt_lateral_shift():
         mask = jnp.array([True, True, False, True])  # LR about to swing
         return stab.ne_stability_margin(s.cog, s.feet, mask)
 
-    gr = jax.grad(margin)(1.0)
+    gr = jax.jit(jax.grad(margin))(1.0)  # jitted: one program, not one per operation
+    margin = jax.jit(margin)
     fd = (margin(1.0 + 1e-6) - margin(1.0 - 1e-6)) / 2e-6
     assert float(gr) > 0  # a larger zigzag moves the COG away from the diagonal
     assert float(gr) == pytest.approx(float(fd), rel=1e-6)

@@ -121,12 +121,18 @@ DOOR_APPROACH = math.atan2(DOOR_TIP_BEHIND + TIP_AHEAD, DOOR_RADIUS)
 VALVE_HORIZON = 10.0  # [s]
 
 
+@jax.jit
+def _tip_pose(base: jax.Array, phi: jax.Array) -> jax.Array:
+    """The gripper tip's pose (6,) for the base pose (x, y, heading) and joint angles
+    phi (12,): one program (this module computes `door_start` at import; op by op that
+    compiled ~50 one-operation programs in every process)."""
+    return kinematics.tip_from_head(kinematics.base_frame_pose(base, phi))
+
+
 def initial_tip() -> np.ndarray:
     """The gripper tip's pose (6,) in the Sec. V-A posture, base at the origin [m, rad]."""
     with jax.enable_x64(True):
-        return np.asarray(
-            kinematics.tip_from_head(kinematics.base_frame_pose(jnp.zeros(3), jnp.asarray(snake_params.INITIAL_PHI)))
-        )
+        return np.asarray(_tip_pose(np.zeros(3), np.asarray(snake_params.INITIAL_PHI, float)))
 
 
 def _add_gripper(spec: mujoco.MjSpec) -> None:
@@ -267,8 +273,7 @@ def door_start(approach: float = DOOR_APPROACH) -> dict[str, Any]:
     phi0[0] = -approach
     with jax.enable_x64(True):
         def tip(x0, y0):
-            base = jnp.asarray([x0, y0, approach], float)
-            return np.asarray(kinematics.tip_from_head(kinematics.base_frame_pose(base, jnp.asarray(phi0))))
+            return np.asarray(_tip_pose(np.array([x0, y0, approach], float), phi0))
 
         shift = initial_tip()[:2] - tip(0.0, 0.0)[:2]
     return {"phi0": phi0, "heading0": float(approach), "x0": float(shift[0]), "y0": float(shift[1])}
