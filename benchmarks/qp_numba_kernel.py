@@ -1,0 +1,666 @@
+"""An experiment: `jaxloco.qp.solve` as one compiled CPU kernel over a batch (numba),
+measured beside the XLA form and daqp on one core.
+
+    pip install -e ".[bench]"
+    python benchmarks/qp_numba_kernel.py [--float32] [--batch 2000] [--iterations 16,20]
+
+Why: under `jax.vmap` the XLA form of the interior-point method runs about 85 small
+kernels per iteration, and their overhead, not the arithmetic, bounds it on a CPU (README,
+performance). Here the solve of a whole batch is one compiled loop: the batch is taken
+`LANES` problems at a time, every scalar of the method held across the lanes (the
+fastest axis), so that each scalar operation can become one SIMD instruction.
+
+Layout: every scratch array is a region of one flat buffer at an offset fixed at compile
+time (the sizes n, m, p are `numba.literally` constants), so the compiler can prove the
+regions disjoint and vectorize across the lanes; that needs numba's SLP vectorizer,
+which `main` switches on (`numba.config.SLP_VECTORIZE`, off by default). A region X of
+shape (d1, d2, LANES) is read as buf[oX + (i * d2 + j) * LANES + lane].
+
+The same method and results as `jaxloco.qp.solve` (differentiable=False) up to rounding,
+checked by `main`: the problem checked for finite values and scaled as `qp.solve` scales
+it, the equalities removed by a Householder QR of A^T, CVXOPT's start, `iterations`
+Mehrotra steps with s and z floored at sqrt(eps), y by least squares, the scaled
+residuals, ok, and the answer in the caller's units.
+
+Not used by the library: see the README's performance notes for what it measured and why
+it was not adopted (no gradient, a CPU-only custom call to bind, a ~30 s compile per
+problem size and dtype, and on f64 about 1.5x the XLA form per core, not 2x daqp).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+LANES = 8  # problems per SIMD pass
+_NB = {"cache": True, "nogil": True, "error_model": "numpy", "inline": "always"}
+
+
+@nb.njit(**_NB)
+def _nanmax(acc, v):
+    """max(acc, v), NaN once either is NaN (as jnp.max)."""
+    return v if (v > acc or v != v) else acc
+
+
+@nb.njit(**_NB)
+def _fill(buf, o, count, value):
+    for i in range(count):
+        buf[o + i] = value
+
+
+@nb.njit(**_NB)
+def _matvec(buf, oM, ov, oout, rows, cols):
+    """out = M v per lane; M (rows, cols, W), v (cols, W), out (rows, W). Accumulated
+    column by column, so consecutive updates go to different rows (no dependency chain)."""
+    W = LANES
+    for i in range(rows):
+        for lane in range(W):
+            buf[oout + i * W + lane] = 0
+    for j in range(cols):
+        for i in range(rows):
+            for lane in range(W):
+                buf[oout + i * W + lane] += buf[oM + (i * cols + j) * W + lane] * buf[ov + j * W + lane]
+
+
+@nb.njit(**_NB)
+def _max_step(buf, ov, odv, oout, p, one):
+    """out = the largest alpha in [0, 1] with v + alpha dv >= 0, per lane (v > 0)."""
+    W = LANES
+    for lane in range(W):
+        buf[oout + lane] = one
+    for r in range(p):
+        for lane in range(W):
+            dv = buf[odv + r * W + lane]
+            a = -buf[ov + r * W + lane] / dv if dv < 0 else one
+            buf[oout + lane] = a if a < buf[oout + lane] else buf[oout + lane]
+
+
+@nb.njit(**_NB)
+def _cholesky_packed(buf, oH, oL, k, one):
+    """L L^T = H per lane; both (k(k+1)/2, W), lower triangles packed row by row.
+    Right-looking: each entry sees the same subtractions, in the same order, as in
+    `linalg.cholesky_packed_scalars`."""
+    W = LANES
+    for t in range(k * (k + 1) // 2):
+        for lane in range(W):
+            buf[oL + t * W + lane] = buf[oH + t * W + lane]
+    for j in range(k):
+        jj = j * (j + 1) // 2 + j
+        for lane in range(W):
+            buf[oL + jj * W + lane] = np.sqrt(buf[oL + jj * W + lane])
+        for i in range(j + 1, k):
+            ij = i * (i + 1) // 2 + j
+            for lane in range(W):
+                buf[oL + ij * W + lane] = buf[oL + ij * W + lane] * (one / buf[oL + jj * W + lane])
+        for i in range(j + 1, k):
+            ij = i * (i + 1) // 2 + j
+            for c in range(j + 1, i + 1):
+                ic = i * (i + 1) // 2 + c
+                cj = c * (c + 1) // 2 + j
+                for lane in range(W):
+                    buf[oL + ic * W + lane] -= buf[oL + ij * W + lane] * buf[oL + cj * W + lane]
+
+
+@nb.njit(**_NB)
+def _cho_solve(buf, oL, orhs, ox, k):
+    """x with L L^T x = rhs per lane (L packed as in `_cholesky_packed`), column by column."""
+    W = LANES
+    for i in range(k):
+        for lane in range(W):
+            buf[ox + i * W + lane] = buf[orhs + i * W + lane]
+    for c in range(k):
+        cc = c * (c + 1) // 2 + c
+        for lane in range(W):
+            buf[ox + c * W + lane] = buf[ox + c * W + lane] / buf[oL + cc * W + lane]
+        for i in range(c + 1, k):
+            for lane in range(W):
+                buf[ox + i * W + lane] -= buf[oL + (i * (i + 1) // 2 + c) * W + lane] * buf[ox + c * W + lane]
+    for c in range(k - 1, -1, -1):
+        cc = c * (c + 1) // 2 + c
+        for lane in range(W):
+            buf[ox + c * W + lane] = buf[ox + c * W + lane] / buf[oL + cc * W + lane]
+        for i in range(c):
+            for lane in range(W):
+                buf[ox + i * W + lane] -= buf[oL + (cc - c + i) * W + lane] * buf[ox + c * W + lane]
+
+
+@nb.njit(**_NB)
+def _newton_rhs(buf, oGr, ow, oD, orp, oQu, oqr, orhs, p, k):
+    """rhs = G^T (w - D r_p) - (Q u + q) per lane."""
+    W = LANES
+    for a in range(k):
+        for lane in range(W):
+            buf[orhs + a * W + lane] = -(buf[oQu + a * W + lane] + buf[oqr + a * W + lane])
+    for r in range(p):
+        for a in range(k):
+            for lane in range(W):
+                buf[orhs + a * W + lane] += buf[oGr + (r * k + a) * W + lane] * (
+                    buf[ow + r * W + lane] - buf[oD + r * W + lane] * buf[orp + r * W + lane])
+
+
+@nb.njit(**_NB)
+def _dot_lanes(buf, oa, sa, ob, sb, count, oacc):
+    """acc = sum_i a[i] b[i] per lane, a_i at oa + i * sa (lane-strided regions)."""
+    W = LANES
+    for lane in range(W):
+        buf[oacc + lane] = 0
+    for i in range(count):
+        for lane in range(W):
+            buf[oacc + lane] += buf[oa + i * sa + lane] * buf[ob + i * sb + lane]
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out, obj_out, res_out, ok_out,
+                   xs_out, ys_out, zs_out, s_out, n, m, p):
+    """`jaxloco.qp.solve` for B problems in the caller's units: Q (B, n, n), q (B, n),
+    A (B, m, n), b (B, m), G (B, p, n), h (B, p), x_scale d (B, n), all of one float
+    dtype; n, m, p their sizes (compile-time constants); `consts` (same dtype): 0.5, 1,
+    0.99, the floor sqrt(eps), the largest finite float, tol, p, 1e-12.
+
+    Writes, as `qp.solve` returns them: x (B, n), y (B, m), z (B, p), the objective (B,),
+    the scaled residuals (B, 3) (primal, dual, complementarity), ok (B,) (uint8); and
+    the scaled problem's sanitized iterate xs, ys, zs, s (what `qp._forward` returns,
+    for the gradient)."""
+    nb.literally(n)
+    nb.literally(m)
+    nb.literally(p)
+    nbatch = q.shape[0]
+    k = n - m
+    nt = k * (k + 1) // 2
+    W = LANES
+    half, one, p99, floor, big, tol, pf, tiny = (consts[0], consts[1], consts[2], consts[3], consts[4],
+                                                 consts[5], consts[6], consts[7])
+    zero = one - one
+    two = one + one
+    # regions of the scratch buffer: shape, then offset
+    oQ = 0                    # Q (n, n)
+    oq = oQ + n * n * W       # q (n)
+    oA = oq + n * W           # A (m, n)
+    ob = oA + m * n * W       # b (m)
+    oG = ob + m * W           # G (p, n)
+    oh = oG + p * n * W       # h (p)
+    oWm = oh + p * W          # A^T under the reflections (n, m)
+    oV = oWm + n * m * W      # reflectors (m, n)
+    obeta = oV + m * n * W    # (m)
+    oE = obeta + m * W        # [Y Z] (n, n)
+    oR = oE + n * n * W       # (m, m)
+    owv = oR + m * m * W      # (m)
+    ox0 = owv + m * W         # (n)
+    otn = ox0 + n * W         # (n)
+    ox = otn + n * W          # (n)
+    oy = ox + n * W           # (m)
+    oQZ = oy + m * W          # (n, k)
+    oQr = oQZ + n * k * W     # (k, k)
+    oGr = oQr + k * k * W     # (p, k)
+    oqr = oGr + p * k * W     # (k)
+    ohr = oqr + k * W         # (p)
+    oGG = ohr + p * W         # (p, nt)
+    oQlow = oGG + p * nt * W  # (nt)
+    oHl = oQlow + nt * W      # (nt)
+    oL = oHl + nt * W         # (nt)
+    ou = oL + nt * W          # (k)
+    oQu = ou + k * W
+    odu = oQu + k * W
+    oQdu = odu + k * W
+    orhs = oQdu + k * W
+    otk = orhs + k * W
+    os_ = otk + k * W         # (p) each
+    oz = os_ + p * W
+    oGu = oz + p * W
+    orp = oGu + p * W
+    oD = orp + p * W
+    ods = oD + p * W
+    odz = ods + p * W
+    odsa = odz + p * W
+    odza = odsa + p * W
+    oGdu = odza + p * W
+    ow = oGdu + p * W
+    ozp = ow + p * W
+    oa1 = ozp + p * W         # (W) each
+    oa2 = oa1 + W
+    oacc = oa2 + W
+    oacc2 = oacc + W
+    od = oacc2 + W            # x_scale (n)
+    ora = od + n * W          # row norms of A D (m)
+    org = ora + m * W         # row norms of G D (p)
+    oc = org + p * W          # objective scale (W)
+    ofin = oc + W             # 1 where the inputs are finite (W)
+    size = ofin + W
+    buf = np.zeros(size, q.dtype)
+
+    for start in range(0, nbatch, W):
+        # ---- load W problems (the last one repeated to fill the lanes), checked and scaled
+        for lane in range(W):
+            bi = min(start + lane, nbatch - 1)
+            # finite inputs: x - x is 0 for every finite x and NaN otherwise
+            chk = zero
+            dpos = True
+            for i in range(n):
+                dv = d[bi, i]
+                dpos = dpos and dv > 0
+                chk += (dv - dv) + (q[bi, i] - q[bi, i])
+                for j in range(n):
+                    chk += Q[bi, i, j] - Q[bi, i, j]
+            for i in range(m):
+                chk += b[bi, i] - b[bi, i]
+                for j in range(n):
+                    chk += A[bi, i, j] - A[bi, i, j]
+            for r in range(p):
+                hv = h[bi, r]
+                if not (hv == np.inf):  # h = +inf: a disabled row (G row 0, h 1)
+                    chk += hv - hv
+                    for j in range(n):
+                        chk += G[bi, r, j] - G[bi, r, j]
+            fin = dpos and chk == 0
+            buf[ofin + lane] = one if fin else zero
+            # a non-finite problem is swapped for a dummy: Q = I, A = eye(m, n), G = 0, h = 1
+            for i in range(n):
+                buf[od + i * W + lane] = d[bi, i] if fin else one
+            cmax = zero
+            for i in range(n):
+                di = buf[od + i * W + lane]
+                for j in range(n):
+                    qs = half * (Q[bi, i, j] + Q[bi, j, i]) if fin else (one if i == j else zero)
+                    v = di * qs * buf[od + j * W + lane]
+                    buf[oQ + (i * n + j) * W + lane] = v
+                    cmax = _nanmax(cmax, abs(v))
+                v = di * q[bi, i] if fin else zero
+                buf[oq + i * W + lane] = v
+                cmax = _nanmax(cmax, abs(v))
+            c = cmax if cmax > tiny else tiny
+            buf[oc + lane] = c
+            for i in range(n):
+                buf[oq + i * W + lane] = buf[oq + i * W + lane] / c
+                for j in range(n):
+                    buf[oQ + (i * n + j) * W + lane] = buf[oQ + (i * n + j) * W + lane] / c
+            for i in range(m):
+                nrm = zero
+                for j in range(n):
+                    v = A[bi, i, j] * buf[od + j * W + lane] if fin else (one if i == j else zero)
+                    buf[oA + (i * n + j) * W + lane] = v
+                    nrm = nrm + v * v
+                nrm = np.sqrt(nrm)
+                nrm = nrm if nrm > 0 else one
+                buf[ora + i * W + lane] = nrm
+                for j in range(n):
+                    buf[oA + (i * n + j) * W + lane] = buf[oA + (i * n + j) * W + lane] / nrm
+                buf[ob + i * W + lane] = (b[bi, i] if fin else zero) / nrm
+            for r in range(p):
+                on = fin and not (h[bi, r] == np.inf)
+                nrm = zero
+                for j in range(n):
+                    v = G[bi, r, j] * buf[od + j * W + lane] if on else zero
+                    buf[oG + (r * n + j) * W + lane] = v
+                    nrm = nrm + v * v
+                nrm = np.sqrt(nrm)
+                nrm = nrm if nrm > 0 else one
+                buf[org + r * W + lane] = nrm
+                for j in range(n):
+                    buf[oG + (r * n + j) * W + lane] = buf[oG + (r * n + j) * W + lane] / nrm
+                buf[oh + r * W + lane] = (h[bi, r] if on else one) / nrm
+
+        # ---- Householder QR of A^T (n, m): A^T = Y R, [Y Z] = E
+        for i in range(n):
+            for j in range(m):
+                for lane in range(W):
+                    buf[oWm + (i * m + j) * W + lane] = buf[oA + (j * n + i) * W + lane]
+        for j in range(m):
+            for i in range(n):
+                for lane in range(W):
+                    buf[oV + (j * n + i) * W + lane] = buf[oWm + (i * m + j) * W + lane] if i >= j else zero
+            _dot_lanes(buf, oV + j * n * W, W, oV + j * n * W, W, n, oacc)
+            for lane in range(W):
+                norm = np.sqrt(buf[oacc + lane])
+                alpha = -norm if buf[oWm + (j * m + j) * W + lane] >= 0 else norm
+                buf[oV + (j * n + j) * W + lane] -= alpha
+            _dot_lanes(buf, oV + j * n * W, W, oV + j * n * W, W, n, oacc)
+            for lane in range(W):
+                vv = buf[oacc + lane]
+                buf[obeta + j * W + lane] = two / vv if vv > 0 else zero
+            for c in range(m):
+                _dot_lanes(buf, oV + j * n * W, W, oWm + c * W, m * W, n, oacc)
+                for i in range(j, n):
+                    for lane in range(W):
+                        buf[oWm + (i * m + c) * W + lane] -= (
+                            buf[obeta + j * W + lane] * buf[oV + (j * n + i) * W + lane]) * buf[oacc + lane]
+        for i in range(m):
+            for c in range(m):
+                for lane in range(W):
+                    buf[oR + (i * m + c) * W + lane] = buf[oWm + (i * m + c) * W + lane] if c >= i else zero
+        for i in range(n):
+            for c in range(n):
+                for lane in range(W):
+                    buf[oE + (i * n + c) * W + lane] = one if i == c else zero
+        for j in range(m - 1, -1, -1):
+            for c in range(n):
+                _dot_lanes(buf, oV + j * n * W, W, oE + c * W, n * W, n, oacc)
+                for i in range(j, n):
+                    for lane in range(W):
+                        buf[oE + (i * n + c) * W + lane] -= (
+                            buf[obeta + j * W + lane] * buf[oV + (j * n + i) * W + lane]) * buf[oacc + lane]
+        # x0 = Y R^-T b
+        for i in range(m):
+            for lane in range(W):
+                buf[owv + i * W + lane] = buf[ob + i * W + lane]
+            for c in range(i):
+                for lane in range(W):
+                    buf[owv + i * W + lane] -= buf[oR + (c * m + i) * W + lane] * buf[owv + c * W + lane]
+            for lane in range(W):
+                buf[owv + i * W + lane] = buf[owv + i * W + lane] / buf[oR + (i * m + i) * W + lane]
+        for r in range(n):
+            _dot_lanes(buf, oE + r * n * W, W, owv, W, m, ox0 + r * W)
+
+        # ---- the reduced problem in u, x = x0 + Z u with Z = E[:, m:]
+        for i in range(n):
+            for a in range(k):
+                _dot_lanes(buf, oQ + i * n * W, W, oE + (m + a) * W, n * W, n, oQZ + (i * k + a) * W)
+        for a in range(k):
+            for c in range(k):
+                _dot_lanes(buf, oE + (m + a) * W, n * W, oQZ + c * W, k * W, n, oQr + (a * k + c) * W)
+        for a in range(k):
+            for c in range(a):
+                for lane in range(W):
+                    sym = half * (buf[oQr + (a * k + c) * W + lane] + buf[oQr + (c * k + a) * W + lane])
+                    buf[oQr + (a * k + c) * W + lane] = sym
+                    buf[oQr + (c * k + a) * W + lane] = sym
+        for r in range(p):
+            for a in range(k):
+                _dot_lanes(buf, oG + r * n * W, W, oE + (m + a) * W, n * W, n, oGr + (r * k + a) * W)
+        for i in range(n):
+            _dot_lanes(buf, oQ + i * n * W, W, ox0, W, n, oacc)
+            for lane in range(W):
+                buf[otn + i * W + lane] = buf[oacc + lane] + buf[oq + i * W + lane]
+        for a in range(k):
+            _dot_lanes(buf, oE + (m + a) * W, n * W, otn, W, n, oqr + a * W)
+        for r in range(p):
+            _dot_lanes(buf, oG + r * n * W, W, ox0, W, n, oacc)
+            for lane in range(W):
+                buf[ohr + r * W + lane] = buf[oh + r * W + lane] - buf[oacc + lane]
+        for i in range(k):
+            for j in range(i + 1):
+                t = i * (i + 1) // 2 + j
+                for lane in range(W):
+                    buf[oQlow + t * W + lane] = buf[oQr + (i * k + j) * W + lane]
+                for r in range(p):
+                    for lane in range(W):
+                        buf[oGG + (r * nt + t) * W + lane] = (
+                            buf[oGr + (r * k + i) * W + lane] * buf[oGr + (r * k + j) * W + lane])
+
+        # ---- CVXOPT's start: least squares with s = z = 1, shifted into the orthant
+        for t in range(nt):
+            for lane in range(W):
+                buf[oHl + t * W + lane] = buf[oQlow + t * W + lane]
+            for r in range(p):
+                for lane in range(W):
+                    buf[oHl + t * W + lane] += buf[oGG + (r * nt + t) * W + lane]
+        _cholesky_packed(buf, oHl, oL, k, one)
+        for a in range(k):
+            _dot_lanes(buf, oGr + a * W, k * W, ohr, W, p, orhs + a * W)
+            for lane in range(W):
+                buf[orhs + a * W + lane] -= buf[oqr + a * W + lane]
+        _cho_solve(buf, oL, orhs, ou, k)
+        _matvec(buf, oGr, ou, oGu, p, k)
+        _matvec(buf, oQr, ou, oQu, k, k)
+        for lane in range(W):
+            first = buf[oGu + lane] - buf[ohr + lane]
+            buf[oa1 + lane] = first  # max r
+            buf[oa2 + lane] = first  # min r
+        for r in range(1, p):
+            for lane in range(W):
+                rr = buf[oGu + r * W + lane] - buf[ohr + r * W + lane]
+                buf[oa1 + lane] = _nanmax(buf[oa1 + lane], rr)
+                buf[oa2 + lane] = -_nanmax(-buf[oa2 + lane], -rr)
+        for r in range(p):
+            for lane in range(W):
+                rr = buf[oGu + r * W + lane] - buf[ohr + r * W + lane]
+                worst_s = buf[oa1 + lane]
+                worst_z = -buf[oa2 + lane]
+                buf[os_ + r * W + lane] = -rr if worst_s < 0 else (-rr + one) + worst_s
+                buf[oz + r * W + lane] = rr if worst_z < 0 else (rr + one) + worst_z
+
+        # ---- Mehrotra predictor-corrector iterations
+        for _ in range(iterations):
+            for r in range(p):
+                for lane in range(W):
+                    sv = buf[os_ + r * W + lane]
+                    zv = buf[oz + r * W + lane]
+                    sv = floor if sv < floor else sv
+                    zv = floor if zv < floor else zv
+                    buf[os_ + r * W + lane] = sv
+                    buf[oz + r * W + lane] = zv
+                    buf[orp + r * W + lane] = (buf[oGu + r * W + lane] + sv) - buf[ohr + r * W + lane]
+                    buf[oD + r * W + lane] = zv / sv
+            # H = Q + G^T diag(D) G, lower triangle: r outer, so no update chain
+            for t in range(nt):
+                for lane in range(W):
+                    buf[oHl + t * W + lane] = 0
+            for r in range(p):
+                for t in range(nt):
+                    for lane in range(W):
+                        buf[oHl + t * W + lane] += buf[oD + r * W + lane] * buf[oGG + (r * nt + t) * W + lane]
+            for t in range(nt):
+                for lane in range(W):
+                    buf[oHl + t * W + lane] = buf[oQlow + t * W + lane] + buf[oHl + t * W + lane]
+            _cholesky_packed(buf, oHl, oL, k, one)
+            _dot_lanes(buf, os_, W, oz, W, p, oacc2)
+            for lane in range(W):
+                buf[oacc2 + lane] = buf[oacc2 + lane] / pf  # mu
+            # predictor (w = 0)
+            _newton_rhs(buf, oGr, ozp, oD, orp, oQu, oqr, orhs, p, k)
+            _cho_solve(buf, oL, orhs, odu, k)
+            _matvec(buf, oGr, odu, oGdu, p, k)
+            for r in range(p):
+                for lane in range(W):
+                    g = buf[oGdu + r * W + lane]
+                    rp = buf[orp + r * W + lane]
+                    buf[odsa + r * W + lane] = -rp - g
+                    buf[odza + r * W + lane] = -buf[oz + r * W + lane] + buf[oD + r * W + lane] * (rp + g)
+            _max_step(buf, os_, odsa, oa1, p, one)
+            _max_step(buf, oz, odza, oa2, p, one)
+            for lane in range(W):
+                a = buf[oa1 + lane]
+                b2 = buf[oa2 + lane]
+                buf[oa1 + lane] = a if a < b2 else b2
+                buf[oacc + lane] = 0
+            for r in range(p):
+                for lane in range(W):
+                    a = buf[oa1 + lane]
+                    buf[oacc + lane] += (buf[os_ + r * W + lane] + a * buf[odsa + r * W + lane]) * (
+                        buf[oz + r * W + lane] + a * buf[odza + r * W + lane])
+            for lane in range(W):
+                mu = buf[oacc2 + lane]
+                ratio = (buf[oacc + lane] / pf) / mu
+                ratio = zero if ratio < zero else (one if ratio > one else ratio)
+                buf[oa2 + lane] = ratio * ratio * ratio * mu  # sigma mu
+            for r in range(p):
+                for lane in range(W):
+                    buf[ow + r * W + lane] = (buf[odsa + r * W + lane] * buf[odza + r * W + lane]
+                                              - buf[oa2 + lane]) / buf[os_ + r * W + lane]
+            # corrector
+            _newton_rhs(buf, oGr, ow, oD, orp, oQu, oqr, orhs, p, k)
+            _cho_solve(buf, oL, orhs, odu, k)
+            _matvec(buf, oGr, odu, oGdu, p, k)
+            _matvec(buf, oQr, odu, oQdu, k, k)
+            for r in range(p):
+                for lane in range(W):
+                    g = buf[oGdu + r * W + lane]
+                    rp = buf[orp + r * W + lane]
+                    buf[ods + r * W + lane] = -rp - g
+                    buf[odz + r * W + lane] = (-(buf[oz + r * W + lane] + buf[ow + r * W + lane])
+                                               + buf[oD + r * W + lane] * (rp + g))
+            _max_step(buf, os_, ods, oa1, p, one)
+            _max_step(buf, oz, odz, oa2, p, one)
+            for lane in range(W):
+                a = buf[oa1 + lane]
+                b2 = buf[oa2 + lane]
+                a = a if a < b2 else b2
+                a = p99 * a
+                buf[oa1 + lane] = a if a < one else one
+            for a in range(k):
+                for lane in range(W):
+                    step = buf[oa1 + lane]
+                    buf[ou + a * W + lane] += step * buf[odu + a * W + lane]
+                    buf[oQu + a * W + lane] += step * buf[oQdu + a * W + lane]
+            for r in range(p):
+                for lane in range(W):
+                    step = buf[oa1 + lane]
+                    buf[os_ + r * W + lane] += step * buf[ods + r * W + lane]
+                    buf[oz + r * W + lane] += step * buf[odz + r * W + lane]
+                    buf[oGu + r * W + lane] += step * buf[oGdu + r * W + lane]
+
+        # ---- x, y
+        for i in range(n):
+            _dot_lanes(buf, oE + i * n * W + m * W, W, ou, W, k, oacc)
+            for lane in range(W):
+                buf[ox + i * W + lane] = buf[ox0 + i * W + lane] + buf[oacc + lane]
+        for i in range(n):  # tn = Q x + q + G^T z
+            _dot_lanes(buf, oQ + i * n * W, W, ox, W, n, oacc)
+            _dot_lanes(buf, oG + i * W, n * W, oz, W, p, oacc2)
+            for lane in range(W):
+                buf[otn + i * W + lane] = (buf[oacc + lane] + buf[oq + i * W + lane]) + buf[oacc2 + lane]
+        for j in range(m):
+            _dot_lanes(buf, oE + j * W, n * W, otn, W, n, oacc)
+            for lane in range(W):
+                buf[owv + j * W + lane] = -buf[oacc + lane]
+        for i in range(m - 1, -1, -1):
+            for lane in range(W):
+                buf[oy + i * W + lane] = buf[owv + i * W + lane]
+            for j in range(i + 1, m):
+                for lane in range(W):
+                    buf[oy + i * W + lane] -= buf[oR + (i * m + j) * W + lane] * buf[oy + j * W + lane]
+            for lane in range(W):
+                buf[oy + i * W + lane] = buf[oy + i * W + lane] / buf[oR + (i * m + i) * W + lane]
+
+        # ---- the scaled residuals and ok, per problem; back to the caller's units
+        for lane in range(W):
+            bi = start + lane
+            if bi >= nbatch:
+                continue
+            primal = zero
+            for i in range(m):
+                acc = zero
+                for j in range(n):
+                    acc = acc + buf[oA + (i * n + j) * W + lane] * buf[ox + j * W + lane]
+                primal = _nanmax(primal, abs(acc - buf[ob + i * W + lane]))
+            comp = zero
+            for r in range(p):
+                acc = zero
+                for j in range(n):
+                    acc = acc + buf[oG + (r * n + j) * W + lane] * buf[ox + j * W + lane]
+                slack = buf[oh + r * W + lane] - acc
+                primal = _nanmax(primal, -slack)
+                comp = _nanmax(comp, abs(buf[oz + r * W + lane] * slack))
+            dual = zero
+            for i in range(n):
+                acc = zero
+                for j in range(m):
+                    acc = acc + buf[oA + (j * n + i) * W + lane] * buf[oy + j * W + lane]
+                dual = _nanmax(dual, abs(buf[otn + i * W + lane] + acc))
+            good = _nanmax(_nanmax(primal, dual), comp) <= tol
+            for r in range(p):
+                if not (np.isfinite(buf[os_ + r * W + lane]) and buf[oz + r * W + lane] >= 0):
+                    good = False
+            for i in range(n):
+                xs_out[bi, i] = buf[ox + i * W + lane] if good else zero
+            for i in range(m):
+                ys_out[bi, i] = buf[oy + i * W + lane] if good else zero
+            for r in range(p):
+                zs_out[bi, r] = buf[oz + r * W + lane] if good else zero
+                s_out[bi, r] = buf[os_ + r * W + lane] if good else one
+            fin = buf[ofin + lane] > 0
+            good = good and fin
+            ok_out[bi] = 1 if good else 0
+            res_out[bi, 0] = primal if (fin and np.isfinite(primal)) else big
+            res_out[bi, 1] = dual if (fin and np.isfinite(dual)) else big
+            res_out[bi, 2] = comp if (fin and np.isfinite(comp)) else big
+            c = buf[oc + lane]
+            for i in range(n):
+                x_out[bi, i] = buf[od + i * W + lane] * buf[ox + i * W + lane] if good else zero
+            for i in range(m):
+                y_out[bi, i] = c * buf[oy + i * W + lane] / buf[ora + i * W + lane] if good else zero
+            for r in range(p):
+                z_out[bi, r] = c * buf[oz + r * W + lane] / buf[org + r * W + lane] if good else zero
+            obj = zero
+            if good:
+                for i in range(n):
+                    acc = zero
+                    for j in range(n):
+                        acc = acc + half * (Q[bi, i, j] + Q[bi, j, i]) * x_out[bi, j]
+                    obj = obj + half * x_out[bi, i] * acc + q[bi, i] * x_out[bi, i]
+            obj_out[bi] = obj
+
+
+def _compiled_solver(n: int, m: int, p: int):
+    """A jitted caller with the sizes as constants (numba compiles the kernel for them)."""
+    @nb.njit
+    def run(Q, q, A, b, G, h, d, iterations, consts, x, y, z, obj, res, ok, xs, ys, zs, s):
+        solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x, y, z, obj, res, ok, xs, ys, zs, s, n, m, p)
+
+    return run
+
+
+def main(argv=None) -> None:
+    import argparse
+    import sys
+    import time
+    from pathlib import Path
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--float32", action="store_true")
+    ap.add_argument("--batch", type=int, default=2000)
+    ap.add_argument("--iterations", default="16,20")
+    ap.add_argument("--repeats", type=int, default=5)
+    args = ap.parse_args(argv)
+    nb.config.SLP_VECTORIZE = True  # before the first compilation in this process
+    import jax
+
+    jax.config.update("jax_enable_x64", not args.float32)
+    jax.config.update("jax_num_cpu_devices", 1)
+    sys.path.insert(0, str(Path(__file__).parent))
+    from bench_qp import KEYS, contact_problems, take
+    from qp_peers import daqp_loop
+
+    from jaxloco import qp
+
+    dt = np.float32 if args.float32 else np.float64
+    tol = 1e-4 if args.float32 else 1e-6
+    data = take(contact_problems(1000, 0), args.batch)
+    arrays = tuple(np.ascontiguousarray(np.asarray(data[k], dt)) for k in (*KEYS, "x_scale"))
+    B, n = arrays[1].shape
+    m, p = arrays[3].shape[1], arrays[5].shape[1]
+    fi = np.finfo(dt)
+    consts = np.array([0.5, 1.0, 0.99, np.sqrt(fi.eps), fi.max, tol, p, 1e-12], dt)
+    outs = [np.empty((B, n), dt), np.empty((B, m), dt), np.empty((B, p), dt), np.empty(B, dt),
+            np.empty((B, 3), dt), np.empty(B, np.uint8), np.empty((B, n), dt), np.empty((B, m), dt),
+            np.empty((B, p), dt), np.empty((B, p), dt)]
+    run = _compiled_solver(n, m, p)
+    t0 = time.perf_counter()
+    run(*arrays, 1, consts, *outs)
+    print(f"contact QPs n={n} m={m} p={p}, batch {B}, {np.dtype(dt).name}, one core; "
+          f"kernel compiled (or loaded) in {time.perf_counter() - t0:.1f} s")
+
+    def best(fn):
+        times = []
+        for _ in range(args.repeats):
+            t = time.perf_counter()
+            fn()
+            times.append(time.perf_counter() - t)
+        return min(times)
+
+    _, _, t_daqp = daqp_loop({k: np.asarray(v, np.float64) for k, v in data.items()})
+    print(f"daqp (Python loop): {B / t_daqp:,.0f} QPs/s")
+    print("| iterations | kernel QPs/s | XLA form QPs/s | ok (kernel / XLA) | max |x_kernel - x_xla| / x_scale |")
+    print("| ---: | ---: | ---: | ---: | ---: |")
+    for it in (int(s) for s in args.iterations.split(",")):
+        xla = jax.jit(lambda *a, it=it: qp.solve_batch(*a[:6], x_scale=a[6], iterations=it, tol=tol,
+                                                        differentiable=False))
+        ref = jax.block_until_ready(xla(*arrays))
+        t_xla = best(lambda: jax.block_until_ready(xla(*arrays)))
+        t_k = best(lambda it=it: run(*arrays, it, consts, *outs))
+        dev = np.max(np.abs(outs[0] - np.asarray(ref.x)) / arrays[6])
+        print(f"| {it} | {B / t_k:,.0f} | {B / t_xla:,.0f} | {outs[5].mean():.4f} / "
+              f"{float(np.mean(ref.ok)):.4f} | {dev:.1e} |")
+
+
+if __name__ == "__main__":
+    main()
