@@ -21,21 +21,14 @@ import os
 # less. Users' runs keep the full optimisation; the cache keeps the two apart.
 _FAST_COMPILE = os.environ.setdefault("JAX_DISABLE_MOST_OPTIMIZATIONS", "1").lower() not in ("0", "false", "")
 
-# With it, XLA's legacy LLVM IR emitters instead of its newer fusion emitters: the same
-# fused HLO, emitted by the older code path, compiles 13 % faster for an MJX forward-mode
-# rollout and 27 % for TITAN's gait module, and runs as fast (6 Dec 2026, one module
-# each with an empty cache). A flag already in $XLA_FLAGS wins.
-SUITE_XLA_FLAGS = ("--xla_cpu_use_fusion_emitters=false",)
-
-
-def with_xla_flags(current: str, flags: tuple[str, ...]) -> str:
-    """`current` (an XLA_FLAGS value) with each of `flags` appended unless it names that flag already."""
-    named = {f.split("=", 1)[0] for f in current.split()}
-    return " ".join([current.strip(), *(f for f in flags if f.split("=", 1)[0] not in named)]).strip()
-
+# XLA's legacy LLVM IR emitters (`runtime.FAST_XLA_CPU_FLAGS`, which `runtime.configure`
+# also sets for users' runs), here in the environment before JAX starts, so that the
+# notebook kernels and the suite's subprocesses inherit them. A flag already in
+# $XLA_FLAGS wins.
+from jaxloco.runtime import FAST_XLA_CPU_FLAGS, with_xla_flags  # noqa: E402  (imports no JAX)
 
 if _FAST_COMPILE:
-    os.environ["XLA_FLAGS"] = with_xla_flags(os.environ.get("XLA_FLAGS", ""), SUITE_XLA_FLAGS)
+    os.environ["XLA_FLAGS"] = with_xla_flags(os.environ.get("XLA_FLAGS", ""), FAST_XLA_CPU_FLAGS)
 
 import jax  # noqa: E402
 import mujoco  # noqa: E402

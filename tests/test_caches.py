@@ -189,14 +189,38 @@ def test_a_programs_source_digest_covers_the_core_and_the_robots_its_pickle_name
     assert programs.robots_named(b"jaxloco.render.replay", robots) == {"a", "b"}
 
 
-def test_the_suites_xla_flags_are_added_unless_already_named():
-    """tests/conftest.py adds SUITE_XLA_FLAGS to $XLA_FLAGS with the fast compile; a flag the
-    user set wins, and other flags are kept."""
-    from conftest import SUITE_XLA_FLAGS, with_xla_flags
-
-    assert with_xla_flags("", ("--a=false",)) == "--a=false"
-    assert with_xla_flags(" --b=1 ", ("--a=false",)) == "--b=1 --a=false"
-    assert with_xla_flags("--a=true --b=1", ("--a=false",)) == "--a=true --b=1"
+def test_the_fast_xla_flags_are_added_unless_already_named():
+    """runtime.FAST_XLA_CPU_FLAGS go into $XLA_FLAGS (tests/conftest.py with the fast
+    compile, `runtime.configure` before JAX starts); a flag the user set wins, and other
+    flags are kept."""
+    assert runtime.with_xla_flags("", ("--a=false",)) == "--a=false"
+    assert runtime.with_xla_flags(" --b=1 ", ("--a=false",)) == "--b=1 --a=false"
+    assert runtime.with_xla_flags("--a=true --b=1", ("--a=false",)) == "--a=true --b=1"
     fast = os.environ.get("JAX_DISABLE_MOST_OPTIMIZATIONS", "").lower() not in ("0", "false", "")
     named = {f.split("=", 1)[0] for f in os.environ.get("XLA_FLAGS", "").split()}
-    assert all(f.split("=", 1)[0] in named for f in SUITE_XLA_FLAGS) or not fast
+    assert all(f.split("=", 1)[0] in named for f in runtime.FAST_XLA_CPU_FLAGS) or not fast
+
+
+@pytest.mark.parametrize("flags, user", [(runtime.FAST_XLA_CPU_FLAGS, ""), ((), ""),
+                                         (runtime.FAST_XLA_CPU_FLAGS, "--xla_cpu_use_fusion_emitters=true")])
+def test_configure_sets_the_xla_flags_before_jax_starts(flags, user):
+    """In a fresh process, `runtime.configure` adds its XLA flags to $XLA_FLAGS before the
+    first computation (none with xla_cpu_flags=(); the user's own setting wins); once
+    JAX's backend has started it leaves $XLA_FLAGS alone."""
+    code = (
+        "import os, jax\n"
+        "from jaxloco import runtime\n"
+        f"runtime.configure(x64=True, cache_dir=False, xla_cpu_flags={tuple(flags)!r})\n"
+        "print(os.environ.get('XLA_FLAGS', ''))\n"
+        "jax.numpy.ones(1).block_until_ready()\n"
+        "os.environ['XLA_FLAGS'] = 'unchanged'\n"
+        "runtime.configure(x64=True, cache_dir=False)\n"
+        "print(os.environ['XLA_FLAGS'])\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    if user:
+        env["XLA_FLAGS"] = user
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    first, second = out.stdout.split("\n")[:2]
+    assert first == runtime.with_xla_flags(user, tuple(flags))
+    assert second == "unchanged"
