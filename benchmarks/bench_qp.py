@@ -160,6 +160,8 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--sequential", action="store_true",
                     help="solve_batch(sequential=True): lax.map instead of vmap")
+    ap.add_argument("--backend", choices=("xla", "kernel"), default="xla",
+                    help="jaxloco.qp's backend (kernel: one compiled CPU kernel, needs jaxloco[kernel])")
     ap.add_argument("--block", type=int, default=None,
                     help="solve_batch's block (members per vmapped block; default qp.BLOCK, 0: one vmap)")
     ap.add_argument("--devices", type=int, default=1,
@@ -172,8 +174,10 @@ def main(argv=None):
     import jax
     import jax.numpy as jnp
 
-    jax.config.update("jax_enable_x64", not args.float32)
-    jax.config.update("jax_num_cpu_devices", args.devices)
+    from jaxloco import runtime
+
+    # float64 or float32, the devices, and XLA's CPU flags as users' runs get them
+    runtime.configure(x64=not args.float32, cache_dir=False, cpu_devices=args.devices)
     from jaxloco import qp
 
     block = qp.BLOCK if args.block is None else (args.block or None)
@@ -187,14 +191,16 @@ def main(argv=None):
     n_prob = data["q"].shape[0]
     src = args.problems or f"{n_prob} {args.set} problems (seed {args.seed})"
     n, m, p = data["q"].shape[1], data["b"].shape[1], data["h"].shape[1]
+    form = ("one compiled kernel (numba) per device" if args.backend == "kernel" else
+            "lax.map" if args.sequential else f"vmap in blocks of {block}")
     print(f"jaxloco.qp benchmark: {src}; n={n} m={m} p={p}; {np.dtype(dtype).name}; "
           f"iterations={args.iterations} tol={tol:g}; "
-          f"{'lax.map' if args.sequential else f'vmap in blocks of {block}'}; "
+          f"{form}; "
           f"jax {jax.__version__} on {len(jax.devices())} {jax.devices()[0].platform} device(s)", flush=True)
 
     def batched(Q, q, A, b, G, h, xs, tol=tol):
         return qp.solve_batch(Q, q, A, b, G, h, x_scale=xs, iterations=args.iterations, tol=tol,
-                              sequential=args.sequential, block=block)
+                              sequential=args.sequential, block=block, backend=args.backend)
 
     def watchdog():  # fail loudly, not silently, should a measurement hang
         faulthandler.cancel_dump_traceback_later()
@@ -221,7 +227,7 @@ def main(argv=None):
         if sol is None or bsz >= args.sample:
             sol, sol_bsz = out, bsz
         if bsz == max(batches):
-            rows.append((f"jaxloco.qp {np.dtype(dtype).name} (jit + vmap in blocks, one call)", bsz, bsz / t,
+            rows.append((f"jaxloco.qp {np.dtype(dtype).name} ({form}, one call)", bsz, bsz / t,
                          float(jnp.mean(out.ok)), np.asarray(out.x, np.float64), np.asarray(out.ok)))
 
     count = min(args.sample, n_prob, sol_bsz)
@@ -273,7 +279,7 @@ def main(argv=None):
             f32 = jax.jit(lambda *a: batched(*a, tol=1e-4)).lower(*fargs).compile()
             out = jax.block_until_ready(f32(*fargs))
             t = best_time(f32, fargs, args.repeats)
-            rows.append(("jaxloco.qp float32, tol 1e-4 (jit + vmap in blocks, one call)", bsz, bsz / t,
+            rows.append((f"jaxloco.qp float32, tol 1e-4 ({form}, one call)", bsz, bsz / t,
                          float(jnp.mean(out.ok)), np.asarray(out.x, np.float64), np.asarray(out.ok)))
         if grad_rate is not None:
             rows.append((f"jaxloco.qp {np.dtype(dtype).name} solve + reverse gradient", grad_rate[0], grad_rate[1],

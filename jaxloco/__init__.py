@@ -2,7 +2,7 @@
 simulation of field locomotion robots.
 
 Layers (imports go downward only): core kernels (`geometry`, `stability`, `qp`,
-`qp_ipm`, `linalg`, `batching`) -> simulation (`sim`) -> robots (`robots`, one package per paper) ->
+`qp_ipm`, `qp_kernel`, `linalg`, `batching`) -> simulation (`sim`) -> robots (`robots`, one package per paper) ->
 applications (`sweep`, `tune`, `render`, `cli`). Importing `jaxloco` is cheap: nothing
 here imports JAX or MuJoCo.
 

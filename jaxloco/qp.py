@@ -71,6 +71,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxloco import batching, linalg, qp_ipm
 
@@ -187,17 +188,20 @@ def _row_norms(M):
     return jnp.where(norms > 0, norms, 1.0)
 
 
-def solve(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: float = 1e-6,
-          differentiable: bool = True) -> QPSolution:
-    """Solve one QP (see the module docstring); jit/vmap compatible, float32 or float64.
+class _Scaling(NamedTuple):
+    """What `_prepare` keeps to map the scaled problem's answer back (`_finish`)."""
 
-    Shapes: Q (n, n), q (n,), A (m, n), b (m,), G (p, n), h (p,), x_scale (n,) > 0.
-    `iterations` (static int >= 1): interior-point iterations, always all of them.
-    `tol` (static float): bound on the scaled residuals for ``ok``.
-    """
-    if int(iterations) != iterations or iterations < 1:
-        raise ValueError(f"iterations must be a positive int, got {iterations!r}")
-    dtype = jnp.result_type(Q, q, A, b, G, h, 0.0)
+    Q: jax.Array  # (n, n) the symmetrized Q (the dummy's where not finite)
+    q: jax.Array  # (n,)
+    d: jax.Array  # (n,) x_scale
+    c: jax.Array  # () objective scale
+    ra: jax.Array  # (m,) row norms of A D
+    rg: jax.Array  # (p,) row norms of G D
+    finite: jax.Array  # () bool: every input finite and x_scale > 0
+
+
+def _prepare(Q, q, A, b, G, h, x_scale, dtype, differentiable):
+    """The scaled problem (module docstring) and its `_Scaling`, one instance."""
     Q, q, A, b, G, h = (jnp.asarray(v, dtype) for v in (Q, q, A, b, G, h))
     if not differentiable:
         Q, q, A, b, G, h = (jax.lax.stop_gradient(v) for v in (Q, q, A, b, G, h))
@@ -224,31 +228,58 @@ def solve(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: float = 
     c = jnp.maximum(jnp.max(jnp.abs(Qd)), jnp.max(jnp.abs(qd), initial=0.0))
     c = jax.lax.stop_gradient(jnp.maximum(c, 1e-12))
     data = (Qd / c, qd / c, Ad / ra[:, None], b / ra, Gd / rg[:, None], h / rg)
+    return data, _Scaling(Q, q, d, c, ra, rg, finite)
+
+
+def _finish(out, sc: _Scaling, differentiable) -> QPSolution:
+    """The caller's QPSolution from `_forward`'s output on the scaled problem."""
+    xs, ys, zs, _, primal, dual, comp, ok, iters = out
+    ok = ok & sc.finite
+    big = jnp.finfo(xs.dtype).max  # residuals of the dummy stand-in would mislead
+    primal, dual, comp = (jnp.where(sc.finite, r, big) for r in (primal, dual, comp))
+    x = jnp.where(ok, sc.d * xs, 0.0)
+    y = jnp.where(ok, sc.c * ys / sc.ra, 0.0)
+    z = jnp.where(ok, sc.c * zs / sc.rg, 0.0)
+    objective = jnp.where(ok, 0.5 * x @ sc.Q @ x + sc.q @ x, 0.0)
+    sol = QPSolution(x, y, z, primal, dual, comp, objective, ok, iters)
+    return sol if differentiable else jax.tree_util.tree_map(jax.lax.stop_gradient, sol)
+
+
+def _check_iterations(iterations) -> None:
+    if int(iterations) != iterations or iterations < 1:
+        raise ValueError(f"iterations must be a positive int, got {iterations!r}")
+
+
+def solve(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: float = 1e-6,
+          differentiable: bool = True) -> QPSolution:
+    """Solve one QP (see the module docstring); jit/vmap compatible, float32 or float64.
+
+    Shapes: Q (n, n), q (n,), A (m, n), b (m,), G (p, n), h (p,), x_scale (n,) > 0.
+    `iterations` (static int >= 1): interior-point iterations, always all of them.
+    `tol` (static float): bound on the scaled residuals for ``ok``.
+    """
+    _check_iterations(iterations)
+    dtype = jnp.result_type(Q, q, A, b, G, h, 0.0)
+    data, sc = _prepare(Q, q, A, b, G, h, x_scale, dtype, differentiable)
     if differentiable:
         out = _solve_diff(*data, int(iterations), float(tol))
     else:
         out = _forward(data, int(iterations), float(tol))
-    xs, ys, zs, _, primal, dual, comp, ok, iters = out
-    ok = ok & finite
-    big = jnp.finfo(dtype).max  # residuals of the dummy stand-in would mislead
-    primal, dual, comp = (jnp.where(finite, r, big) for r in (primal, dual, comp))
-    x = jnp.where(ok, d * xs, 0.0)
-    y = jnp.where(ok, c * ys / ra, 0.0)
-    z = jnp.where(ok, c * zs / rg, 0.0)
-    objective = jnp.where(ok, 0.5 * x @ Q @ x + q @ x, 0.0)
-    sol = QPSolution(x, y, z, primal, dual, comp, objective, ok, iters)
-    return sol if differentiable else jax.tree_util.tree_map(jax.lax.stop_gradient, sol)
+    return _finish(out, sc, differentiable)
 
 
 _BASE_NDIM = (2, 1, 2, 1, 2, 1, 1)  # Q, q, A, b, G, h, x_scale
 BLOCK = 128  # members per vmapped block in solve_batch (measured best of 32-256, 2 cores)
 
 
+BACKENDS = ("xla", "kernel")
+
+
 def solve_batch(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: float = 1e-6,
                 differentiable: bool = True, sequential: bool = False,
-                block: int | None = BLOCK) -> QPSolution:
+                block: int | None = BLOCK, backend: str = "xla") -> QPSolution:
     """`solve` over a leading batch axis: `jax.vmap` (in blocks) or, if `sequential`,
-    `jax.lax.map`.
+    `jax.lax.map`; or, with backend="kernel", one compiled CPU kernel.
 
     Each of Q, q, A, b, G, h, x_scale may carry the batch axis (shape (B, ...)) or not
     (shared by all members; at least one must carry it). Returns a batched QPSolution.
@@ -258,14 +289,128 @@ def solve_batch(Q, q, A, b, G, h, *, x_scale=None, iterations: int = 25, tol: fl
     None: one vmap. Results do not depend on it. `sequential=True` solves one instance
     at a time (blocks of one: less memory, same results). The solver emits no LAPACK call, so neither
     form can hit jaxlib 0.10's batched-LAPACK deadlock on the CPU.
+    `backend`: "xla" (the above; any device) or "kernel" (`jaxloco.qp_kernel`: the same
+    method and results up to rounding as one numba-compiled CPU kernel over the batch,
+    split over the CPU devices when they divide it; CPU only, needs `jaxloco[kernel]`;
+    `block` and `sequential` do not apply). Gradients (reverse mode) are the same
+    implicit derivative for both: the kernel's answer, differentiated as `solve` does.
     """
-    fn = functools.partial(solve, iterations=iterations, tol=tol, differentiable=differentiable)
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
     args = [jnp.asarray(v) for v in (Q, q, A, b, G, h, 1.0 if x_scale is None else x_scale)]
     axes = [0 if v.ndim == k + 1 else None for v, k in zip(args, _BASE_NDIM)]
     if x_scale is None:
         axes[6] = None
+    if backend == "kernel":
+        return _solve_batch_kernel(args, axes, int(iterations), float(tol), differentiable)
+    fn = functools.partial(solve, iterations=iterations, tol=tol, differentiable=differentiable)
 
     def call(*a):
         return fn(*a[:6], x_scale=None if x_scale is None else a[6])
 
     return batching.vmap_in_blocks(call, block=1 if sequential else block, in_axes=axes)(*args)
+
+
+# ----------------------------------------------------------------- the kernel backend
+def _solve_batch_kernel(args, axes, iterations, tol, differentiable) -> QPSolution:
+    """`solve_batch(..., backend="kernel")`: the batch broadcast to one dtype and shape."""
+    _check_iterations(iterations)
+    if jax.default_backend() != "cpu":
+        raise ValueError(f"backend='kernel' runs on the CPU only (JAX's default backend is "
+                         f"{jax.default_backend()!r}); use backend='xla'")
+    batched = [v for v, ax in zip(args, axes) if ax == 0]
+    if not batched:
+        raise ValueError("solve_batch: no argument has a batch axis")
+    size = batched[0].shape[0]
+    dtype = jnp.result_type(*args[:6], 0.0)
+    n = args[1].shape[-1]
+    raw = []
+    for v, ax, k in zip(args, axes, _BASE_NDIM):
+        v = jnp.asarray(v, dtype)
+        if k == 1 and v.ndim == 0:  # the default x_scale
+            v = jnp.ones((n,), dtype)
+        raw.append(v if ax == 0 else jnp.broadcast_to(v, (size, *v.shape)))
+    raw = tuple(raw)
+    if differentiable:
+        return _kernel_diff(*raw, iterations, tol)
+    sol = _kernel_solution(_kernel_outputs(raw, iterations, tol), iterations)
+    return jax.tree_util.tree_map(jax.lax.stop_gradient, sol)
+
+
+def _kernel_outputs(raw, iterations, tol):
+    """The kernel's outputs for the batch `raw` (stopped gradients), split over the CPU
+    devices when their number divides the batch (each runs the kernel on its part)."""
+    try:
+        from jaxloco import qp_kernel
+    except ImportError as e:  # numba: the optional dependency jaxloco[kernel]
+        raise ImportError(f"backend='kernel' needs numba: pip install 'jaxloco[kernel]' ({e})") from e
+
+    raw = tuple(jax.lax.stop_gradient(v) for v in raw)
+    fn = functools.partial(qp_kernel.solve_batch, iterations=iterations, tol=tol)
+    devices = jax.devices()
+    if len(devices) > 1 and raw[1].shape[0] % len(devices) == 0:
+        spec = jax.sharding.PartitionSpec("batch")
+        mesh = jax.sharding.Mesh(np.array(devices), ("batch",))
+        fn = jax.shard_map(fn, mesh=mesh, in_specs=(spec,) * 7, out_specs=(spec,) * 10, check_vma=False)
+    return fn(*raw)
+
+
+def _kernel_solution(outs, iterations) -> QPSolution:
+    x, y, z, objective, res, ok = outs[:6]
+    iters = jnp.full(ok.shape, iterations, jnp.int32)
+    return QPSolution(x, y, z, res[..., 0], res[..., 1], res[..., 2], objective, ok, iters)
+
+
+@functools.partial(jax.custom_vjp, nondiff_argnums=(7, 8))
+def _kernel_diff(Q, q, A, b, G, h, d, iterations, tol):
+    return _kernel_solution(_kernel_outputs((Q, q, A, b, G, h, d), iterations, tol), iterations)
+
+
+def _kernel_diff_fwd(Q, q, A, b, G, h, d, iterations, tol):
+    outs = _kernel_outputs((Q, q, A, b, G, h, d), iterations, tol)
+    return _kernel_solution(outs, iterations), ((Q, q, A, b, G, h, d), outs[4:])
+
+
+def _kernel_diff_bwd(iterations, tol, saved, ct):
+    """The cotangents of `solve`'s derivative at the kernel's answer: per instance, the
+    scaled problem is rebuilt (`_prepare`), the kernel's scaled iterate differentiated as
+    `_solve_diff` does (`_given`), and the result mapped back (`_finish`)."""
+    del tol
+    (Q, q, A, b, G, h, d), (res, ok, xs, ys, zs, s) = saved
+
+    def one(Qi, qi, Ai, bi, Gi, hi, di, resi, oki, xsi, ysi, zsi, si):
+        data, sc = _prepare(Qi, qi, Ai, bi, Gi, hi, di, Qi.dtype, True)
+        return _finish(_given(data, (xsi, ysi, zsi, si, resi[0], resi[1], resi[2], oki), iterations), sc, True)
+
+    def solution(Q, q, A, b, G, h):
+        return jax.vmap(one)(Q, q, A, b, G, h, d, res, ok, xs, ys, zs, s)
+
+    _, vjp = jax.vjp(solution, Q, q, A, b, G, h)
+    return (*vjp(ct), jnp.zeros_like(d))
+
+
+_kernel_diff.defvjp(_kernel_diff_fwd, _kernel_diff_bwd)
+
+
+@functools.partial(jax.custom_vjp, nondiff_argnums=(2,))
+def _given(data, sol, iterations):
+    """`_forward`'s output for the scaled problem `data`, already computed (`sol`: xs, ys,
+    zs, s, the three residuals, ok); its derivative is `_solve_diff`'s."""
+    return (*sol, jnp.asarray(iterations, jnp.int32))
+
+
+def _given_fwd(data, sol, iterations):
+    Qd, _, Ad, _, Gd, _ = data
+    xs, ys, zs, s, *_, ok = sol
+    return _given(data, sol, iterations), (Qd, Ad, Gd, xs, ys, zs, s, ok, sol)
+
+
+def _given_bwd(iterations, saved, cts):
+    *diff, sol = saved
+    grads = _solve_diff_bwd(iterations, None, tuple(diff), cts)
+    zeros = jax.tree_util.tree_map(
+        lambda v: np.zeros(v.shape, jax.dtypes.float0) if v.dtype == bool else jnp.zeros_like(v), sol)
+    return grads, zeros
+
+
+_given.defvjp(_given_fwd, _given_bwd)

@@ -1,39 +1,51 @@
-"""An experiment: `jaxloco.qp.solve` as one compiled CPU kernel over a batch (numba),
-measured beside the XLA form and daqp on one core.
+"""`jaxloco.qp.solve_batch(..., backend="kernel")`: the whole QP solve of a batch as one
+compiled CPU kernel (numba), called from JAX through XLA's FFI.
 
-    pip install -e ".[bench]"
-    python benchmarks/qp_numba_kernel.py [--float32] [--batch 2000] [--iterations 16,20]
-
-Why: under `jax.vmap` the XLA form of the interior-point method runs about 85 small
-kernels per iteration, and their overhead, not the arithmetic, bounds it on a CPU (README,
-performance). Here the solve of a whole batch is one compiled loop: the batch is taken
-`LANES` problems at a time, every scalar of the method held across the lanes (the
-fastest axis), so that each scalar operation can become one SIMD instruction.
+Why: under `jax.vmap` the XLA form of the interior-point method (`qp_ipm`) runs about 85
+small kernels per iteration, and their overhead, not the arithmetic, bounds it on a CPU
+(README, performance). Here the solve of a batch is one compiled loop: the batch is taken
+W problems at a time (one 256-bit vector: 4 float64 or 8 float32), every scalar of the
+method held across the W lanes (the fastest axis), so that each scalar operation can
+become one SIMD instruction; multiply-adds may fuse (`fastmath` "contract").
 
 Layout: every scratch array is a region of one flat buffer at an offset fixed at compile
-time (the sizes n, m, p are `numba.literally` constants), so the compiler can prove the
-regions disjoint and vectorize across the lanes; that needs numba's SLP vectorizer,
-which `main` switches on (`numba.config.SLP_VECTORIZE`, off by default). A region X of
-shape (d1, d2, LANES) is read as buf[oX + (i * d2 + j) * LANES + lane].
+time (the sizes n, m, p and W are `numba.literally` constants), so the compiler can prove
+the regions disjoint and vectorize across the lanes; that needs numba's SLP vectorizer,
+switched on while this module compiles its kernel (`_slp_vectorizer`; numba's default is
+off). A region X of shape (d1, d2, W) is read as buf[oX + (i * d2 + j) * W + lane].
 
-The same method and results as `jaxloco.qp.solve` (differentiable=False) up to rounding,
-checked by `main`: the problem checked for finite values and scaled as `qp.solve` scales
-it, the equalities removed by a Householder QR of A^T, CVXOPT's start, `iterations`
-Mehrotra steps with s and z floored at sqrt(eps), y by least squares, the scaled
-residuals, ok, and the answer in the caller's units.
+The same method and results as `jaxloco.qp.solve` up to rounding (tested: sums are taken
+in another order): the problem checked for finite values, symmetrized and scaled as
+`qp.solve` does, the equalities removed by a Householder QR of A^T, CVXOPT's start,
+`iterations` Mehrotra steps with s and z floored at sqrt(eps), y by least squares, the
+scaled residuals, ok, and the answer in the caller's units; also the scaled problem's
+iterate, from which `jaxloco.qp` takes the gradient (the kernel itself computes no
+derivative).
 
-Not used by the library: see the README's performance notes for what it measured and why
-it was not adopted (no gradient, a CPU-only custom call to bind, a ~30 s compile per
-problem size and dtype, and on f64 about 1.5x the XLA form per core, not 2x daqp).
+The FFI handler (`_handler`) is a numba C callback that reads XLA's call frame (the typed
+FFI of `xla/ffi/api/c_api.h`, API 0.3): one handler per (n, m, p, dtype), compiled and
+registered on first use (`ffi_target`); the kernel is cached on disk by numba, so a new
+process compiles only the small handler (about 1 s) and the first process about 30 s.
+CPU only; numba is the optional dependency `jaxloco[kernel]`.
 """
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import functools
+
+import jax
+import jax.numpy as jnp
 import numba as nb
 import numpy as np
+from numba import types
+from numba.extending import intrinsic
 
-LANES = 8  # problems per SIMD pass
-_NB = {"cache": True, "nogil": True, "error_model": "numpy", "inline": "always"}
+__all__ = ["VECTOR_BYTES", "ffi_target", "solve_batch", "solve_batch_np"]
+
+VECTOR_BYTES = 32  # problems per SIMD pass: one 256-bit vector of the dtype (4 float64, 8 float32)
+_NB = {"cache": True, "nogil": True, "error_model": "numpy", "inline": "always", "fastmath": {"contract"}}
 
 
 @nb.njit(**_NB)
@@ -43,16 +55,9 @@ def _nanmax(acc, v):
 
 
 @nb.njit(**_NB)
-def _fill(buf, o, count, value):
-    for i in range(count):
-        buf[o + i] = value
-
-
-@nb.njit(**_NB)
-def _matvec(buf, oM, ov, oout, rows, cols):
+def _matvec(buf, oM, ov, oout, rows, cols, W):
     """out = M v per lane; M (rows, cols, W), v (cols, W), out (rows, W). Accumulated
     column by column, so consecutive updates go to different rows (no dependency chain)."""
-    W = LANES
     for i in range(rows):
         for lane in range(W):
             buf[oout + i * W + lane] = 0
@@ -63,9 +68,8 @@ def _matvec(buf, oM, ov, oout, rows, cols):
 
 
 @nb.njit(**_NB)
-def _max_step(buf, ov, odv, oout, p, one):
+def _max_step(buf, ov, odv, oout, p, one, W):
     """out = the largest alpha in [0, 1] with v + alpha dv >= 0, per lane (v > 0)."""
-    W = LANES
     for lane in range(W):
         buf[oout + lane] = one
     for r in range(p):
@@ -76,11 +80,10 @@ def _max_step(buf, ov, odv, oout, p, one):
 
 
 @nb.njit(**_NB)
-def _cholesky_packed(buf, oH, oL, k, one):
+def _cholesky_packed(buf, oH, oL, k, one, W):
     """L L^T = H per lane; both (k(k+1)/2, W), lower triangles packed row by row.
     Right-looking: each entry sees the same subtractions, in the same order, as in
     `linalg.cholesky_packed_scalars`."""
-    W = LANES
     for t in range(k * (k + 1) // 2):
         for lane in range(W):
             buf[oL + t * W + lane] = buf[oH + t * W + lane]
@@ -102,9 +105,8 @@ def _cholesky_packed(buf, oH, oL, k, one):
 
 
 @nb.njit(**_NB)
-def _cho_solve(buf, oL, orhs, ox, k):
+def _cho_solve(buf, oL, orhs, ox, k, W):
     """x with L L^T x = rhs per lane (L packed as in `_cholesky_packed`), column by column."""
-    W = LANES
     for i in range(k):
         for lane in range(W):
             buf[ox + i * W + lane] = buf[orhs + i * W + lane]
@@ -125,9 +127,8 @@ def _cho_solve(buf, oL, orhs, ox, k):
 
 
 @nb.njit(**_NB)
-def _newton_rhs(buf, oGr, ow, oD, orp, oQu, oqr, orhs, p, k):
+def _newton_rhs(buf, oGr, ow, oD, orp, oQu, oqr, orhs, p, k, W):
     """rhs = G^T (w - D r_p) - (Q u + q) per lane."""
-    W = LANES
     for a in range(k):
         for lane in range(W):
             buf[orhs + a * W + lane] = -(buf[oQu + a * W + lane] + buf[oqr + a * W + lane])
@@ -139,9 +140,8 @@ def _newton_rhs(buf, oGr, ow, oD, orp, oQu, oqr, orhs, p, k):
 
 
 @nb.njit(**_NB)
-def _dot_lanes(buf, oa, sa, ob, sb, count, oacc):
+def _dot_lanes(buf, oa, sa, ob, sb, count, oacc, W):
     """acc = sum_i a[i] b[i] per lane, a_i at oa + i * sa (lane-strided regions)."""
-    W = LANES
     for lane in range(W):
         buf[oacc + lane] = 0
     for i in range(count):
@@ -149,9 +149,9 @@ def _dot_lanes(buf, oa, sa, ob, sb, count, oacc):
             buf[oacc + lane] += buf[oa + i * sa + lane] * buf[ob + i * sb + lane]
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out, obj_out, res_out, ok_out,
-                   xs_out, ys_out, zs_out, s_out, n, m, p):
+                   xs_out, ys_out, zs_out, s_out, n, m, p, W):
     """`jaxloco.qp.solve` for B problems in the caller's units: Q (B, n, n), q (B, n),
     A (B, m, n), b (B, m), G (B, p, n), h (B, p), x_scale d (B, n), all of one float
     dtype; n, m, p their sizes (compile-time constants); `consts` (same dtype): 0.5, 1,
@@ -162,12 +162,12 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
     the scaled problem's sanitized iterate xs, ys, zs, s (what `qp._forward` returns,
     for the gradient)."""
     nb.literally(n)
+    nb.literally(W)
     nb.literally(m)
     nb.literally(p)
     nbatch = q.shape[0]
     k = n - m
     nt = k * (k + 1) // 2
-    W = LANES
     half, one, p99, floor, big, tol, pf, tiny = (consts[0], consts[1], consts[2], consts[3], consts[4],
                                                  consts[5], consts[6], consts[7])
     zero = one - one
@@ -308,17 +308,17 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
             for i in range(n):
                 for lane in range(W):
                     buf[oV + (j * n + i) * W + lane] = buf[oWm + (i * m + j) * W + lane] if i >= j else zero
-            _dot_lanes(buf, oV + j * n * W, W, oV + j * n * W, W, n, oacc)
+            _dot_lanes(buf, oV + j * n * W, W, oV + j * n * W, W, n, oacc, W)
             for lane in range(W):
                 norm = np.sqrt(buf[oacc + lane])
                 alpha = -norm if buf[oWm + (j * m + j) * W + lane] >= 0 else norm
                 buf[oV + (j * n + j) * W + lane] -= alpha
-            _dot_lanes(buf, oV + j * n * W, W, oV + j * n * W, W, n, oacc)
+            _dot_lanes(buf, oV + j * n * W, W, oV + j * n * W, W, n, oacc, W)
             for lane in range(W):
                 vv = buf[oacc + lane]
                 buf[obeta + j * W + lane] = two / vv if vv > 0 else zero
             for c in range(m):
-                _dot_lanes(buf, oV + j * n * W, W, oWm + c * W, m * W, n, oacc)
+                _dot_lanes(buf, oV + j * n * W, W, oWm + c * W, m * W, n, oacc, W)
                 for i in range(j, n):
                     for lane in range(W):
                         buf[oWm + (i * m + c) * W + lane] -= (
@@ -333,7 +333,7 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
                     buf[oE + (i * n + c) * W + lane] = one if i == c else zero
         for j in range(m - 1, -1, -1):
             for c in range(n):
-                _dot_lanes(buf, oV + j * n * W, W, oE + c * W, n * W, n, oacc)
+                _dot_lanes(buf, oV + j * n * W, W, oE + c * W, n * W, n, oacc, W)
                 for i in range(j, n):
                     for lane in range(W):
                         buf[oE + (i * n + c) * W + lane] -= (
@@ -348,15 +348,15 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
             for lane in range(W):
                 buf[owv + i * W + lane] = buf[owv + i * W + lane] / buf[oR + (i * m + i) * W + lane]
         for r in range(n):
-            _dot_lanes(buf, oE + r * n * W, W, owv, W, m, ox0 + r * W)
+            _dot_lanes(buf, oE + r * n * W, W, owv, W, m, ox0 + r * W, W)
 
         # ---- the reduced problem in u, x = x0 + Z u with Z = E[:, m:]
         for i in range(n):
             for a in range(k):
-                _dot_lanes(buf, oQ + i * n * W, W, oE + (m + a) * W, n * W, n, oQZ + (i * k + a) * W)
+                _dot_lanes(buf, oQ + i * n * W, W, oE + (m + a) * W, n * W, n, oQZ + (i * k + a) * W, W)
         for a in range(k):
             for c in range(k):
-                _dot_lanes(buf, oE + (m + a) * W, n * W, oQZ + c * W, k * W, n, oQr + (a * k + c) * W)
+                _dot_lanes(buf, oE + (m + a) * W, n * W, oQZ + c * W, k * W, n, oQr + (a * k + c) * W, W)
         for a in range(k):
             for c in range(a):
                 for lane in range(W):
@@ -365,15 +365,15 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
                     buf[oQr + (c * k + a) * W + lane] = sym
         for r in range(p):
             for a in range(k):
-                _dot_lanes(buf, oG + r * n * W, W, oE + (m + a) * W, n * W, n, oGr + (r * k + a) * W)
+                _dot_lanes(buf, oG + r * n * W, W, oE + (m + a) * W, n * W, n, oGr + (r * k + a) * W, W)
         for i in range(n):
-            _dot_lanes(buf, oQ + i * n * W, W, ox0, W, n, oacc)
+            _dot_lanes(buf, oQ + i * n * W, W, ox0, W, n, oacc, W)
             for lane in range(W):
                 buf[otn + i * W + lane] = buf[oacc + lane] + buf[oq + i * W + lane]
         for a in range(k):
-            _dot_lanes(buf, oE + (m + a) * W, n * W, otn, W, n, oqr + a * W)
+            _dot_lanes(buf, oE + (m + a) * W, n * W, otn, W, n, oqr + a * W, W)
         for r in range(p):
-            _dot_lanes(buf, oG + r * n * W, W, ox0, W, n, oacc)
+            _dot_lanes(buf, oG + r * n * W, W, ox0, W, n, oacc, W)
             for lane in range(W):
                 buf[ohr + r * W + lane] = buf[oh + r * W + lane] - buf[oacc + lane]
         for i in range(k):
@@ -393,14 +393,14 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
             for r in range(p):
                 for lane in range(W):
                     buf[oHl + t * W + lane] += buf[oGG + (r * nt + t) * W + lane]
-        _cholesky_packed(buf, oHl, oL, k, one)
+        _cholesky_packed(buf, oHl, oL, k, one, W)
         for a in range(k):
-            _dot_lanes(buf, oGr + a * W, k * W, ohr, W, p, orhs + a * W)
+            _dot_lanes(buf, oGr + a * W, k * W, ohr, W, p, orhs + a * W, W)
             for lane in range(W):
                 buf[orhs + a * W + lane] -= buf[oqr + a * W + lane]
-        _cho_solve(buf, oL, orhs, ou, k)
-        _matvec(buf, oGr, ou, oGu, p, k)
-        _matvec(buf, oQr, ou, oQu, k, k)
+        _cho_solve(buf, oL, orhs, ou, k, W)
+        _matvec(buf, oGr, ou, oGu, p, k, W)
+        _matvec(buf, oQr, ou, oQu, k, k, W)
         for lane in range(W):
             first = buf[oGu + lane] - buf[ohr + lane]
             buf[oa1 + lane] = first  # max r
@@ -441,22 +441,22 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
             for t in range(nt):
                 for lane in range(W):
                     buf[oHl + t * W + lane] = buf[oQlow + t * W + lane] + buf[oHl + t * W + lane]
-            _cholesky_packed(buf, oHl, oL, k, one)
-            _dot_lanes(buf, os_, W, oz, W, p, oacc2)
+            _cholesky_packed(buf, oHl, oL, k, one, W)
+            _dot_lanes(buf, os_, W, oz, W, p, oacc2, W)
             for lane in range(W):
                 buf[oacc2 + lane] = buf[oacc2 + lane] / pf  # mu
             # predictor (w = 0)
-            _newton_rhs(buf, oGr, ozp, oD, orp, oQu, oqr, orhs, p, k)
-            _cho_solve(buf, oL, orhs, odu, k)
-            _matvec(buf, oGr, odu, oGdu, p, k)
+            _newton_rhs(buf, oGr, ozp, oD, orp, oQu, oqr, orhs, p, k, W)
+            _cho_solve(buf, oL, orhs, odu, k, W)
+            _matvec(buf, oGr, odu, oGdu, p, k, W)
             for r in range(p):
                 for lane in range(W):
                     g = buf[oGdu + r * W + lane]
                     rp = buf[orp + r * W + lane]
                     buf[odsa + r * W + lane] = -rp - g
                     buf[odza + r * W + lane] = -buf[oz + r * W + lane] + buf[oD + r * W + lane] * (rp + g)
-            _max_step(buf, os_, odsa, oa1, p, one)
-            _max_step(buf, oz, odza, oa2, p, one)
+            _max_step(buf, os_, odsa, oa1, p, one, W)
+            _max_step(buf, oz, odza, oa2, p, one, W)
             for lane in range(W):
                 a = buf[oa1 + lane]
                 b2 = buf[oa2 + lane]
@@ -477,10 +477,10 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
                     buf[ow + r * W + lane] = (buf[odsa + r * W + lane] * buf[odza + r * W + lane]
                                               - buf[oa2 + lane]) / buf[os_ + r * W + lane]
             # corrector
-            _newton_rhs(buf, oGr, ow, oD, orp, oQu, oqr, orhs, p, k)
-            _cho_solve(buf, oL, orhs, odu, k)
-            _matvec(buf, oGr, odu, oGdu, p, k)
-            _matvec(buf, oQr, odu, oQdu, k, k)
+            _newton_rhs(buf, oGr, ow, oD, orp, oQu, oqr, orhs, p, k, W)
+            _cho_solve(buf, oL, orhs, odu, k, W)
+            _matvec(buf, oGr, odu, oGdu, p, k, W)
+            _matvec(buf, oQr, odu, oQdu, k, k, W)
             for r in range(p):
                 for lane in range(W):
                     g = buf[oGdu + r * W + lane]
@@ -488,8 +488,8 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
                     buf[ods + r * W + lane] = -rp - g
                     buf[odz + r * W + lane] = (-(buf[oz + r * W + lane] + buf[ow + r * W + lane])
                                                + buf[oD + r * W + lane] * (rp + g))
-            _max_step(buf, os_, ods, oa1, p, one)
-            _max_step(buf, oz, odz, oa2, p, one)
+            _max_step(buf, os_, ods, oa1, p, one, W)
+            _max_step(buf, oz, odz, oa2, p, one, W)
             for lane in range(W):
                 a = buf[oa1 + lane]
                 b2 = buf[oa2 + lane]
@@ -510,16 +510,16 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
 
         # ---- x, y
         for i in range(n):
-            _dot_lanes(buf, oE + i * n * W + m * W, W, ou, W, k, oacc)
+            _dot_lanes(buf, oE + i * n * W + m * W, W, ou, W, k, oacc, W)
             for lane in range(W):
                 buf[ox + i * W + lane] = buf[ox0 + i * W + lane] + buf[oacc + lane]
         for i in range(n):  # tn = Q x + q + G^T z
-            _dot_lanes(buf, oQ + i * n * W, W, ox, W, n, oacc)
-            _dot_lanes(buf, oG + i * W, n * W, oz, W, p, oacc2)
+            _dot_lanes(buf, oQ + i * n * W, W, ox, W, n, oacc, W)
+            _dot_lanes(buf, oG + i * W, n * W, oz, W, p, oacc2, W)
             for lane in range(W):
                 buf[otn + i * W + lane] = (buf[oacc + lane] + buf[oq + i * W + lane]) + buf[oacc2 + lane]
         for j in range(m):
-            _dot_lanes(buf, oE + j * W, n * W, otn, W, n, oacc)
+            _dot_lanes(buf, oE + j * W, n * W, otn, W, n, oacc, W)
             for lane in range(W):
                 buf[owv + j * W + lane] = -buf[oacc + lane]
         for i in range(m - 1, -1, -1):
@@ -590,77 +590,118 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
             obj_out[bi] = obj
 
 
-def _compiled_solver(n: int, m: int, p: int):
-    """A jitted caller with the sizes as constants (numba compiles the kernel for them)."""
-    @nb.njit
-    def run(Q, q, A, b, G, h, d, iterations, consts, x, y, z, obj, res, ok, xs, ys, zs, s):
-        solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x, y, z, obj, res, ok, xs, ys, zs, s, n, m, p)
-
-    return run
+# ------------------------------------------------------------------------- FFI binding
+_FFI_API = (0, 3)  # the XLA FFI API version this handler is written against
+_EXTENSION_METADATA = 1  # XLA_FFI_Extension_Type: XLA asks the handler for its metadata
+_STAGE_EXECUTE = 3  # XLA_FFI_ExecutionStage
+_N_ARGS, _N_RETS = 9, 10
 
 
-def main(argv=None) -> None:
-    import argparse
-    import sys
-    import time
-    from pathlib import Path
+@intrinsic
+def _ptr(typingctx, addr):
+    """The int64 address `addr` as a void pointer (for `numba.carray`)."""
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.voidptr))
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--float32", action="store_true")
-    ap.add_argument("--batch", type=int, default=2000)
-    ap.add_argument("--iterations", default="16,20")
-    ap.add_argument("--repeats", type=int, default=5)
-    args = ap.parse_args(argv)
-    nb.config.SLP_VECTORIZE = True  # before the first compilation in this process
-    import jax
-
-    jax.config.update("jax_enable_x64", not args.float32)
-    jax.config.update("jax_num_cpu_devices", 1)
-    sys.path.insert(0, str(Path(__file__).parent))
-    from bench_qp import KEYS, contact_problems, take
-    from qp_peers import daqp_loop
-
-    from jaxloco import qp
-
-    dt = np.float32 if args.float32 else np.float64
-    tol = 1e-4 if args.float32 else 1e-6
-    data = take(contact_problems(1000, 0), args.batch)
-    arrays = tuple(np.ascontiguousarray(np.asarray(data[k], dt)) for k in (*KEYS, "x_scale"))
-    B, n = arrays[1].shape
-    m, p = arrays[3].shape[1], arrays[5].shape[1]
-    fi = np.finfo(dt)
-    consts = np.array([0.5, 1.0, 0.99, np.sqrt(fi.eps), fi.max, tol, p, 1e-12], dt)
-    outs = [np.empty((B, n), dt), np.empty((B, m), dt), np.empty((B, p), dt), np.empty(B, dt),
-            np.empty((B, 3), dt), np.empty(B, np.uint8), np.empty((B, n), dt), np.empty((B, m), dt),
-            np.empty((B, p), dt), np.empty((B, p), dt)]
-    run = _compiled_solver(n, m, p)
-    t0 = time.perf_counter()
-    run(*arrays, 1, consts, *outs)
-    print(f"contact QPs n={n} m={m} p={p}, batch {B}, {np.dtype(dt).name}, one core; "
-          f"kernel compiled (or loaded) in {time.perf_counter() - t0:.1f} s")
-
-    def best(fn):
-        times = []
-        for _ in range(args.repeats):
-            t = time.perf_counter()
-            fn()
-            times.append(time.perf_counter() - t)
-        return min(times)
-
-    _, _, t_daqp = daqp_loop({k: np.asarray(v, np.float64) for k, v in data.items()})
-    print(f"daqp (Python loop): {B / t_daqp:,.0f} QPs/s")
-    print("| iterations | kernel QPs/s | XLA form QPs/s | ok (kernel / XLA) | max |x_kernel - x_xla| / x_scale |")
-    print("| ---: | ---: | ---: | ---: | ---: |")
-    for it in (int(s) for s in args.iterations.split(",")):
-        xla = jax.jit(lambda *a, it=it: qp.solve_batch(*a[:6], x_scale=a[6], iterations=it, tol=tol,
-                                                        differentiable=False))
-        ref = jax.block_until_ready(xla(*arrays))
-        t_xla = best(lambda: jax.block_until_ready(xla(*arrays)))
-        t_k = best(lambda it=it: run(*arrays, it, consts, *outs))
-        dev = np.max(np.abs(outs[0] - np.asarray(ref.x)) / arrays[6])
-        print(f"| {it} | {B / t_k:,.0f} | {B / t_xla:,.0f} | {outs[5].mean():.4f} / "
-              f"{float(np.mean(ref.ok)):.4f} | {dev:.1e} |")
+    return types.voidptr(types.int64), codegen
 
 
-if __name__ == "__main__":
-    main()
+@contextlib.contextmanager
+def _slp_vectorizer():
+    """numba's SLP vectorizer on while the kernel compiles (numba reads the setting when it
+    builds a pass pipeline; its default is off)."""
+    before = nb.config.SLP_VECTORIZE
+    nb.config.SLP_VECTORIZE = True
+    try:
+        yield
+    finally:
+        nb.config.SLP_VECTORIZE = before
+
+
+def _handler(n: int, m: int, p: int, dtype: np.dtype):
+    """The FFI handler (a numba cfunc) for problems of sizes n, m, p in `dtype`. XLA passes
+    Q, q, A, b, G, h, x_scale (any leading batch axes), iterations (int32) and the kernel's
+    consts, and gets x, y, z, objective, residuals, ok (uint8), xs, ys, zs, s."""
+    dt = np.dtype(dtype).type
+    w = VECTOR_BYTES // np.dtype(dtype).itemsize
+    major, minor = _FFI_API
+
+    @nb.cfunc(types.voidptr(types.voidptr), nopython=True)
+    def handler(frame_p):
+        # XLA_FFI_CallFrame: struct_size, extension_start, api, ctx, stage (int) | args:
+        # struct_size, extension_start, size, types, args (word 9) | rets: ..., rets (word 14)
+        frame = nb.carray(frame_p, (16,), np.int64)
+        if frame[1] != 0:  # an extension: answer the metadata query, run nothing
+            ext = nb.carray(_ptr(frame[1]), (4,), np.int64)
+            if (ext[1] & 0xFFFFFFFF) == _EXTENSION_METADATA:
+                meta = nb.carray(_ptr(ext[3]), (10,), np.int32)  # XLA_FFI_Metadata
+                meta[6] = major  # api_version.major_version (byte 24)
+                meta[7] = minor  # api_version.minor_version (byte 28)
+                meta[8] = 0  # traits (byte 32)
+            return _ptr(0)
+        if (frame[4] & 0xFFFFFFFF) != _STAGE_EXECUTE:
+            return _ptr(0)
+        args = nb.carray(_ptr(frame[9]), (_N_ARGS,), np.int64)
+        rets = nb.carray(_ptr(frame[14]), (_N_RETS,), np.int64)
+        # XLA_FFI_Buffer: struct_size, extension_start, dtype (int), data (word 3), rank, dims
+        qbuf = nb.carray(_ptr(args[1]), (6,), np.int64)
+        dims = nb.carray(_ptr(qbuf[5]), (qbuf[4],), np.int64)
+        size = 1
+        for i in range(qbuf[4]):
+            size *= dims[i]
+        B = size // n
+        data = np.empty(_N_ARGS, np.int64)
+        for i in range(_N_ARGS):
+            data[i] = nb.carray(_ptr(args[i]), (6,), np.int64)[3]
+        out = np.empty(_N_RETS, np.int64)
+        for i in range(_N_RETS):
+            out[i] = nb.carray(_ptr(rets[i]), (6,), np.int64)[3]
+        iterations = nb.carray(_ptr(data[7]), (1,), np.int32)[0]
+        solve_batch_np(
+            nb.carray(_ptr(data[0]), (B, n, n), dt), nb.carray(_ptr(data[1]), (B, n), dt),
+            nb.carray(_ptr(data[2]), (B, m, n), dt), nb.carray(_ptr(data[3]), (B, m), dt),
+            nb.carray(_ptr(data[4]), (B, p, n), dt), nb.carray(_ptr(data[5]), (B, p), dt),
+            nb.carray(_ptr(data[6]), (B, n), dt), iterations, nb.carray(_ptr(data[8]), (8,), dt),
+            nb.carray(_ptr(out[0]), (B, n), dt), nb.carray(_ptr(out[1]), (B, m), dt),
+            nb.carray(_ptr(out[2]), (B, p), dt), nb.carray(_ptr(out[3]), (B,), dt),
+            nb.carray(_ptr(out[4]), (B, 3), dt), nb.carray(_ptr(out[5]), (B,), np.uint8),
+            nb.carray(_ptr(out[6]), (B, n), dt), nb.carray(_ptr(out[7]), (B, m), dt),
+            nb.carray(_ptr(out[8]), (B, p), dt), nb.carray(_ptr(out[9]), (B, p), dt),
+            n, m, p, w)
+        return _ptr(0)
+
+    return handler
+
+
+_HANDLERS: dict[str, object] = {}  # the registered cfuncs, kept alive for XLA
+
+
+@functools.cache
+def ffi_target(n: int, m: int, p: int, dtype: str) -> str:
+    """The name of the FFI target for sizes (n, m, p) and `dtype` ("float32" or "float64"),
+    compiling and registering its handler on first use."""
+    name = f"jaxloco_qp_{n}_{m}_{p}_{dtype}"
+    with _slp_vectorizer():
+        handler = _handler(n, m, p, np.dtype(dtype))
+    _HANDLERS[name] = handler
+    capsule = ctypes.pythonapi.PyCapsule_New
+    capsule.restype = ctypes.py_object
+    capsule.argtypes = (ctypes.c_void_p, ctypes.c_char_p, ctypes.c_void_p)
+    jax.ffi.register_ffi_target(name, capsule(handler.address, None, None), platform="cpu")
+    return name
+
+
+def solve_batch(Q, q, A, b, G, h, x_scale, *, iterations: int, tol: float):
+    """The kernel on a batch (every argument with the same leading batch axes, one float
+    dtype): (x, y, z, objective, residuals (..., 3), ok (bool), xs, ys, zs, s) as
+    `solve_batch_np` writes them. jit-compatible; under `vmap` the batch axes grow."""
+    dtype = jnp.dtype(q.dtype)
+    n, m, p = q.shape[-1], b.shape[-1], h.shape[-1]
+    batch = q.shape[:-1]
+    fi = np.finfo(dtype)
+    consts = jnp.asarray([0.5, 1.0, 0.99, np.sqrt(fi.eps), fi.max, tol, p, 1e-12], dtype)
+    shapes = [(n,), (m,), (p,), (), (3,), (), (n,), (m,), (p,), (p,)]
+    out_types = [jax.ShapeDtypeStruct(batch + s, jnp.uint8 if i == 5 else dtype) for i, s in enumerate(shapes)]
+    call = jax.ffi.ffi_call(ffi_target(int(n), int(m), int(p), dtype.name), out_types, vmap_method="broadcast_all")
+    outs = call(Q, q, A, b, G, h, x_scale, jnp.asarray(iterations, jnp.int32), consts)
+    return (*outs[:5], outs[5].astype(bool), *outs[6:])
