@@ -68,33 +68,37 @@ def _matvec(buf, oM, ov, oout, rows, cols, W):
 
 
 @nb.njit(**_NB)
-def _max_step(buf, ov, odv, oout, p, one, W):
-    """out = the largest alpha in [0, 1] with v + alpha dv >= 0, per lane (v > 0)."""
+def _max_step(buf, oinv, odv, oout, p, one, W):
+    """out = the largest alpha in [0, 1] with v + alpha dv >= 0, per lane, from 1 / v
+    (v > 0): alpha = 1 / max(1, max_r -dv_r / v_r), one division per lane."""
     for lane in range(W):
         buf[oout + lane] = one
     for r in range(p):
         for lane in range(W):
-            dv = buf[odv + r * W + lane]
-            a = -buf[ov + r * W + lane] / dv if dv < 0 else one
-            buf[oout + lane] = a if a < buf[oout + lane] else buf[oout + lane]
+            x = -buf[odv + r * W + lane] * buf[oinv + r * W + lane]
+            buf[oout + lane] = x if x > buf[oout + lane] else buf[oout + lane]
+    for lane in range(W):
+        buf[oout + lane] = one / buf[oout + lane]
 
 
 @nb.njit(**_NB)
-def _cholesky_packed(buf, oH, oL, k, one, W):
+def _cholesky_packed(buf, oH, oL, oinv, k, one, W):
     """L L^T = H per lane; both (k(k+1)/2, W), lower triangles packed row by row.
     Right-looking: each entry sees the same subtractions, in the same order, as in
-    `linalg.cholesky_packed_scalars`."""
+    `linalg.cholesky_packed_scalars`. Also inv (k, W): 1 / the diagonal of L."""
     for t in range(k * (k + 1) // 2):
         for lane in range(W):
             buf[oL + t * W + lane] = buf[oH + t * W + lane]
     for j in range(k):
         jj = j * (j + 1) // 2 + j
         for lane in range(W):
-            buf[oL + jj * W + lane] = np.sqrt(buf[oL + jj * W + lane])
+            d = np.sqrt(buf[oL + jj * W + lane])
+            buf[oL + jj * W + lane] = d
+            buf[oinv + j * W + lane] = one / d
         for i in range(j + 1, k):
             ij = i * (i + 1) // 2 + j
             for lane in range(W):
-                buf[oL + ij * W + lane] = buf[oL + ij * W + lane] * (one / buf[oL + jj * W + lane])
+                buf[oL + ij * W + lane] = buf[oL + ij * W + lane] * buf[oinv + j * W + lane]
         for i in range(j + 1, k):
             ij = i * (i + 1) // 2 + j
             for c in range(j + 1, i + 1):
@@ -105,22 +109,23 @@ def _cholesky_packed(buf, oH, oL, k, one, W):
 
 
 @nb.njit(**_NB)
-def _cho_solve(buf, oL, orhs, ox, k, W):
-    """x with L L^T x = rhs per lane (L packed as in `_cholesky_packed`), column by column."""
+def _cho_solve(buf, oL, oinv, orhs, ox, k, W):
+    """x with L L^T x = rhs per lane (L packed and inv as `_cholesky_packed` gives them),
+    column by column."""
     for i in range(k):
         for lane in range(W):
             buf[ox + i * W + lane] = buf[orhs + i * W + lane]
     for c in range(k):
         cc = c * (c + 1) // 2 + c
         for lane in range(W):
-            buf[ox + c * W + lane] = buf[ox + c * W + lane] / buf[oL + cc * W + lane]
+            buf[ox + c * W + lane] = buf[ox + c * W + lane] * buf[oinv + c * W + lane]
         for i in range(c + 1, k):
             for lane in range(W):
                 buf[ox + i * W + lane] -= buf[oL + (i * (i + 1) // 2 + c) * W + lane] * buf[ox + c * W + lane]
     for c in range(k - 1, -1, -1):
         cc = c * (c + 1) // 2 + c
         for lane in range(W):
-            buf[ox + c * W + lane] = buf[ox + c * W + lane] / buf[oL + cc * W + lane]
+            buf[ox + c * W + lane] = buf[ox + c * W + lane] * buf[oinv + c * W + lane]
         for i in range(c):
             for lane in range(W):
                 buf[ox + i * W + lane] -= buf[oL + (cc - c + i) * W + lane] * buf[ox + c * W + lane]
@@ -218,7 +223,10 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
     ozp = ow + p * W
     oa1 = ozp + p * W         # (W) each
     oa2 = oa1 + W
-    oacc = oa2 + W
+    oLinv = oa2 + W           # 1 / diag(L) (k)
+    oinvs = oLinv + k * W     # 1 / s (p)
+    oinvz = oinvs + p * W     # 1 / z (p)
+    oacc = oinvz + p * W
     oacc2 = oacc + W
     od = oacc2 + W            # x_scale (n)
     ora = od + n * W          # row norms of A D (m)
@@ -393,12 +401,12 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
             for r in range(p):
                 for lane in range(W):
                     buf[oHl + t * W + lane] += buf[oGG + (r * nt + t) * W + lane]
-        _cholesky_packed(buf, oHl, oL, k, one, W)
+        _cholesky_packed(buf, oHl, oL, oLinv, k, one, W)
         for a in range(k):
             _dot_lanes(buf, oGr + a * W, k * W, ohr, W, p, orhs + a * W, W)
             for lane in range(W):
                 buf[orhs + a * W + lane] -= buf[oqr + a * W + lane]
-        _cho_solve(buf, oL, orhs, ou, k, W)
+        _cho_solve(buf, oL, oLinv, orhs, ou, k, W)
         _matvec(buf, oGr, ou, oGu, p, k, W)
         _matvec(buf, oQr, ou, oQu, k, k, W)
         for lane in range(W):
@@ -429,7 +437,10 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
                     buf[os_ + r * W + lane] = sv
                     buf[oz + r * W + lane] = zv
                     buf[orp + r * W + lane] = (buf[oGu + r * W + lane] + sv) - buf[ohr + r * W + lane]
-                    buf[oD + r * W + lane] = zv / sv
+                    inv_s = one / sv
+                    buf[oinvs + r * W + lane] = inv_s
+                    buf[oinvz + r * W + lane] = one / zv
+                    buf[oD + r * W + lane] = zv * inv_s
             # H = Q + G^T diag(D) G, lower triangle: r outer, so no update chain
             for t in range(nt):
                 for lane in range(W):
@@ -441,13 +452,13 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
             for t in range(nt):
                 for lane in range(W):
                     buf[oHl + t * W + lane] = buf[oQlow + t * W + lane] + buf[oHl + t * W + lane]
-            _cholesky_packed(buf, oHl, oL, k, one, W)
+            _cholesky_packed(buf, oHl, oL, oLinv, k, one, W)
             _dot_lanes(buf, os_, W, oz, W, p, oacc2, W)
             for lane in range(W):
                 buf[oacc2 + lane] = buf[oacc2 + lane] / pf  # mu
             # predictor (w = 0)
             _newton_rhs(buf, oGr, ozp, oD, orp, oQu, oqr, orhs, p, k, W)
-            _cho_solve(buf, oL, orhs, odu, k, W)
+            _cho_solve(buf, oL, oLinv, orhs, odu, k, W)
             _matvec(buf, oGr, odu, oGdu, p, k, W)
             for r in range(p):
                 for lane in range(W):
@@ -455,8 +466,8 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
                     rp = buf[orp + r * W + lane]
                     buf[odsa + r * W + lane] = -rp - g
                     buf[odza + r * W + lane] = -buf[oz + r * W + lane] + buf[oD + r * W + lane] * (rp + g)
-            _max_step(buf, os_, odsa, oa1, p, one, W)
-            _max_step(buf, oz, odza, oa2, p, one, W)
+            _max_step(buf, oinvs, odsa, oa1, p, one, W)
+            _max_step(buf, oinvz, odza, oa2, p, one, W)
             for lane in range(W):
                 a = buf[oa1 + lane]
                 b2 = buf[oa2 + lane]
@@ -475,10 +486,10 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
             for r in range(p):
                 for lane in range(W):
                     buf[ow + r * W + lane] = (buf[odsa + r * W + lane] * buf[odza + r * W + lane]
-                                              - buf[oa2 + lane]) / buf[os_ + r * W + lane]
+                                              - buf[oa2 + lane]) * buf[oinvs + r * W + lane]
             # corrector
             _newton_rhs(buf, oGr, ow, oD, orp, oQu, oqr, orhs, p, k, W)
-            _cho_solve(buf, oL, orhs, odu, k, W)
+            _cho_solve(buf, oL, oLinv, orhs, odu, k, W)
             _matvec(buf, oGr, odu, oGdu, p, k, W)
             _matvec(buf, oQr, odu, oQdu, k, k, W)
             for r in range(p):
@@ -488,8 +499,8 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
                     buf[ods + r * W + lane] = -rp - g
                     buf[odz + r * W + lane] = (-(buf[oz + r * W + lane] + buf[ow + r * W + lane])
                                                + buf[oD + r * W + lane] * (rp + g))
-            _max_step(buf, os_, ods, oa1, p, one, W)
-            _max_step(buf, oz, odz, oa2, p, one, W)
+            _max_step(buf, oinvs, ods, oa1, p, one, W)
+            _max_step(buf, oinvz, odz, oa2, p, one, W)
             for lane in range(W):
                 a = buf[oa1 + lane]
                 b2 = buf[oa2 + lane]
