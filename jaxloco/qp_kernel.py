@@ -55,16 +55,34 @@ def _nanmax(acc, v):
 
 
 @nb.njit(**_NB)
-def _matvec(buf, oM, ov, oout, rows, cols, W):
-    """out = M v per lane; M (rows, cols, W), v (cols, W), out (rows, W). Accumulated
-    column by column, so consecutive updates go to different rows (no dependency chain)."""
+def _normalize_row(buf, orow, onorm, orhs, rhs, n, one, W):
+    """Divide a constraint row (n entries at orow, stride W: one lane) and its right-hand
+    side `rhs` (written to orhs) by the row's 2-norm, stored at onorm (1 for a zero row)."""
+    nrm = one - one
+    for j in range(n):
+        v = buf[orow + j * W]
+        nrm = nrm + v * v
+    nrm = np.sqrt(nrm)
+    nrm = nrm if nrm > 0 else one
+    buf[onorm] = nrm
+    for j in range(n):
+        buf[orow + j * W] = buf[orow + j * W] / nrm
+    buf[orhs] = rhs / nrm
+
+
+@nb.njit(**_NB)
+def _matvec(buf, oM, ov, oout, rows, cols, W, transposed=False):
+    """out = M v per lane; M (rows, cols, W), v (cols, W), out (rows, W); transposed: M is
+    stored as (cols, rows, W). Accumulated column by column, so consecutive updates go to
+    different rows (no dependency chain)."""
     for i in range(rows):
         for lane in range(W):
             buf[oout + i * W + lane] = 0
     for j in range(cols):
         for i in range(rows):
+            at = oM + ((j * rows + i) if transposed else (i * cols + j)) * W
             for lane in range(W):
-                buf[oout + i * W + lane] += buf[oM + (i * cols + j) * W + lane] * buf[ov + j * W + lane]
+                buf[oout + i * W + lane] += buf[at + lane] * buf[ov + j * W + lane]
 
 
 @nb.njit(**_NB)
@@ -154,6 +172,44 @@ def _dot_lanes(buf, oa, sa, ob, sb, count, oacc, W):
             buf[oacc + lane] += buf[oa + i * sa + lane] * buf[ob + i * sb + lane]
 
 
+@nb.njit(**_NB)
+def _direction(buf, oGr, ow, oD, orp, oQu, oqr, orhs, oL, oLinv, odu, oGdu, oz, ods, odz, p, k, W):
+    """The Newton step of `qp_ipm._direction` per lane, for the corrector term w (zeros:
+    the predictor): du, G du, ds = -r_p - G du, dz = -(z + w) + D (r_p + G du)."""
+    _newton_rhs(buf, oGr, ow, oD, orp, oQu, oqr, orhs, p, k, W)
+    _cho_solve(buf, oL, oLinv, orhs, odu, k, W)
+    _matvec(buf, oGr, odu, oGdu, p, k, W)
+    for r in range(p):
+        for lane in range(W):
+            g = buf[oGdu + r * W + lane]
+            rp = buf[orp + r * W + lane]
+            buf[ods + r * W + lane] = -rp - g
+            buf[odz + r * W + lane] = -(buf[oz + r * W + lane] + buf[ow + r * W + lane]) + buf[oD + r * W + lane] * (
+                rp + g)
+
+
+@nb.njit(**_NB)
+def _step_length(buf, oinvs, oinvz, ods, odz, oa1, oa2, p, one, W):
+    """a1 = the largest alpha in [0, 1] keeping s + alpha ds and z + alpha dz >= 0, per
+    lane (a2: scratch)."""
+    _max_step(buf, oinvs, ods, oa1, p, one, W)
+    _max_step(buf, oinvz, odz, oa2, p, one, W)
+    for lane in range(W):
+        a = buf[oa1 + lane]
+        b = buf[oa2 + lane]
+        buf[oa1 + lane] = a if a < b else b
+
+
+@nb.njit(**_NB)
+def _reflect(buf, ov, obeta, ocol, stride, j, n, oacc, W):
+    """col = (I - beta v v^T) col per lane for the Householder vector v (n, W; zero above
+    row j) and the column at ocol (n entries, row stride `stride`)."""
+    _dot_lanes(buf, ov, W, ocol, stride, n, oacc, W)
+    for i in range(j, n):
+        for lane in range(W):
+            buf[ocol + i * stride + lane] -= (buf[obeta + lane] * buf[ov + i * W + lane]) * buf[oacc + lane]
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out, obj_out, res_out, ok_out,
                    xs_out, ys_out, zs_out, s_out, n, m, p, W):
@@ -208,8 +264,7 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
     odu = oQu + k * W
     oQdu = odu + k * W
     orhs = oQdu + k * W
-    otk = orhs + k * W
-    os_ = otk + k * W         # (p) each
+    os_ = orhs + k * W        # (p) each
     oz = os_ + p * W
     oGu = oz + p * W
     orp = oGu + p * W
@@ -282,30 +337,17 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
                 for j in range(n):
                     buf[oQ + (i * n + j) * W + lane] = buf[oQ + (i * n + j) * W + lane] / c
             for i in range(m):
-                nrm = zero
                 for j in range(n):
                     v = A[bi, i, j] * buf[od + j * W + lane] if fin else (one if i == j else zero)
                     buf[oA + (i * n + j) * W + lane] = v
-                    nrm = nrm + v * v
-                nrm = np.sqrt(nrm)
-                nrm = nrm if nrm > 0 else one
-                buf[ora + i * W + lane] = nrm
-                for j in range(n):
-                    buf[oA + (i * n + j) * W + lane] = buf[oA + (i * n + j) * W + lane] / nrm
-                buf[ob + i * W + lane] = (b[bi, i] if fin else zero) / nrm
+                _normalize_row(buf, oA + i * n * W + lane, ora + i * W + lane, ob + i * W + lane,
+                               b[bi, i] if fin else zero, n, one, W)
             for r in range(p):
                 on = fin and not (h[bi, r] == np.inf)
-                nrm = zero
                 for j in range(n):
-                    v = G[bi, r, j] * buf[od + j * W + lane] if on else zero
-                    buf[oG + (r * n + j) * W + lane] = v
-                    nrm = nrm + v * v
-                nrm = np.sqrt(nrm)
-                nrm = nrm if nrm > 0 else one
-                buf[org + r * W + lane] = nrm
-                for j in range(n):
-                    buf[oG + (r * n + j) * W + lane] = buf[oG + (r * n + j) * W + lane] / nrm
-                buf[oh + r * W + lane] = (h[bi, r] if on else one) / nrm
+                    buf[oG + (r * n + j) * W + lane] = G[bi, r, j] * buf[od + j * W + lane] if on else zero
+                _normalize_row(buf, oG + r * n * W + lane, org + r * W + lane, oh + r * W + lane,
+                               h[bi, r] if on else one, n, one, W)
 
         # ---- Householder QR of A^T (n, m): A^T = Y R, [Y Z] = E
         for i in range(n):
@@ -326,11 +368,7 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
                 vv = buf[oacc + lane]
                 buf[obeta + j * W + lane] = two / vv if vv > 0 else zero
             for c in range(m):
-                _dot_lanes(buf, oV + j * n * W, W, oWm + c * W, m * W, n, oacc, W)
-                for i in range(j, n):
-                    for lane in range(W):
-                        buf[oWm + (i * m + c) * W + lane] -= (
-                            buf[obeta + j * W + lane] * buf[oV + (j * n + i) * W + lane]) * buf[oacc + lane]
+                _reflect(buf, oV + j * n * W, obeta + j * W, oWm + c * W, m * W, j, n, oacc, W)
         for i in range(m):
             for c in range(m):
                 for lane in range(W):
@@ -341,11 +379,7 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
                     buf[oE + (i * n + c) * W + lane] = one if i == c else zero
         for j in range(m - 1, -1, -1):
             for c in range(n):
-                _dot_lanes(buf, oV + j * n * W, W, oE + c * W, n * W, n, oacc, W)
-                for i in range(j, n):
-                    for lane in range(W):
-                        buf[oE + (i * n + c) * W + lane] -= (
-                            buf[obeta + j * W + lane] * buf[oV + (j * n + i) * W + lane]) * buf[oacc + lane]
+                _reflect(buf, oV + j * n * W, obeta + j * W, oE + c * W, n * W, j, n, oacc, W)
         # x0 = Y R^-T b
         for i in range(m):
             for lane in range(W):
@@ -441,14 +475,8 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
                     buf[oinvs + r * W + lane] = inv_s
                     buf[oinvz + r * W + lane] = one / zv
                     buf[oD + r * W + lane] = zv * inv_s
-            # H = Q + G^T diag(D) G, lower triangle: r outer, so no update chain
-            for t in range(nt):
-                for lane in range(W):
-                    buf[oHl + t * W + lane] = 0
-            for r in range(p):
-                for t in range(nt):
-                    for lane in range(W):
-                        buf[oHl + t * W + lane] += buf[oD + r * W + lane] * buf[oGG + (r * nt + t) * W + lane]
+            # H = Q + G^T diag(D) G, lower triangle: GG^T D, then + Q
+            _matvec(buf, oGG, oD, oHl, nt, p, W, transposed=True)
             for t in range(nt):
                 for lane in range(W):
                     buf[oHl + t * W + lane] = buf[oQlow + t * W + lane] + buf[oHl + t * W + lane]
@@ -457,21 +485,9 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
             for lane in range(W):
                 buf[oacc2 + lane] = buf[oacc2 + lane] / pf  # mu
             # predictor (w = 0)
-            _newton_rhs(buf, oGr, ozp, oD, orp, oQu, oqr, orhs, p, k, W)
-            _cho_solve(buf, oL, oLinv, orhs, odu, k, W)
-            _matvec(buf, oGr, odu, oGdu, p, k, W)
-            for r in range(p):
-                for lane in range(W):
-                    g = buf[oGdu + r * W + lane]
-                    rp = buf[orp + r * W + lane]
-                    buf[odsa + r * W + lane] = -rp - g
-                    buf[odza + r * W + lane] = -buf[oz + r * W + lane] + buf[oD + r * W + lane] * (rp + g)
-            _max_step(buf, oinvs, odsa, oa1, p, one, W)
-            _max_step(buf, oinvz, odza, oa2, p, one, W)
+            _direction(buf, oGr, ozp, oD, orp, oQu, oqr, orhs, oL, oLinv, odu, oGdu, oz, odsa, odza, p, k, W)
+            _step_length(buf, oinvs, oinvz, odsa, odza, oa1, oa2, p, one, W)
             for lane in range(W):
-                a = buf[oa1 + lane]
-                b2 = buf[oa2 + lane]
-                buf[oa1 + lane] = a if a < b2 else b2
                 buf[oacc + lane] = 0
             for r in range(p):
                 for lane in range(W):
@@ -488,24 +504,11 @@ def solve_batch_np(Q, q, A, b, G, h, d, iterations, consts, x_out, y_out, z_out,
                     buf[ow + r * W + lane] = (buf[odsa + r * W + lane] * buf[odza + r * W + lane]
                                               - buf[oa2 + lane]) * buf[oinvs + r * W + lane]
             # corrector
-            _newton_rhs(buf, oGr, ow, oD, orp, oQu, oqr, orhs, p, k, W)
-            _cho_solve(buf, oL, oLinv, orhs, odu, k, W)
-            _matvec(buf, oGr, odu, oGdu, p, k, W)
+            _direction(buf, oGr, ow, oD, orp, oQu, oqr, orhs, oL, oLinv, odu, oGdu, oz, ods, odz, p, k, W)
             _matvec(buf, oQr, odu, oQdu, k, k, W)
-            for r in range(p):
-                for lane in range(W):
-                    g = buf[oGdu + r * W + lane]
-                    rp = buf[orp + r * W + lane]
-                    buf[ods + r * W + lane] = -rp - g
-                    buf[odz + r * W + lane] = (-(buf[oz + r * W + lane] + buf[ow + r * W + lane])
-                                               + buf[oD + r * W + lane] * (rp + g))
-            _max_step(buf, oinvs, ods, oa1, p, one, W)
-            _max_step(buf, oinvz, odz, oa2, p, one, W)
+            _step_length(buf, oinvs, oinvz, ods, odz, oa1, oa2, p, one, W)
             for lane in range(W):
-                a = buf[oa1 + lane]
-                b2 = buf[oa2 + lane]
-                a = a if a < b2 else b2
-                a = p99 * a
+                a = p99 * buf[oa1 + lane]
                 buf[oa1 + lane] = a if a < one else one
             for a in range(k):
                 for lane in range(W):
