@@ -24,9 +24,10 @@ derivative).
 
 The FFI handler (`_handler`) is a numba C callback that reads XLA's call frame (the typed
 FFI of `xla/ffi/api/c_api.h`, API 0.3): one handler per (n, m, p, dtype), compiled and
-registered on first use (`ffi_target`); the kernel is cached on disk by numba, so a new
-process compiles only the small handler (about 1 s) and the first process about 30 s.
-CPU only; numba is the optional dependency `jaxloco[kernel]`.
+registered on first use (`ffi_target`); the kernel is cached on disk by numba (next to
+this file, or under $NUMBA_CACHE_DIR where that is not writable), so a new process
+compiles only the small handler (about 1 s) and the first process about 25 s. CPU only;
+numba is the optional dependency `jaxloco[kernel]`.
 """
 
 from __future__ import annotations
@@ -88,15 +89,20 @@ def _matvec(buf, oM, ov, oout, rows, cols, W, transposed=False):
 @nb.njit(**_NB)
 def _max_step(buf, oinv, odv, oout, p, one, W):
     """out = the largest alpha in [0, 1] with v + alpha dv >= 0, per lane, from 1 / v
-    (v > 0): alpha = 1 / max(1, max_r -dv_r / v_r), one division per lane."""
+    (v > 0): alpha = 1 / max(1, max_r -dv_r / v_r), one division per lane. The maximum
+    runs as two interleaved chains (even and odd rows) to halve the dependency."""
     for lane in range(W):
-        buf[oout + lane] = one
-    for r in range(p):
-        for lane in range(W):
-            x = -buf[odv + r * W + lane] * buf[oinv + r * W + lane]
-            buf[oout + lane] = x if x > buf[oout + lane] else buf[oout + lane]
-    for lane in range(W):
-        buf[oout + lane] = one / buf[oout + lane]
+        m0 = one
+        m1 = one
+        for r in range(0, p - 1, 2):
+            x0 = -buf[odv + r * W + lane] * buf[oinv + r * W + lane]
+            x1 = -buf[odv + (r + 1) * W + lane] * buf[oinv + (r + 1) * W + lane]
+            m0 = x0 if x0 > m0 else m0
+            m1 = x1 if x1 > m1 else m1
+        if p % 2:
+            x0 = -buf[odv + (p - 1) * W + lane] * buf[oinv + (p - 1) * W + lane]
+            m0 = x0 if x0 > m0 else m0
+        buf[oout + lane] = one / (m0 if m0 > m1 else m1)
 
 
 @nb.njit(**_NB)
