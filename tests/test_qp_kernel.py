@@ -13,6 +13,8 @@ import numpy as np
 import pytest
 
 pytest.importorskip("numba")
+# three numba compiles of ~30 s each with an empty cache: start this module first
+pytestmark = pytest.mark.slow
 
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
