@@ -383,7 +383,7 @@ def _kernel_diff_bwd(iterations, tol, saved, ct):
         return _finish(_given(data, (xsi, ysi, zsi, si, resi[0], resi[1], resi[2], oki), iterations), sc, True)
 
     def solution(Q, q, A, b, G, h):
-        return jax.vmap(one)(Q, q, A, b, G, h, d, res, ok, xs, ys, zs, s)
+        return batching.vmap_in_blocks(one, block=BLOCK)(Q, q, A, b, G, h, d, res, ok, xs, ys, zs, s)
 
     _, vjp = jax.vjp(solution, Q, q, A, b, G, h)
     return (*vjp(ct), jnp.zeros_like(d))
