@@ -89,6 +89,9 @@ def static_environment() -> list[tuple[str, str]]:
     """The lines that need no JAX (versions, python, the compilation cache directory): cheap."""
     rows = [(name, version) for name, version in versions().items()]
     rows.append(("python", sys.version.split()[0]))
+    numba = package_version("numba")
+    rows.append(("qp kernel backend", "off: pip install 'jaxloco[kernel]'" if numba == "not installed"
+                 else f"on (numba {numba}): qp.solve_batch(backend='kernel')"))
     cache = runtime.default_cache_dir()
     source = f" (from ${runtime.ENV_CACHE_DIR})" if os.environ.get(runtime.ENV_CACHE_DIR) else ""
     bound = _cache_bound()

@@ -224,7 +224,7 @@ def test_info_subprocess_is_clean():
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     for name in ("jaxloco", "jax", "jaxlib", "mujoco", "mujoco-mjx", "jax devices", "float64", "compilation cache",
-                 "program cache"):
+                 "program cache", "qp kernel backend"):
         assert name in proc.stdout
     from importlib.metadata import version
 
