@@ -325,9 +325,9 @@ def _solve_batch_kernel(args, axes, iterations, tol, differentiable) -> QPSoluti
     dtype = jnp.result_type(*args[:6], 0.0)
     n = args[1].shape[-1]
     raw = []
-    for v, ax, k in zip(args, axes, _BASE_NDIM):
+    for i, (v, ax) in enumerate(zip(args, axes)):
         v = jnp.asarray(v, dtype)
-        if k == 1 and v.ndim == 0:  # the default x_scale
+        if i == 6 and v.ndim == 0:  # the default x_scale
             v = jnp.ones((n,), dtype)
         raw.append(v if ax == 0 else jnp.broadcast_to(v, (size, *v.shape)))
     raw = tuple(raw)
