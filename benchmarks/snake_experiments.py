@@ -11,8 +11,10 @@ Prints two tables:
      base joint below 70 % of its limit), V, the gripper tip's largest errors, the
      smallest static margin, the footprint area at the end and the order in which the
      base joints leave their limits (MuJoCo rows: the head controlled and measured, as in
-     the paper's Fig. 9), for the paper's K_V, Eq. 20 (a2 = 100) and, with
-     --tuned, the values of a `jaxloco tune snake_kv_tune` run.
+     the paper's Fig. 9) and its score (`experiments.release_order_score`: +1 from the
+     tail to the head, as the paper's Fig. 10), for the paper's K_V, Eq. 20 (a2 = 100),
+     the paper's K_V with the wheels 10 x dearer in W and k_eta 0.5 (both ours: the paper
+     gives neither) and, with --tuned, the values of a `jaxloco tune snake_kv_tune` run.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ import numpy as np
 from jaxloco import runtime
 from jaxloco.robots.snake import analysis, experiments, sim_control
 
-KV_KEYS = ("kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio", "k_eta")
+KV_KEYS = ("kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio", "k_eta", "w_wheel")
 
 
 def accuracy_table() -> None:
@@ -56,7 +58,9 @@ def accuracy_table() -> None:
 
 
 def _rows(tuned: dict[str, float] | None) -> list[tuple[str, dict[str, float]]]:
-    rows = [("paper K_V (Eq. 19)", {}), ("Eq. 20, a2 = 100", {"a2": 100.0})]
+    rows = [("paper K_V (Eq. 19)", {}), ("Eq. 20, a2 = 100", {"a2": 100.0}),
+            # W and k_eta are ours: wheels 10 x dearer in W (and k_eta 0.5) free the tail first, as the paper's Fig. 10
+            ("paper K_V, wheels 10x in W, k_eta 0.5", {"w_wheel": 10.0, "k_eta": 0.5})]
     if tuned:
         rows.append(("tuned (kinematic)", tuned))
     return rows
@@ -95,19 +99,20 @@ def limit_table(tuned: dict[str, float] | None) -> None:
           "rows, as the paper's Fig. 9 plots w_h; the paper sees theta_9 .. theta_4 leave the limits in that order, "
           "tail to head)")
     print("| setting | sim | recovery [s] | V0 -> final V | max pos. error [mm] | max att. error [rad] "
-          "| min margin [mm] | footprint at end [m^2] | base joints theta_4..9 below 70 % at [s] | order left |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+          "| min margin [mm] | footprint at end [m^2] | base joints theta_4..9 below 70 % at [s] | order left "
+          "| order score |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for i, (label, _) in enumerate(rows):
         print(
             f"| {label} | kinematic | {kin['recovery_time'][i]:.1f} | {kin['V0'][i]:.1f} -> {kin['final_V'][i]:.1f} "
             f"| {1e3 * kin['max_pos_error'][i]:.1f} | {kin['max_att_error'][i]:.3f} | {1e3 * kin['min_margin'][i]:.0f} "
-            f"| {kin['final_area'][i]:.3f} | - | - |"
+            f"| {kin['final_area'][i]:.3f} | - | - | {kin['order_score'][i]:+.2f} |"
         )
         m = _metrics(recs, i)
-        order = experiments.release_times(recs["t"][i], recs["phi"][i])
+        order = np.asarray(experiments.release_times(recs["t"][i], recs["phi"][i]))
         print(f"| {label} | MuJoCo | {m['recovery_time']:.1f} | {m['V0']:.1f} -> {m['final_V']:.1f} "
               f"| {1e3 * m['max_pos_error']:.1f} | {m['max_att_error']:.3f} | {1e3 * m['min_margin']:.0f} | - "
-              f"| {' '.join(f'{x:.1f}' for x in order)} | {release_order(order)} |")
+              f"| {' '.join(f'{x:.1f}' for x in order)} | {release_order(order)} | {m['order_score']:+.2f} |")
     print(f"MuJoCo: status {list(res.status)}, largest side slip {np.asarray(res.metrics['max_slip']).round(3)} m/s, "
           f"largest base tilt {np.asarray(res.metrics['max_tilt']).round(3)} rad")
 
@@ -116,7 +121,7 @@ def read_tuned(path: str) -> dict[str, float]:
     with open(path, newline="") as f:
         for row in csv.DictReader(f):
             if row["label"] == "tuned":
-                return {k: float(row[k]) for k in KV_KEYS}
+                return {k: float(row[k]) for k in KV_KEYS if k in row}
     raise SystemExit(f"{path}: no 'tuned' row")
 
 

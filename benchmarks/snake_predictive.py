@@ -106,7 +106,7 @@ def mujoco_rows(horizon: float) -> None:
         wall = time.perf_counter() - t
         m = {k: float(v) for k, v in experiments.limit_metrics({k: jnp.asarray(v[0]) for k, v in recs.items()
                                                         if k != "slip"}).items()}
-        order = experiments.release_times(recs["t"][0], recs["phi"][0])
+        order = np.asarray(experiments.release_times(recs["t"][0], recs["phi"][0]))
         print(f"| {label} ({res.status[0]}) | {m['recovery_time']:.1f} | {m['V0']:.1f} -> {m['final_V']:.2f} | "
               f"{1e3 * m['max_pos_error']:.1f} | {m['max_att_error']:.3f} | {wall:.0f} | "
               f"{' '.join(f'{x:.1f}' for x in order)} |")

@@ -221,6 +221,81 @@ def test_loss_gradient_matches_finite_differences():
         assert float(grad[name]) == pytest.approx(fd, rel=1e-4, abs=1e-6 * abs(float(loss))), name
 
 
+# ------------------------------------------------------------- the order of the joints
+def _release_times_loop(t, phi, ratio):
+    """Reference: per base joint, the first record time from which |theta| <= ratio *
+    limit to the end (inf if never), by a plain loop."""
+    out = []
+    for j in range(params.N_B):
+        inside = np.abs(phi[:, params.N_H + j]) <= ratio * params.YAW_LIMIT
+        bad = np.flatnonzero(~inside)
+        first = 0 if bad.size == 0 else bad[-1] + 1
+        out.append(t[first] if first < t.size else np.inf)
+    return np.array(out)
+
+
+def _order_score_loop(times):
+    """Reference: +1 per pair where the joint nearer the tail left first, -1 the other
+    way, 0 where neither left; the mean over the 15 pairs."""
+    total = 0.0
+    for i in range(params.N_B):  # i nearer the head than j
+        for j in range(i + 1, params.N_B):
+            if not (np.isinf(times[i]) and np.isinf(times[j])):
+                total += np.sign(times[i] - times[j])
+    return total / 15.0
+
+
+def test_release_times_and_the_order_score_on_made_up_records():
+    t = np.arange(10) * 0.5
+    limit = params.YAW_LIMIT
+    phi = np.zeros((10, params.N_PHI))
+    phi[:, params.N_H:] = limit  # every base joint at its limit ...
+    for j in range(params.N_B):  # ... until theta_9 leaves first (t = 0.5), theta_4 last (t = 3.0)
+        phi[1 + params.N_B - 1 - j:, params.N_H + j] = 0.5 * limit
+    phi[4, params.N_H + 5] = limit  # theta_9 comes back once: it leaves for good at t = 2.5
+    times = np.asarray(experiments.release_times(t, phi))
+    np.testing.assert_allclose(times, _release_times_loop(t, phi, 0.7))
+    np.testing.assert_allclose(times, [3.0, 2.5, 2.0, 1.5, 1.0, 2.5])
+    assert float(experiments.release_order_score(jnp.asarray(times))) == pytest.approx(_order_score_loop(times))
+    tail_to_head = np.array([3.0, 2.5, 2.0, 1.5, 1.0, 0.5])
+    assert float(experiments.release_order_score(jnp.asarray(tail_to_head))) == 1.0
+    assert float(experiments.release_order_score(jnp.asarray(tail_to_head[::-1]))) == -1.0
+    never = np.full(params.N_B, np.inf)
+    assert float(experiments.release_order_score(jnp.asarray(never))) == 0.0
+    # a joint that never leaves counts as last
+    assert float(experiments.release_order_score(jnp.asarray(np.r_[np.inf, tail_to_head[1:]]))) == 1.0
+
+
+def test_the_wheels_weight_in_W_sets_the_order_of_the_joints():
+    """The paper's K_V from the zigzag, 30 s: with our W (w_wheel 1) and k_eta 0.1 the
+    head-end joints leave their limits first (score < 0); with the wheels 10 x dearer
+    and k_eta 0.5 the tail leads (theta_9, theta_8 first, as the paper's Fig. 10). The
+    score against a plain-loop reference on the rollout's records."""
+    horizon, dt = 30.0, 0.05
+    values = {k: jnp.full(2, v, jnp.int32 if k == "mode_order" else jnp.float64)
+              for k, v in DEFAULTS.items() if analysis.KV.param(k).sweepable}
+    values |= {"w_wheel": jnp.asarray([1.0, 10.0]), "k_eta": jnp.asarray([0.1, 0.5])}
+    run = jax.jit(jax.vmap(lambda v: analysis.run_one(v, analysis.rollout_config(horizon, dt, False))))
+    out, recs = jax.tree_util.tree_map(np.asarray, run(values))
+    score = out["order_score"]
+    assert np.all(out["recovered"])
+    assert score[0] < 0.0 < 0.5 < score[1]
+    for i in range(2):
+        times = _release_times_loop(recs["t"][i], recs["phi"][i], DEFAULTS["recover_ratio"])
+        assert score[i] == pytest.approx(_order_score_loop(times), abs=1e-12)
+    assert list(np.argsort(times)[:2]) == [5, 4]  # theta_9, then theta_8
+
+
+def test_w_wheel_scales_only_the_wheels_in_W():
+    values = {k: jnp.asarray(v, jnp.int32 if k == "mode_order" else jnp.float64)
+              for k, v in DEFAULTS.items() if analysis.KV.param(k).sweepable}
+    ours = np.asarray(analysis.control_params(values).weights)
+    np.testing.assert_array_equal(ours, np.asarray(control.default_weights()))
+    dear = np.asarray(analysis.control_params(values | {"w_wheel": jnp.float64(10.0)}).weights)
+    np.testing.assert_array_equal(dear[: params.N_PHI], ours[: params.N_PHI])
+    np.testing.assert_allclose(dear[params.N_PHI :], 10.0 * ours[params.N_PHI :], rtol=1e-15)
+
+
 # ---------------------------------------------------------------------------- specs
 def test_committed_spec_files_load_and_validate():
     sweep = jaxloco.sweep.load_spec(SWEEPS / "snake_kv.toml")
@@ -236,3 +311,6 @@ def test_committed_spec_files_load_and_validate():
     assert tune.settings["horizon"] == 20.0 and tune.settings["dt"] == 0.05
     assert dict(tune.init) == pytest.approx(tuning.PAPER)
     assert control.PAPER_KV_BASE == tuning.PAPER["kv_base"]
+    order = jaxloco.sweep.load_spec(SWEEPS / "snake_order.toml")
+    assert order.analysis.name == "snake.kv" and order.n_rows == 30  # 6 x 5, as its comment says
+    assert 1.0 in order.swept["w_wheel"] and 0.1 in order.swept["k_eta"]  # our defaults are a row

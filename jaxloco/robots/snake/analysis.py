@@ -1,8 +1,9 @@
 """`snake.kv`: T² Snake-3 joint-limit avoidance (Tanaka et al. 2019, Sec. IV-C5, V-B)
 in the pure-JAX kinematic simulation (`kinsim`), against the cost weights K_V, the
-null-space gain k_eta, the task gain K, the switching period Delta T and the order of
-the switching modes, as a sweep analysis; and the smooth loss that `jaxloco tune`
-minimises (`limit_loss`, objective `snake.kv` in `tuning`).
+null-space gain k_eta, the wheels' weight in W (`w_wheel`), the task gain K, the
+switching period Delta T and the order of the switching modes, as a sweep analysis;
+and the smooth loss that `jaxloco tune` minimises (`limit_loss`, objective `snake.kv`
+in `tuning`).
 
 The question it answers: from the zigzag posture with the base joints at 97 % of their
 limits (Fig. 8), which weights bring the base back from the limits fastest while the
@@ -16,7 +17,7 @@ kv_base, kv_ratio)` (the paper: 15, 0.015, 9.6, 0.5); Eq. 20's support term with
 steps of `dt` (feedforward control, as the paper's robot).
 
 Metrics: `experiments.limit_metrics` (recovery_time, recovered, V0, final_V,
-max_pos_error, max_att_error, min_margin, time_near_limit) plus final_margin (static
+max_pos_error, max_att_error, min_margin, time_near_limit, order_score) plus final_margin (static
 margin at the end [m]), final_area (area of the convex hull of all 14 base wheel
 contacts at the end, whatever the mode [m^2]: the footprint Eq. 20 should widen),
 head_ok (max_pos_error <= 30 mm and max_att_error <= 0.1 rad: the paper's "about 30 mm
@@ -40,7 +41,8 @@ MODE_ORDERS = control.MODE_ORDERS
 POS_TOL, ATT_TOL = experiments.PAPER_HEAD_ERROR  # 0.03 m, 0.1 rad
 
 PARAMS = params.PARAMETERS.select(
-    "kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio", "k_eta", "gain", "delta_t", "mode_order", "switch_at",
+    "kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio", "k_eta", "w_wheel", "gain", "delta_t", "mode_order",
+    "switch_at",
     "a2", "amplitude", "joint_speed_max", "recover_ratio", "w_limit", "horizon", "dt", "feedback",
 )
 
@@ -58,6 +60,9 @@ METRICS = (
     Metric("final_area", "area of the base's footprint at the end: the convex hull of all 14 base wheel contacts "
            "(mode-independent; the straight base is the smallest)", "m^2"),
     Metric("time_near_limit", "time with some base joint at >= 95 % of its limit", "s"),
+    Metric("order_score", "order in which theta_4..theta_9 come below recover_ratio of their limits for good: "
+           "+1 from the tail to the head (the paper's Fig. 10), -1 from the head to the tail "
+           "(experiments.release_order_score)"),
     Metric("loss", "the tuning loss (limit_loss): head-error term + w_limit * near-limit term"),
 )
 
@@ -84,6 +89,7 @@ def control_params(values: Mapping[str, jax.Array]) -> control.ControlParams:
         mode_order=order,
         switch_at=values["switch_at"],
         a2=values["a2"],
+        weights=control.default_weights(w_wheel=values["w_wheel"]).astype(dtype),
     )
 
 
@@ -150,7 +156,8 @@ def summarize(table) -> Summary:
         for i in range(n)
         if all(
             np.isclose(cols[k][i], d)
-            for k, d in params.PARAMETERS.defaults(_KV_NAMES + ("k_eta",)).items()
+            for k, d in params.PARAMETERS.defaults(_KV_NAMES + ("k_eta", "w_wheel")).items()
+            if k in cols  # tables written before w_wheel existed lack it
         )
     ]
     shown = order[:10] + [i for i in paper[:1] if i not in order[:10]]
@@ -164,21 +171,24 @@ def summarize(table) -> Summary:
             f"{1e3 * cols['max_pos_error'][i]:.1f}",
             f"{cols['max_att_error'][i]:.3f}",
             f"{1e3 * cols['min_margin'][i]:.0f}",
+            f"{cols['order_score'][i]:+.2f}",
             f"{cols['loss'][i]:.3f}",
         ]
         rows.append(tuple(cells))
     short = {"kv_head_yaw": "kv yaw", "kv_head_pitch": "kv pitch", "kv_base": "kv base", "kv_ratio": "ratio",
-             "mode_order": "order"}
+             "mode_order": "mode order"}
     return Summary(
         title=f"T² Snake-3 joint-limit avoidance: {int(ok.sum())}/{n} rows recovered with the head held",
         columns=("row", *(short.get(k, k) for k in varying), "recov. [s]", "tip err [mm]", "att err",
-                 "margin [mm]", "loss"),
+                 "margin [mm]", "joints' order", "loss"),
         rows=tuple(rows),
         notes=(
             ("ok = base joints below recover_ratio of their limits within the horizon and gripper-tip error "
              "<= 30 mm / 0.1 rad (the paper's Fig. 9 figures); ok rows first by recovery time, then the rest by "
-             "loss; margin = smallest static margin [mm]"),
-            "paper K_V = diag(15, 0.015, 15, 0.015, 15, 0.015, 9.6, 4.8, 2.4, 1.2, 0.6, 0.3), k_eta = 0.1 (ours)",
+             "loss; margin = smallest static margin [mm]; joints' order = order_score, +1 when theta_9 .. "
+             "theta_4 leave their limits in that order (from the tail to the head, as the paper's Fig. 10)"),
+            "paper K_V = diag(15, 0.015, 15, 0.015, 15, 0.015, 9.6, 4.8, 2.4, 1.2, 0.6, 0.3); k_eta = 0.1 and "
+            "W = diag(l^2, w_wheel r^2) with w_wheel = 1 are ours (the paper gives neither)",
         ),
     )
 

@@ -24,7 +24,8 @@ Readings and choices (the paper does not give them):
     wheel radius"): W = diag(l^2 I_12, r^2 I_7), so that u^T W u weighs every input by
     the speed [m/s] it gives a point one link length from a joint or the rim of a
     wheel. K = 1 /s on every controlled variable, k_eta = 0.1: first choices, swept and
-    tuned in `snake.kv`.
+    tuned in `snake.kv`. `w_wheel` scales the wheels' part: it sets which joints the
+    null-space term moves first (docs/snake.md, "the order of the joints").
   * eta (Eq. 17) is the partial derivative of V with respect to varphi = [phi, rho] at
     a fixed w, as Eq. 18 splits dV/dt; V does not depend on rho (zeros).
   * Eq. 20: d_i is the signed distance of the projected centre of mass P_G from the
@@ -97,11 +98,11 @@ def kv_diagonal(
     return jnp.concatenate([head, tail])
 
 
-def default_weights(params: snake_params.SnakeParams | None = None) -> Array:
-    """W (19,) = [l^2 (12), r^2 (7)] (module docstring)."""
+def default_weights(params: snake_params.SnakeParams | None = None, w_wheel: Array = 1.0) -> Array:
+    """W (19,) = [l^2 (12), w_wheel r^2 (7)] (module docstring; w_wheel = 1 is ours)."""
     params = snake_params.default_params() if params is None else params
     l2 = jnp.asarray(params.link_length) ** 2
-    r2 = jnp.asarray(params.wheel_radius) ** 2
+    r2 = jnp.asarray(params.wheel_radius) ** 2 * w_wheel
     return jnp.concatenate([jnp.full(snake_params.N_PHI, l2), jnp.full(snake_params.N_W, r2)])
 
 

@@ -17,7 +17,8 @@ start with +); the target holds the gripper tip where it starts and psi_3 at its
 target 110 deg; Delta T = 1 s, fixing state for t < 2 s then switching; K_V of the
 paper. Metrics (`limit_metrics`): recovery time (first time every base joint is below
 `recover_ratio` of its limit), final V, largest head position / attitude errors,
-smallest static stability margin of the grounded wheels, time spent near a limit.
+smallest static stability margin of the grounded wheels, time spent near a limit, and
+the order in which the base joints leave their limits (`release_order_score`).
 """
 
 from __future__ import annotations
@@ -153,7 +154,9 @@ def limit_metrics(recs: dict[str, Array], recover_ratio: Array = 0.7, near_ratio
     joint below recover_ratio of its limit; the horizon if never), recovered, V0,
     final_V, max_pos_error [m], max_att_error [rad] (norms of the controlled point's
     position / roll-pitch-yaw errors), min_margin [m], time_near_limit [s] (time with
-    some base joint at >= near_ratio of its limit)."""
+    some base joint at >= near_ratio of its limit), order_score (`release_order_score`
+    of the joints leaving recover_ratio of their limits: +1 from the tail to the head,
+    as the paper reports)."""
     t = recs["t"]
     dt = t[1] - t[0]
     ratio = base_limit_ratio(recs["phi"])
@@ -163,6 +166,7 @@ def limit_metrics(recs: dict[str, Array], recover_ratio: Array = 0.7, near_ratio
     pos = jnp.linalg.norm(recs["error"][:, :3], axis=-1)
     att = jnp.linalg.norm(recs["error"][:, 3:6], axis=-1)
     near = ratio >= near_ratio
+    released = release_times(t, recs["phi"], recover_ratio)
     return {
         "recovery_time": t_rec,
         "recovered": recovered,
@@ -172,18 +176,27 @@ def limit_metrics(recs: dict[str, Array], recover_ratio: Array = 0.7, near_ratio
         "max_att_error": jnp.max(att),
         "min_margin": jnp.min(recs["margin"]),
         "time_near_limit": jnp.sum(near) * dt,
+        "order_score": release_order_score(released),
     }
 
 
-def release_times(t: np.ndarray, phi: np.ndarray, ratio: float = 0.7) -> np.ndarray:
-    """Per base joint theta_4..theta_9: the first time |theta| <= ratio * limit and
-    stays so to the end (nan if never): the order in which the joints leave the limits."""
-    t = np.asarray(t)
-    inside = np.abs(np.asarray(phi)[:, params.N_H :]) <= ratio * params.YAW_LIMIT
-    out = np.full(params.N_B, np.nan)
-    for j in range(params.N_B):
-        bad = np.flatnonzero(~inside[:, j])
-        first = 0 if bad.size == 0 else bad[-1] + 1
-        if first < t.size:
-            out[j] = t[first]
-    return out
+def release_times(t: Array, phi: Array, ratio: Array = 0.7) -> Array:
+    """(6,) per base joint theta_4..theta_9 [s]: the first record time from which
+    |theta| <= ratio * limit to the end (inf if never): the order in which the joints
+    leave the limits. t (T,) [s], phi (T, 12) [rad]; jit / vmap."""
+    t = jnp.asarray(t)
+    out = jnp.abs(jnp.asarray(phi)[:, params.N_H :]) > ratio * params.YAW_LIMIT
+    index = jnp.arange(t.shape[0])
+    first_in = jnp.max(jnp.where(out, index[:, None], -1), axis=0) + 1
+    return jnp.where(first_in < t.shape[0], t[jnp.minimum(first_in, t.shape[0] - 1)], jnp.inf)
+
+
+def release_order_score(times: Array) -> Array:
+    """Kendall-type score in [-1, 1] of `release_times` (6,): the mean over the 15
+    pairs of base joints of +1 where the joint nearer the tail left its limit first,
+    -1 where the one nearer the head did (0 where neither left). +1 is the paper's
+    "the posture of the robot improved in order from the tail to the head" (Sec. V-B,
+    Fig. 10): theta_9 first, theta_4 last."""
+    head, tail = np.triu_indices(params.N_B, 1)  # head[k] is the joint nearer the head
+    a, b = times[head], times[tail]
+    return jnp.mean(jnp.where(jnp.isinf(a) & jnp.isinf(b), 0.0, jnp.sign(a - b)))

@@ -205,6 +205,10 @@ PARAMETERS = ParamTable("snake", (
     Param("kv_ratio", 0.5, "K_V ratio from one base joint to the next towards the tail "
           "(0.5: the weights double from the tail to the head, as the paper's)", "", lo=0.0, hi=4.0, lo_open=True),
     Param("k_eta", 0.1, "null-space gain k_eta of Eq. 14", "", lo=0.0, hi=100.0),
+    # W of Eq. 13's weighted pseudo-inverse: the paper gives none; ours is diag(l^2, r^2) (`control`)
+    Param("w_wheel", 1.0, "weight of the wheels in W relative to ours (r^2; the joints' stay l^2): > 1 makes "
+          "the wheels dearer, so the redundancy moves more joints and less base (default (ours): 1)", "",
+          lo=0.0, hi=1e4, lo_open=True),
     Param("gain", 1.0, "task gain K (the same on the 7 controlled variables) of Eq. 13", "1/s",
           lo=0.0, hi=50.0, lo_open=True),
     Param("delta_t", 1.0, "Delta T: period of the mode switching", "s", lo=0.02, hi=30.0),

@@ -44,9 +44,10 @@ Array = jax.Array
 DELTA_KEYS = ("d_x", "d_y", "d_z", "d_roll", "d_pitch", "d_yaw", "d_psi3")
 
 PARAM_DEFAULTS: dict[str, float] = {
-    # K_V (control.kv_diagonal), K [1/s], Eq. 20 weight, Delta T [s], row of control.MODE_ORDERS
+    # K_V (control.kv_diagonal), K [1/s], Eq. 20 weight, Delta T [s], row of control.MODE_ORDERS, W's wheel weight
     **snake_params.PARAMETERS.defaults(
-        ("k_eta", "kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio", "gain", "a2", "delta_t", "mode_order")
+        ("k_eta", "kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio", "gain", "a2", "delta_t", "mode_order",
+         "w_wheel")
     ),
     "fixed_mode": 1,
     "switch_at": float("inf"),  # [s]
@@ -68,7 +69,7 @@ def control_params(p: Mapping[str, Array]) -> control.ControlParams:
     kv = control.kv_diagonal(p["kv_head_yaw"], p["kv_head_pitch"], p["kv_base"], p["kv_ratio"]).astype(dtype)
     return control.ControlParams(
         gain=jnp.full(control.N_TASK, p["gain"], dtype),
-        weights=control.default_weights().astype(dtype),
+        weights=control.default_weights(w_wheel=p["w_wheel"]).astype(dtype),
         k_eta=p["k_eta"],
         kv=kv,
         a2=p["a2"],
