@@ -14,7 +14,8 @@ Prints two tables:
      the paper's Fig. 9) and its score (`experiments.release_order_score`: +1 from the
      tail to the head, as the paper's Fig. 10), for the paper's K_V, Eq. 20 (a2 = 100),
      the paper's K_V with the wheels 10 x dearer in W and k_eta 0.5 (both ours: the paper
-     gives neither) and, with --tuned, the values of a `jaxloco tune snake_kv_tune` run.
+     gives neither) and, with --tuned, the values of a `jaxloco tune snake_kv_tune` run;
+     then the MuJoCo rows over 5 perturbed trials each (mean and worst).
 """
 
 from __future__ import annotations
@@ -28,8 +29,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxloco import runtime
-from jaxloco.robots.snake import analysis, experiments, sim_control
+from jaxloco.robots.snake import analysis, experiments, sim_control, trials
 
+TRIALS = 5  # perturbed MuJoCo trials per setting
 KV_KEYS = ("kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio", "k_eta", "w_wheel")
 
 
@@ -115,6 +117,42 @@ def limit_table(tuned: dict[str, float] | None) -> None:
               f"| {' '.join(f'{x:.1f}' for x in order)} | {release_order(order)} | {m['order_score']:+.2f} |")
     print(f"MuJoCo: status {list(res.status)}, largest side slip {np.asarray(res.metrics['max_slip']).round(3)} m/s, "
           f"largest base tilt {np.asarray(res.metrics['max_tilt']).round(3)} rad")
+    perturbed_trials(rows, over)
+
+
+def perturbed_trials(rows: list[tuple[str, dict[str, float]]], over: dict[str, np.ndarray]) -> None:
+    """The MuJoCo rows again over TRIALS perturbed trials each (floor friction 1.0 +- 0.1
+    and heading +- 0.05 rad from seeds 0..TRIALS-1, as `snake_table3`'s trials; the
+    same trials for every setting): mean (worst) of the head errors and recovery, and
+    each trial's order."""
+    keys = np.stack([np.asarray(jax.random.PRNGKey(s), np.uint32) for s in range(TRIALS)])
+    mu, heading = trials.perturbed({"mu": 1.0, "mu_jitter": 0.1, "heading_jitter": 0.05}, keys)
+    n = len(rows) * TRIALS
+    batch = {k: np.repeat(v, TRIALS) for k, v in over.items()}
+    batch |= {"mu": np.tile(mu, len(rows)), "heading0": np.tile(heading, len(rows))}
+    t = time.perf_counter()
+    res, recs = sim_control.run_joint_limit(batch, n=n)
+    wall = time.perf_counter() - t
+    print(f"\nMuJoCo, {TRIALS} perturbed trials per setting (friction 1.0 +- 0.1, heading +- 0.05 rad; {n} runs "
+          f"{wall:.0f} s): mean (worst)")
+    print("| setting | recovered | recovery [s] | max pos. error [mm] | max att. error [rad] | order score "
+          "| orders left |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
+    for r, (label, _) in enumerate(rows):
+        ms = [_metrics(recs, r * TRIALS + k) for k in range(TRIALS)]
+        orders = [release_order(np.asarray(experiments.release_times(recs["t"][r * TRIALS + k],
+                                                                     recs["phi"][r * TRIALS + k])))
+                  for k in range(TRIALS)]
+
+        def cell(key, scale=1.0, digits=1, worst=max, sign=""):
+            v = scale * np.array([m[key] for m in ms])
+            return f"{v.mean():{sign}.{digits}f} ({worst(v):{sign}.{digits}f})"
+
+        recovered = sum(m["recovered"] > 0 for m in ms)
+        print(f"| {label} | {recovered}/{TRIALS} | {cell('recovery_time')} | {cell('max_pos_error', 1e3)} "
+              f"| {cell('max_att_error', digits=3)} | {cell('order_score', digits=2, worst=min, sign='+')} "
+              f"| {'; '.join(orders)} |")
+    print(f"status {sorted(set(res.status))}")
 
 
 def read_tuned(path: str) -> dict[str, float]:
