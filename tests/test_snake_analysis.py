@@ -82,6 +82,9 @@ def test_statuses_agree_with_the_metrics(rows):
         att = np.linalg.norm(recs["error"][:, 3:6], axis=-1).max()
         assert m["max_pos_error"] == pytest.approx(pos, rel=1e-12)
         assert m["max_att_error"] == pytest.approx(att, rel=1e-12)
+        assert m["max_pos_component_error"] == np.abs(recs["error"][:, :3]).max()
+        assert m["max_att_component_error"] == np.abs(recs["error"][:, 3:6]).max()
+        assert m["max_pos_component_error"] <= m["max_pos_error"] <= np.sqrt(3) * m["max_pos_component_error"]
         assert bool(m["head_ok"]) == (pos <= 0.03 and att <= 0.1)
         ratio = np.abs(recs["phi"][:, params.N_H :]).max(axis=1) / params.YAW_LIMIT
         below = ratio <= DEFAULTS["recover_ratio"]

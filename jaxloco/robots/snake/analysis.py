@@ -54,6 +54,9 @@ METRICS = (
     Metric("final_V", "cost V at the end"),
     Metric("max_pos_error", "largest gripper-tip position error", "m"),
     Metric("max_att_error", "largest gripper-tip attitude error (norm of roll, pitch, yaw errors)", "rad"),
+    Metric("max_pos_component_error", "largest single component (x, y or z) of the gripper-tip position error: "
+           "as read off plots of the components (the paper's Fig. 9)", "m"),
+    Metric("max_att_component_error", "largest single component (roll, pitch or yaw) of the attitude error", "rad"),
     Metric("head_ok", "max_pos_error <= 30 mm and max_att_error <= 0.1 rad (the paper's figures)", kind="bool"),
     Metric("min_margin", "smallest static stability margin of the grounded wheels' support polygon", "m"),
     Metric("final_margin", "static stability margin at the end", "m"),

@@ -153,7 +153,10 @@ def limit_metrics(recs: dict[str, Array], recover_ratio: Array = 0.7, near_ratio
     MuJoCo scenario with the same keys): recovery_time [s] (first t with every base
     joint below recover_ratio of its limit; the horizon if never), recovered, V0,
     final_V, max_pos_error [m], max_att_error [rad] (norms of the controlled point's
-    position / roll-pitch-yaw errors), min_margin [m], time_near_limit [s] (time with
+    position / roll-pitch-yaw errors), max_pos_component_error [m],
+    max_att_component_error [rad] (the largest single component, x, y or z / roll,
+    pitch or yaw: what one reads off plots of w_h's components as the paper's Fig. 9),
+    min_margin [m], time_near_limit [s] (time with
     some base joint at >= near_ratio of its limit), order_score (`release_order_score`
     of the joints leaving recover_ratio of their limits: +1 from the tail to the head,
     as the paper reports)."""
@@ -174,6 +177,8 @@ def limit_metrics(recs: dict[str, Array], recover_ratio: Array = 0.7, near_ratio
         "final_V": recs["V"][-1],
         "max_pos_error": jnp.max(pos),
         "max_att_error": jnp.max(att),
+        "max_pos_component_error": jnp.max(jnp.abs(recs["error"][:, :3])),
+        "max_att_component_error": jnp.max(jnp.abs(recs["error"][:, 3:6])),
         "min_margin": jnp.min(recs["margin"]),
         "time_near_limit": jnp.sum(near) * dt,
         "order_score": release_order_score(released),
