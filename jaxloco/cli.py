@@ -21,7 +21,8 @@ app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_show_locals=False,
-    help="JAX-differentiable, batched analysis of legged robots.",
+    help="JAX-differentiable, batched kinematics, stability, control and simulation of field locomotion robots "
+    "(legged, crawler and snake).",
 )
 
 EXIT_USER_ERROR = 2
