@@ -69,9 +69,19 @@ def _rows(tuned: dict[str, float] | None) -> list[tuple[str, dict[str, float]]]:
     return rows
 
 
-def _metrics(recs: dict[str, np.ndarray], i: int) -> dict[str, float]:
-    r = {k: jnp.asarray(v[i]) for k, v in recs.items() if k != "slip"}
-    return {k: float(v) for k, v in experiments.limit_metrics(r).items()}
+def _one_run(r: dict[str, jax.Array]) -> tuple[dict[str, jax.Array], jax.Array]:
+    return experiments.limit_metrics(r), experiments.release_times(r["t"], r["phi"])
+
+
+_batch_runs = jax.jit(jax.vmap(_one_run))
+
+
+def run_metrics(recs: dict[str, np.ndarray]) -> list[tuple[dict[str, float], np.ndarray]]:
+    """Per MuJoCo run of `recs` (`sim_control.limit_records`, batch first): its
+    `limit_metrics` and `release_times`, all runs in one compiled call."""
+    metrics, times = _batch_runs({k: jnp.asarray(v) for k, v in recs.items() if k != "slip"})
+    metrics, times = {k: np.asarray(v) for k, v in metrics.items()}, np.asarray(times)
+    return [({k: float(v[i]) for k, v in metrics.items()}, times[i]) for i in range(times.shape[0])]
 
 
 def release_order(times: np.ndarray) -> str:
@@ -95,6 +105,7 @@ def limit_table(tuned: dict[str, float] | None) -> None:
     t = time.perf_counter()
     res, recs = sim_control.run_joint_limit(over, n=n)
     t_mj = time.perf_counter() - t
+    runs = run_metrics(recs)
     print(f"\nJoint-limit avoidance from the zigzag posture, {experiments.LIMIT_HORIZON:g} s (kinematic {t_kin:.1f} s, "
           f"MuJoCo {n} runs {t_mj:.1f} s); paper: V decreases, the joints leave the limits, head error about "
           "30 mm / 0.1 rad")
@@ -111,8 +122,7 @@ def limit_table(tuned: dict[str, float] | None) -> None:
             f"| {1e3 * kin['max_pos_error'][i]:.1f} | {kin['max_att_error'][i]:.3f} | {1e3 * kin['min_margin'][i]:.0f} "
             f"| {kin['final_area'][i]:.3f} | - | - | {kin['order_score'][i]:+.2f} |"
         )
-        m = _metrics(recs, i)
-        order = np.asarray(experiments.release_times(recs["t"][i], recs["phi"][i]))
+        m, order = runs[i]
         print(f"| {label} | MuJoCo | {m['recovery_time']:.1f} | {m['V0']:.1f} -> {m['final_V']:.1f} "
               f"| {1e3 * m['max_pos_error']:.1f} | {m['max_att_error']:.3f} | {1e3 * m['min_margin']:.0f} | - "
               f"| {' '.join(f'{x:.1f}' for x in order)} | {release_order(order)} | {m['order_score']:+.2f} |")
@@ -141,11 +151,10 @@ def perturbed_trials(rows: list[tuple[str, dict[str, float]]], over: dict[str, n
     print("| setting | recovered | recovery [s] | max pos. error [mm] | max att. error [rad] "
           "| largest component: pos. [mm] | att. [rad] | order score | orders left |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    runs = run_metrics(recs)
     for r, (label, _) in enumerate(rows):
-        ms = [_metrics(recs, r * TRIALS + k) for k in range(TRIALS)]
-        orders = [release_order(np.asarray(experiments.release_times(recs["t"][r * TRIALS + k],
-                                                                     recs["phi"][r * TRIALS + k])))
-                  for k in range(TRIALS)]
+        ms = [m for m, _ in runs[r * TRIALS:(r + 1) * TRIALS]]
+        orders = [release_order(times) for _, times in runs[r * TRIALS:(r + 1) * TRIALS]]
 
         def cell(key, scale=1.0, digits=1, worst=max, sign=""):
             v = scale * np.array([m[key] for m in ms])

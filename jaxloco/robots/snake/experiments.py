@@ -156,10 +156,9 @@ def limit_metrics(recs: dict[str, Array], recover_ratio: Array = 0.7, near_ratio
     position / roll-pitch-yaw errors), max_pos_component_error [m],
     max_att_component_error [rad] (the largest single component, x, y or z / roll,
     pitch or yaw: what one reads off plots of w_h's components as the paper's Fig. 9),
-    min_margin [m], time_near_limit [s] (time with
-    some base joint at >= near_ratio of its limit), order_score (`release_order_score`
-    of the joints leaving recover_ratio of their limits: +1 from the tail to the head,
-    as the paper reports)."""
+    min_margin [m], time_near_limit [s] (time with some base joint at >= near_ratio of
+    its limit), order_score (`release_order_score` of the joints leaving recover_ratio
+    of their limits: +1 from the tail to the head, as the paper reports)."""
     t = recs["t"]
     dt = t[1] - t[0]
     ratio = base_limit_ratio(recs["phi"])
