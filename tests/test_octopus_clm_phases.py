@@ -179,8 +179,9 @@ def test_phase_transitions(p):
 
 
 def test_paper_climb_release_condition(p):
-    """climb_paper = 1: CLIMB is over when H > H_EST and S > L (S the stored travel)."""
-    pp = {**p, "climb_paper": jnp.asarray(1.0)}
+    """climb_paper = 1, both sides as one (climb_per_side = 0): CLIMB is over when H > H_EST
+    and S > L (S the stored travel)."""
+    pp = {**p, "climb_paper": jnp.asarray(1.0), "climb_per_side": jnp.asarray(0.0)}
     s = clm.clm_init(pp, _obs())
     s = s._replace(phase=jnp.asarray(clm.CLIMB, jnp.int32), h_est=jnp.asarray(0.3))
     sense = clm.measure(_obs())
@@ -191,6 +192,36 @@ def test_paper_climb_release_condition(p):
         q, f = clm.paper_climb_step(pp, s.arms.q_cmd, s.flip, sense.flip_q, sense.flip_tau, jnp.asarray(over))
         np.testing.assert_array_equal(c.q, q)
         np.testing.assert_array_equal(c.flip, f)
+
+
+def test_paper_climb_adapts_each_side_to_its_own_step(p):
+    """climb_per_side = 1 (the default, Fig. 17): each side compares its own H (the COG
+    above its rear EPRA) with the step height under it. With the right side up and the
+    left not, the left booms and the left front flipper go on (+Delta_E, -Delta_F) while
+    the right ones hold; CLIMB is over only with both sides up, and neither side is up
+    before S > L."""
+    pp = {**p, "climb_paper": jnp.asarray(1.0), "flip_encoder": jnp.asarray(0.0), "climb_yield": jnp.asarray(0.0)}
+    assert float(p["climb_per_side"]) == 1.0
+    sense = clm.measure(_obs())
+    h_side = np.asarray(kin.cog_height_sides(KP, sense.tips, sense.pitch, sense.roll))
+    s = clm.clm_init(pp, _obs())
+    L = float(p["settle_distance"])
+    s = s._replace(phase=jnp.asarray(clm.CLIMB, jnp.int32), travel=jnp.asarray(L + 0.05),
+                   h_est_side=jnp.asarray(h_side + np.array([0.05, -0.05])))
+    h = jnp.asarray(float(h_side.mean()))
+    c = clm.climb_step(pp, s, sense, h, s.travel)
+    assert not bool(c.over)
+    boom_step = np.asarray(c.q[:, 1] - s.arms.q_cmd[:, 1])
+    np.testing.assert_allclose(boom_step, float(p["delta_e"]) * np.array([1.0, 0.0, 1.0, 0.0]), atol=1e-7)
+    np.testing.assert_allclose(np.asarray(c.flip - s.flip), -float(p["delta_f"]) * np.array([1.0, 0.0, 0.0, 0.0]),
+                               atol=1e-7)
+    # both sides up -> over; S short of L -> neither side is up
+    both = s._replace(h_est_side=jnp.asarray(h_side - 0.05))
+    assert bool(clm.climb_step(pp, both, sense, h, s.travel).over)
+    short = both._replace(travel=jnp.asarray(L - 0.05))
+    c = clm.climb_step(pp, short, sense, h, short.travel)
+    assert not bool(c.over)
+    np.testing.assert_allclose(np.asarray(c.q[:, 1] - s.arms.q_cmd[:, 1]), float(p["delta_e"]), atol=1e-7)
 
 
 def test_release_and_carry(p):

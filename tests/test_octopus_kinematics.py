@@ -355,8 +355,30 @@ def test_cog_height_kinematic_any_attitude(mj):
         a = kin.attitude_from_quat(jnp.asarray(data.sensor("imu_quat").data))
         h = kin.cog_height(PR, kin.arm_tips(PR, jnp.asarray(qs)), a[0], a[1])
         rear = 0.5 * (data.site("arm3_tip").xpos + data.site("arm4_tip").xpos)
-        expected = data.subtree_com[model.body("chassis").id][2] - (rear[2] - params.ROLLER_RADIUS)
+        com_z = data.subtree_com[model.body("chassis").id][2]
+        expected = com_z - (rear[2] - params.ROLLER_RADIUS)
         assert float(h) == pytest.approx(expected, abs=1.5e-3)
+        # per side (the climb's per-side adaptation): above each rear roller's lowest point
+        sides = kin.cog_height_sides(PR, kin.arm_tips(PR, jnp.asarray(qs)), a[0], a[1])
+        for k, site in enumerate(("arm3_tip", "arm4_tip")):
+            assert float(sides[k]) == pytest.approx(com_z - (data.site(site).xpos[2] - params.ROLLER_RADIUS),
+                                                    abs=1.5e-3)
+
+
+def test_side_step_heights_are_each_sides_rise_and_average_to_h_est():
+    """`side_step_heights`: the front EPRA's height above the rear one per side (level
+    frame); their mean is Eq. 9's H_EST (`explore_terrain`). Contacts on a step 0.4 m high
+    under the left side and 0.2 m under the right, the robot level and pitched."""
+    tips = np.array(params.TABLE2_INIT, float)
+    tips[[0, 1], 2] += [0.4, 0.2]
+    for a_p, a_r in ((0.0, 0.0), (0.3, -0.1)):
+        # the same ground points seen from a tilted robot: {R} = R^T {C}
+        rot = np.asarray(kin.level_rotation(a_p, a_r))
+        tips_r = jnp.asarray(tips @ rot)
+        est = kin.explore_terrain(PR, tips_r, a_p, a_r)
+        sides = np.asarray(kin.side_step_heights(est.tips_c))
+        np.testing.assert_allclose(sides, [0.4, 0.2], atol=1e-9)
+        assert float(est.step_height) == pytest.approx(sides.mean(), abs=1e-9)
 
 
 def _floor_world():

@@ -68,6 +68,10 @@ Robot phases (`PHASE_NAMES`; Fig. 9 a-h and the phases A-F of Fig. 14):
     crawler encoders since the CLIMB began ("when the robot starts to climb the obstacle,
     S equals 0"), L = settle_distance (0.3 m). H > H_EST and S > L -> RELEASE
     (`paper_release_step`: booms back to the start pose's angles, flippers to 0).
+    Per side (`climb_per_side` = 1, Fig. 17: the sides "adapt the terrain separately"):
+    each side's H (the COG above its rear EPRA) against the step height under it
+    (`h_est_side`); a side that is up holds its booms and front flipper while the other
+    goes on, and the RELEASE waits for both.
     `climb_paper` = 0 (the default for now, ours): Eq. 28 in task space: the pushing arms lower their EPRAs
     by delta_e * l1 per period along the world vertical (inverse kinematics), lifting the
     body level (front / rear and left / right arms take turns to stay within level_band),
@@ -164,6 +168,7 @@ ARM_PHASE_NAMES = (*clm_rules.TRANSFER_PHASES, "idle")
 CONTROL_DT = 0.02  # [s] 50 Hz
 FRONT = np.array([True, True, False, False])  # arms 1..4 (LF, RF, LR, RR)
 LEFT = np.array([True, False, True, False])
+SIDE = np.array([0, 1, 0, 1])  # the side (0 left, 1 right) of arms LF, RF, LR, RR and flippers fl, fr, rl, rr
 FRONT4 = np.array([True, True, False, False])  # flippers fl, fr, rl, rr
 TABLE2_Z = float(params.TABLE2_TARGET[0, 2])
 # the front main crawler axles in {R} [m]
@@ -241,6 +246,9 @@ PARAM_DEFAULTS: dict[str, float] = {
     # paper climb: 1 = Eq. 28's +Delta_E on the authors' common boom axis (front booms down, rear ones up);
     # 0 = every boom down
     "climb_common_axis": _P.default("climb_common_axis"),
+    # paper climb: 1 = each side's arms and front flipper follow Eqs. 28-29 with that side's H and H_EST (the
+    # paper's Fig. 17: "adapt the terrain separately"); 0 = both sides by Eq. 9's H_EST and Eqs. 10-17's H
+    "climb_per_side": _P.default("climb_per_side"),
     # CRAWL (an addition, see the module docstring): low steps climbed by crawlers and flippers
     "crawl_max_h": _P.default("crawl_max_h"),  # [m] confirmed steps up to this height (paper: < 250 mm w/o arms)
     "crawl_speed": _P.default("speed"),  # [m/s] crawler speed in CRAWL (the CCM baseline's)
@@ -297,7 +305,8 @@ def _tips_moved(q: Array, move: Array, dz_level: Array, a_p: Array, a_r: Array) 
 def paper_climb_step(p, q_cmd: Array, flip_cmd: Array, flip_q: Array, flip_tau: Array, on_top: Array
                      ) -> tuple[Array, Array]:
     """One period of the paper's CLIMB (Eqs. 28-29, first branches; `climb_paper` = 1):
-    arm commands (4, 3) and flipper commands (4,) [rad].
+    arm commands (4, 3) and flipper commands (4,) [rad]. `on_top`: () for the whole robot
+    or (2,) per side (left, right: `SIDE`), the sides adapting separately (Fig. 17).
 
     While not `on_top` (H < H_EST or S < L), every boom turns down by Delta_E (theta_2 =
     theta_2' + Delta_E, theta' the last command; elbows and swings held: "we do not try to
@@ -314,14 +323,16 @@ def paper_climb_step(p, q_cmd: Array, flip_cmd: Array, flip_q: Array, flip_tau: 
         `_authors_boom_sign`): the front booms turn down and the rear ones up. Not the
         default: the text says every boom turns down, and H is measured from the rear
         EPRAs, which this reading lifts (docs/octopus.md, 6 Dec 2026).
-    Once on top, the commands hold (the RELEASE takes over)."""
+    Once on top, the commands hold: a side on top waits for the other (with both up the
+    RELEASE takes over)."""
     dt = q_cmd.dtype
-    q = q_cmd.at[:, 1].add(jnp.where(on_top, 0.0, p["delta_e"] * _authors_boom_sign(p, dt)))
+    up = jnp.broadcast_to(on_top, (2,))[jnp.asarray(SIDE)]  # (4,) per arm, and per flipper
+    q = q_cmd.at[:, 1].add(jnp.where(up, 0.0, p["delta_e"] * _authors_boom_sign(p, dt)))
     turn = jnp.asarray(FRONT4) | (p["climb_rear_flippers"] > 0)
     prev = jnp.where(p["flip_encoder"] > 0, flip_q.astype(dt), flip_cmd)
     yielding = (p["climb_yield"] > 0) & (jnp.abs(flip_tau) > p["T0"])
     give = jnp.where(yielding, -p["flip_delta_a"] * jnp.sign(flip_tau), 0.0).astype(dt)
-    flip = jnp.where(turn & ~on_top, prev - p["delta_f"] + give, flip_cmd)
+    flip = jnp.where(turn & ~up, prev - p["delta_f"] + give, flip_cmd)
     return q, jnp.clip(flip, -FLIPPER_MAX, FLIPPER_MAX)
 
 
@@ -451,6 +462,7 @@ class ClmState(NamedTuple):
     # step detection: a step confirmed by the front arms, its height H_EST (Eq. 9) [m]
     confirmed: Array  # () bool
     h_est: Array  # () [m]
+    h_est_side: Array  # (2,) [m] the step height under the left and right sides (`kinematics.side_step_heights`)
     # crawlers and flippers
     flip: Array  # (4,) [rad] the last flipper commands (fl, fr, rl, rr)
     flip_case: Array  # (2,) int32: the front flippers' torque rule case (`clm_rules.flipper_rule`)
@@ -598,6 +610,7 @@ def clm_init(p, obs) -> ClmState:
         t_phase=jnp.zeros((), dt),
         confirmed=jnp.asarray(False),
         h_est=jnp.zeros((), dt),
+        h_est_side=jnp.zeros((2,), dt),
         flip=flips.astype(dt),
         flip_case=jnp.zeros((2,), jnp.int32),
         stall=jnp.zeros((), dt),
@@ -802,15 +815,18 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     )
 
 
-def detect_step(p, confirmed: Array, h_est: Array, on_step: Array, contacts: Array, pitch: Array, roll: Array,
-                walk: Array) -> tuple[Array, Array]:
+def detect_step(p, confirmed: Array, h_est: Array, h_est_side: Array, on_step: Array, contacts: Array,
+                pitch: Array, roll: Array, walk: Array) -> tuple[Array, Array, Array]:
     """Step detection (WALK): both front arms stopped on an obstacle and H_EST (Eq. 9,
     `kinematics.explore_terrain` on the contact points (4, 3) in {R}) > sigma1 [m] -> the step
-    is confirmed, H_EST [m] kept (a rear arm in transfer counts with its stored contact).
-    Returns (confirmed, h_est)."""
+    is confirmed, H_EST [m] kept (a rear arm in transfer counts with its stored contact),
+    and with it the step height under each side (2,) [m] (`kinematics.side_step_heights`,
+    whose mean is H_EST). Returns (confirmed, h_est, h_est_side)."""
     est = kinematics.explore_terrain(_KP, contacts, pitch, roll)
     confirm_now = walk & ~confirmed & jnp.all(on_step[:2]) & (est.step_height > p["sigma1"])
-    return confirmed | confirm_now, jnp.where(confirm_now, est.step_height, h_est)
+    sides = kinematics.side_step_heights(est.tips_c)
+    return (confirmed | confirm_now, jnp.where(confirm_now, est.step_height, h_est),
+            jnp.where(confirm_now, sides, h_est_side))
 
 
 def gait_sequence(p, arms: ArmState, tr: Transfer, ph: Phases, confirmed: Array, squared: Array,
@@ -907,8 +923,12 @@ def climb_step(p, s: ClmState, sense: Sensed, h: Array, travel: Array) -> Climb:
     _, flip_c, on_top = clm_rules.climb_rule(q_cmd[:, 1], flip, rise, s.h_est, s_eff, p["settle_distance"],
                                              p["delta_e"], p["delta_f"])
     # the paper: S from the CLIMB start (Eq. 18), H the COG height above the rear EPRAs'
-    # ground (Eqs. 10-17) against H_EST
-    on_top_paper = (h > s.h_est) & (s.travel > p["settle_distance"])
+    # ground (Eqs. 10-17) against H_EST; per side (climb_per_side, Fig. 17) each side's H
+    # above its rear EPRA against the step height under it
+    per_side = p["climb_per_side"] > 0
+    h_side = jnp.where(per_side, kinematics.cog_height_sides(_KP, sense.tips, a_p, a_r), h)
+    side_up = (h_side > jnp.where(per_side, s.h_est_side, s.h_est)) & (s.travel > p["settle_distance"])
+    on_top_paper = jnp.all(side_up)
     # Eq. 28 per arm, a level lift: the arms push the body up while the front crawler
     # ends are below the step top (estimated from the front EPRAs resting on it:
     # "H < H_EST"); front and rear (left and right) arms take turns so that the body
@@ -937,7 +957,7 @@ def climb_step(p, s: ClmState, sense: Sensed, h: Array, travel: Array) -> Climb:
     flip_c = jnp.clip(flip_c, jnp.where(FRONT4, p["flip_min"], p["rear_flip_min"]), FLIPPER_MAX)
     # the paper's CLIMB (Eqs. 28-29 as printed)
     paper = p["climb_paper"] > 0
-    q_paper, flip_paper = paper_climb_step(p, q_cmd, flip, sense.flip_q, sense.flip_tau, on_top_paper)
+    q_paper, flip_paper = paper_climb_step(p, q_cmd, flip, sense.flip_q, sense.flip_tau, side_up)
     # the release also waits for the body to have tipped over the edge onto the top
     # (IMU pitch back below release_pitch): S from the crawler encoders runs ahead of
     # the body when the tracks slip on the edge
@@ -1103,7 +1123,8 @@ def clm_step(p, s: ClmState, obs, control_dt: float = CONTROL_DT) -> tuple[ClmSt
     t_p = terrain_pitch(s.arms.contacts, a_p, a_r)
     contacts, q_hold = support_arms(p, s.arms, jnp.where(drive, travel_step, 0.0), t_p, a_p)
     tr = arm_transfer(p, s.arms, contacts, sense, ph.prepare, s.h_est)
-    confirmed, h_est = detect_step(p, s.confirmed, s.h_est, tr.on_step, tr.contacts, a_p, a_r, ph.walk)
+    confirmed, h_est, h_est_side = detect_step(p, s.confirmed, s.h_est, s.h_est_side, tr.on_step, tr.contacts, a_p,
+                                               a_r, ph.walk)
     arms = gait_sequence(p, s.arms, tr, ph, confirmed, approach.squared, control_dt)
     # front flippers, stall
     f_rule, f_case, at_riser = front_flipper_rule(p, s.flip, sense.flip_tau)
@@ -1140,6 +1161,7 @@ def clm_step(p, s: ClmState, obs, control_dt: float = CONTROL_DT) -> tuple[ClmSt
         t_phase=jnp.where(trans.changed, sense.time, s.t_phase).astype(dt),
         confirmed=confirmed,
         h_est=h_est.astype(dt),
+        h_est_side=h_est_side.astype(dt),
         flip=flip_n,
         flip_case=f_case.astype(jnp.int32),
         stall=stall.astype(dt),

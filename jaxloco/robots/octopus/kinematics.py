@@ -258,11 +258,35 @@ def cog_height(params: OctopusParams, tips_r: Array, a_p: Array, a_r: Array) -> 
       * our EPRA is the roller centre: the ground contact is one roller radius below it,
         added here (exact when the ground under the rear rollers is level).
     """
-    dt = tips_r.dtype
+    return _cog_height_above(params, 0.5 * (tips_r[2] + tips_r[3]), a_p, a_r)
+
+
+def cog_height_sides(params: OctopusParams, tips_r: Array, a_p: Array, a_r: Array) -> Array:
+    """(2,) COG height [m] above the ground under each side's rear arm (left: arm 3, LR;
+    right: arm 4, RR), as `cog_height` with P one rear EPRA instead of their midpoint.
+
+    For the climb's per-side adaptation (paper, "Getting over two-terrace step from the
+    side": "the arms and flippers of robot should adapt the terrain separately"): each
+    side compares its own H with its own step height (`side_step_heights`). The mean of
+    the two is `cog_height` (Eq. 16 is linear in P)."""
+    return jax.vmap(lambda p: _cog_height_above(params, p, a_p, a_r))(tips_r[2:])
+
+
+def side_step_heights(tips_c: Array) -> Array:
+    """(2,) step height [m] under each side, left (arms 1, 3) and right (arms 2, 4): the
+    front EPRA's height above the rear one's in the level frame {C} (tips_c (4, 3), the
+    `TerrainEstimate.tips_c` of `explore_terrain`). Eq. 9's H_EST is their mean."""
+    z = tips_c[:, 2]
+    return jnp.stack([z[0] - z[2], z[1] - z[3]])
+
+
+def _cog_height_above(params: OctopusParams, p_r: Array, a_p: Array, a_r: Array) -> Array:
+    """Height [m] of the COG above the ground under the EPRA p_r (3,) in {R} (Eq. 16's
+    Z_C of both, plus the roller radius), at the IMU attitude (a_p, a_r)."""
+    dt = p_r.dtype
     a_p, a_r = jnp.asarray(a_p, dt), jnp.asarray(a_r, dt)
     row = jnp.stack([jnp.sin(a_p), -jnp.cos(a_p) * jnp.sin(a_r), jnp.cos(a_p) * jnp.cos(a_r)])  # Eq. 16
-    p = 0.5 * (tips_r[2] + tips_r[3])
-    h1 = -(row @ p)
+    h1 = -(row @ p_r)
     h2 = -(row @ jnp.asarray(params.cog, dt))
     return h1 - h2 + jnp.asarray(params.roller_radius, dt)
 

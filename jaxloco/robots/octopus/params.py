@@ -209,6 +209,9 @@ PARAMETERS = ParamTable("octopus", (
     Param("climb_common_axis", 0.0, "paper climb reading: 1 = Eq. 28's +Delta_E turns every boom about the "
           "authors' common axis (the transfer's A_B: +0.6 rear, -0.6 front), so the front booms turn down and the "
           "rear ones up; 0 = every boom down", "", lo=0.0, hi=1.0),
+    Param("climb_per_side", 1.0, "paper climb: 1 = each side's arms and front flipper follow Eqs. 28-29 with "
+          "that side's H and step height (Fig. 17: the sides 'adapt the terrain separately'); 0 = both sides by "
+          "Eq. 9's H_EST", "", lo=0.0, hi=1.0),
     Param("s_from_touch", 0.0, "paper climb reading: 1 = S (Eq. 18) from the front flippers' "
           "touch-down on the step top, 0 = from the CLIMB start", "", lo=0.0, hi=1.0),
     Param("prepare_rear_init", 1.0, "PREPARE places the rear arms at their Table 2 start "

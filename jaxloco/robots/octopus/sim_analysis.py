@@ -33,8 +33,8 @@ PARAMS = PARAMETERS.select(
     "height", "distance", "yaw", "side_ratio", "block_gap", "mu", "distance_jitter", "yaw_jitter", "mu_jitter",
     # CLM gains (clm.PARAM_DEFAULTS)
     "T0", "flip_delta_a", "flip_delta_b", "delta_e", "delta_f", "clm_speed", "climb_paper", "flip_encoder",
-    "climb_yield", "climb_rear_flippers", "climb_common_axis", "s_from_touch", "prepare_rear_init", "crawl_max_h",
-    "operator_gain",
+    "climb_yield", "climb_rear_flippers", "climb_common_axis", "climb_per_side", "s_from_touch", "prepare_rear_init",
+    "crawl_max_h", "operator_gain",
     # the CCM baseline
     "speed",
     # run
