@@ -52,11 +52,15 @@ Closed-loop tuning (`scenarios.py`, `tests/test_snake_sim.py`):
     paper's from about 170 on. The MX-106R's stiffness at its largest P gain is about
     200 N m/rad (8.4 N m stall torque reached about 2.5 deg from the target; our
     estimate from its control table). 200 is both. Delta beta_h cannot match at any
-    stiffness: pitching the head down about the head point moves the head part's mass
-    back over psi_2, so it sags *less* and Delta beta_h falls short of -pi/6 (1.1 % at
-    200, 7 % at 30); the paper's overshoot (-0.55 rad) needs a load that grows as the
-    head pitches down, which this rigid model does not have (docs/snake.md). The
-    remaining steady sag at the Sec. V-A posture is about 1 cm
+    stiffness: beta_h = -pi/6 turns the head 30 deg nose *up* about the head point
+    (R = Ry(beta), y left), which the head part makes by psi_1 -0.8 -> +0.3 and psi_2
+    -1.10 -> -1.68 rad (psi_3 held: the SCP), so link 2 comes down from 46 to 13 deg
+    above the horizontal and the head part's weight acts farther ahead of psi_2 and
+    psi_3. Their sag grows (0.015 -> 0.018 and 0.008 -> 0.011 rad at KP 200), the head
+    ends 0.006 rad lower than commanded and Delta beta_h falls *short* of -pi/6 (-0.518
+    rad, 1.1 %; at KP 30 -0.487, 7.0 %). The paper's -0.55 overshoots: its head's sag
+    shrank by about 0.03 rad between the two postures, which gravity on this geometry
+    does not do (docs/snake.md). The remaining steady sag at the Sec. V-A posture is about 1 cm
     (`tests/test_snake_sim.py`).
   * WHEEL_KV = 5 N m s/rad (was 0.5): the velocity servo's steady speed is
     KV / (KV + JOINT_DAMPING) of its command, 0.909 with 0.5 (the robot drove at 91 % of
