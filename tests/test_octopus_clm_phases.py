@@ -195,19 +195,30 @@ def test_paper_climb_release_condition(p):
 
 
 def test_paper_climb_adapts_each_side_to_its_own_step(p):
-    """climb_per_side = 1 (the default, Fig. 17): each side compares its own H (the COG
-    above its rear EPRA) with the step height under it. With the right side up and the
-    left not, the left booms and the left front flipper go on (+Delta_E, -Delta_F) while
-    the right ones hold; CLIMB is over only with both sides up, and neither side is up
-    before S > L."""
+    """climb_per_side = 1 (the default, Fig. 17): the step detection keeps the step height
+    under each side, and in CLIMB each side compares its own H (the COG above its rear
+    EPRA) with it. On the two terraces from the side (0.4 m under the left side, 0.2 m
+    under the right) the level robot's H (0.27 m) is above the right step and below the
+    left one: once S > L the left booms and the left front flipper go on (+Delta_E,
+    -Delta_F) while the right ones hold (Eq. 28 as a whole robot, with H_EST = 0.3 m,
+    would turn all of them); CLIMB is over only with both sides up, and neither side is
+    up before S > L."""
     pp = {**p, "climb_paper": jnp.asarray(1.0), "flip_encoder": jnp.asarray(0.0), "climb_yield": jnp.asarray(0.0)}
     assert float(p["climb_per_side"]) == 1.0
     sense = clm.measure(_obs())
-    h_side = np.asarray(kin.cog_height_sides(KP, sense.tips, sense.pitch, sense.roll))
     s = clm.clm_init(pp, _obs())
+    contacts = jnp.asarray(params.TABLE2_INIT).at[:2, 2].add(jnp.array([0.4, 0.2]))
+    on_step = jnp.array([True, True, False, False])  # both front arms stopped on the terraces
+    confirmed, h_est, h_est_side = clm.detect_step(pp, s.confirmed, s.h_est, s.h_est_side, on_step, contacts,
+                                                   sense.pitch, sense.roll, jnp.asarray(True))
+    assert bool(confirmed)
+    np.testing.assert_allclose(h_est_side, [0.4, 0.2], atol=1e-9)
+    assert float(h_est) == pytest.approx(0.3, abs=1e-9)
+    h_side = np.asarray(kin.cog_height_sides(KP, sense.tips, sense.pitch, sense.roll))
+    assert 0.2 < h_side.min() <= h_side.max() < 0.3
     L = float(p["settle_distance"])
-    s = s._replace(phase=jnp.asarray(clm.CLIMB, jnp.int32), travel=jnp.asarray(L + 0.05),
-                   h_est_side=jnp.asarray(h_side + np.array([0.05, -0.05])))
+    s = s._replace(phase=jnp.asarray(clm.CLIMB, jnp.int32), travel=jnp.asarray(L + 0.05), confirmed=confirmed,
+                   h_est=h_est, h_est_side=h_est_side)
     h = jnp.asarray(float(h_side.mean()))
     c = clm.climb_step(pp, s, sense, h, s.travel)
     assert not bool(c.over)
