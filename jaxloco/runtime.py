@@ -8,7 +8,9 @@ is for forward-mode MJX gradients on CPU (the robots' `mjx_tuning` objectives ca
 from __future__ import annotations
 
 import functools
+import importlib.metadata
 import os
+import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -142,14 +144,30 @@ class RuntimeSettings:
     cache_dir: Path | None
 
 
+def xla_has_legacy_cpu_emitters(jaxlib_version: str | None = None) -> bool:
+    """Whether jaxlib's XLA (the installed one, or `jaxlib_version`) still has its legacy
+    LLVM IR emitters, which `FAST_XLA_CPU_FLAGS` selects: jaxlib < 0.11. jaxlib 0.11's XLA
+    dropped the flag and aborts the process on it ("Unknown flag in XLA_FLAGS"), so it is
+    only set where it exists. Reads the package metadata: imports no JAX."""
+    if jaxlib_version is None:
+        try:
+            jaxlib_version = importlib.metadata.version("jaxlib")
+        except importlib.metadata.PackageNotFoundError:
+            return False
+    numbers = [int(p) for p in re.findall(r"\d+", jaxlib_version)[:2]]
+    return len(numbers) == 2 and tuple(numbers) < (0, 11)
+
+
 # XLA's CPU compiler through its legacy LLVM IR emitters instead of its newer fusion
-# emitters (default (ours)): the same fused HLO, emitted by the older code path, compiles
-# faster and runs as fast or faster. Measured on 2 cores, 6 Dec 2026: the README's main
-# job (`jaxloco sweep leggrope_slope`) 29.3 -> 26.6 s with an empty compilation cache and
+# emitters (default (ours), where jaxlib has them: `xla_has_legacy_cpu_emitters`): the
+# same fused HLO, emitted by the older code path, compiles faster and runs as fast or
+# faster. Measured on 2 cores, 6 Dec 2026 (jaxlib 0.10.2): the README's main job
+# (`jaxloco sweep leggrope_slope`) 29.3 -> 26.6 s with an empty compilation cache and
 # 8.7 -> 8.0 s warm, the same table to 3e-14; `qp.solve_batch` on 5,760 contact QPs
 # 8-12 % more QPs/s (float64 and float32); compiling an MJX forward-mode rollout 13 %
-# faster, TITAN's gait module 27 % (tests/conftest.py). A CPU flag: other backends ignore it.
-FAST_XLA_CPU_FLAGS = ("--xla_cpu_use_fusion_emitters=false",)
+# faster, TITAN's gait module 27 % (tests/conftest.py). A CPU flag: other backends ignore
+# it. With jaxlib 0.11 (Python >= 3.12) none is set.
+FAST_XLA_CPU_FLAGS = ("--xla_cpu_use_fusion_emitters=false",) if xla_has_legacy_cpu_emitters() else ()
 
 
 def with_xla_flags(current: str, flags: tuple[str, ...]) -> str:
