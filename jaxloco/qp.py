@@ -349,10 +349,28 @@ def _kernel_outputs(raw, iterations, tol):
     fn = functools.partial(qp_kernel.solve_batch, iterations=iterations, tol=tol)
     devices = jax.devices()
     if len(devices) > 1 and raw[1].shape[0] % len(devices) == 0:
-        spec = jax.sharding.PartitionSpec("batch")
-        mesh = jax.sharding.Mesh(np.array(devices), ("batch",))
-        fn = jax.shard_map(fn, mesh=mesh, in_specs=(spec,) * 7, out_specs=(spec,) * 10, check_vma=False)
+        return _split_over_devices(fn, raw, devices, n_out=10)
     return fn(*raw)
+
+
+def _split_over_devices(fn, raw, devices, n_out: int):
+    """fn(*raw) with the batch (the leading axis of every array of `raw`) split over
+    `devices` (`jax.shard_map`, one part each). A zero-size argument (A and b when there
+    are no equalities) is made inside each part instead of passed in: XLA in jaxlib 0.11
+    crashes (a segmentation fault while compiling) on a shard_map that takes a zero-size
+    sharded input; zero-size outputs are fine."""
+    empty = [v.size == 0 for v in raw]
+    passed = [v for v, e in zip(raw, empty, strict=True) if not e]
+
+    def part(*local):
+        rows = local[0].shape[0]
+        given = iter(local)
+        return fn(*(jnp.zeros((rows, *v.shape[1:]), v.dtype) if e else next(given) for v, e in zip(raw, empty)))
+
+    spec = jax.sharding.PartitionSpec("batch")
+    mesh = jax.sharding.Mesh(np.array(devices), ("batch",))
+    return jax.shard_map(part, mesh=mesh, in_specs=(spec,) * len(passed), out_specs=(spec,) * n_out,
+                         check_vma=False)(*passed)
 
 
 def _kernel_solution(outs, iterations) -> QPSolution:
