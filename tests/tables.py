@@ -20,7 +20,11 @@ from pathlib import Path
 from typing import Any
 
 DIR = Path(__file__).resolve().parent / "data" / "tables"
-RTOL, ATOL = 1e-6, 1e-9
+# Other XLA versions order float operations differently: with jax 0.11.2 (Python 3.12; CI
+# runs 0.10.2) a 40 s closed loop of the snake's door moved by 1.0e-6 relative and a
+# near-zero support capacity of the leg-grope walk by 1.4e-8 N (7 Dec 2026). Changes
+# meant to change results move them by orders of magnitude more.
+RTOL, ATOL = 1e-5, 1e-7
 WRITE = "JAXLOCO_WRITE_TABLES"
 
 
