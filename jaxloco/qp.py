@@ -360,7 +360,7 @@ def _split_over_devices(fn, raw, devices, n_out: int):
     crashes (a segmentation fault while compiling) on a shard_map that takes a zero-size
     sharded input; zero-size outputs are fine."""
     empty = [v.size == 0 for v in raw]
-    passed = [v for v, e in zip(raw, empty, strict=True) if not e]
+    passed = [v for v, e in zip(raw, empty) if not e]
 
     def part(*local):
         rows = local[0].shape[0]

@@ -269,7 +269,7 @@ def cog_height_sides(params: OctopusParams, tips_r: Array, a_p: Array, a_r: Arra
     side": "the arms and flippers of robot should adapt the terrain separately"): each
     side compares its own H with its own step height (`side_step_heights`). The mean of
     the two is `cog_height` (Eq. 16 is linear in P)."""
-    return jax.vmap(lambda p: _cog_height_above(params, p, a_p, a_r))(tips_r[2:])
+    return _cog_height_above(params, tips_r[2:], a_p, a_r)
 
 
 def side_step_heights(tips_c: Array) -> Array:
@@ -281,12 +281,12 @@ def side_step_heights(tips_c: Array) -> Array:
 
 
 def _cog_height_above(params: OctopusParams, p_r: Array, a_p: Array, a_r: Array) -> Array:
-    """Height [m] of the COG above the ground under the EPRA p_r (3,) in {R} (Eq. 16's
+    """Height [m] of the COG above the ground under the EPRAs p_r (..., 3) in {R} (Eq. 16's
     Z_C of both, plus the roller radius), at the IMU attitude (a_p, a_r)."""
     dt = p_r.dtype
     a_p, a_r = jnp.asarray(a_p, dt), jnp.asarray(a_r, dt)
     row = jnp.stack([jnp.sin(a_p), -jnp.cos(a_p) * jnp.sin(a_r), jnp.cos(a_p) * jnp.cos(a_r)])  # Eq. 16
-    h1 = -(row @ p_r)
+    h1 = -(p_r @ row)
     h2 = -(row @ jnp.asarray(params.cog, dt))
     return h1 - h2 + jnp.asarray(params.roller_radius, dt)
 
