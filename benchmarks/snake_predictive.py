@@ -114,8 +114,9 @@ def mujoco_rows(horizon: float) -> None:
 
 def door_rows() -> None:
     """Opening the door (`operations.run_operation("door")`, 40 s) with the teleoperator
-    switching modes at a base joint's limit (enter 0.97, exit 0.8, at least 5 s), the
-    paper's fixed order against the predicted modes, operator gain 0 and 1 /s."""
+    switching modes at a base joint's limit (enter 0.97, exit 0.8, at least 1 s) and the
+    operations' gains (`operations.OPERATION_GAINS`), the paper's fixed order against the
+    predicted modes, operator gain 0 and 1 /s."""
     print("\nOpening the door in MuJoCo, 40 s, the operator switching at the stalls")
     print("| selection | operator gain [1/s] | door max [rad] | door at the end [rad] | max tip error [mm] | "
           "final tip error [mm] | time switching [s] | wall [s] |")

@@ -84,7 +84,8 @@ def test_the_hardened_gripper_turns_the_valve():
 @pytest.fixture(scope="module")
 def door():
     """32 s of the door, the operator's script without and with the operator's switching
-    at a base joint's limit (enter 0.97, exit 0.8, at least 5 s; no correction)."""
+    at a base joint's limit (enter 0.97, exit 0.8, at least 1 s; no correction), the
+    controller at the operations' gains (`operations.OPERATION_GAINS`)."""
     return operations.run_door(2, horizon=32.0, operator_enter=np.array([2.0, 0.97]))
 
 
@@ -105,9 +106,10 @@ def test_at_the_door_the_robot_backs_away_instead_of_swinging_its_base():
     knob along the arc, it moves backward along its own heading. From 2 to 6 s it backs
     12 cm (measured) with under 1 cm of sideways motion and barely turns, and no base
     joint is near its limit. From the Sec. V-A posture square to the door, the same pull
-    swings the base the other way (link 7 turns by -0.22 rad, measured) and drives
-    theta_4 onto its limit at about 4 s (Fig. 14 d, where the old layout then folded the
-    head part into a singular pose: the test below)."""
+    swings the base the other way (link 7 turns by up to -0.49 rad by 4 s, measured with
+    the operations' gains; -0.22 rad with the joint-limit experiment's) and drives theta_4
+    onto its limit at about 3.9 s (Fig. 14 d, where the square layout then folds the head
+    part into a singular pose: the test below)."""
     res, _ = operations.run_door(1, horizon=6.0)
     square, _ = operations.run_door(1, horizon=6.0, start={})
     t = res.times
@@ -117,31 +119,32 @@ def test_at_the_door_the_robot_backs_away_instead_of_swinging_its_base():
     assert back < -0.08 and abs(side) < 0.01 and abs(base[j, 5] - base[i, 5]) < 0.1
     assert _ratio(np.asarray(res.records["phi"])[0])[: j + 1].max() < 0.6
     base_sq = np.asarray(square.records["base"])[0]
-    assert base_sq[j, 5] - base_sq[i, 5] < -0.15
+    assert base_sq[i:j + 1, 5].min() - base_sq[i, 5] < -0.3
     assert _ratio(np.asarray(square.records["phi"])[0])[: j + 1].max() > 0.97
 
 
 def test_the_door_stalls_at_a_base_joint_limit_without_mode_switching(door):
-    """Fig. 14 d: backing away with the knob, a base yaw joint (the tail's theta_9:
-    "if the base part of the robot moves backward, the yaw joint frequently reaches the
-    angle limit", Sec. IV-C4) reaches its limit at about 9 s, and without switching the
-    robot cannot follow the script any more: the tip falls more than 0.2 m behind
-    (measured 0.32 m)."""
+    """Fig. 14 d: backing away with the knob, a base yaw joint ("if the base part of the
+    robot moves backward, the yaw joint frequently reaches the angle limit", Sec. IV-C4;
+    theta_5, measured) reaches its limit at about 7.3 s, and without switching the robot
+    cannot follow the script any more: the tip falls more than 0.1 m behind (measured
+    0.12 m here, 0.21 m in float64: past the stall the run is chaotic)."""
     res, m = door
     assert res.status[0] != "diverged"
     ratio, t = _ratio(np.asarray(res.records["phi"])[0]), res.times
-    assert 8.0 < t[np.argmax(ratio >= 0.97)] < 11.0
-    assert not operations.switching_record(res)[0].any() and m["max_tip_error"][0] > 0.2
+    assert 6.5 < t[np.argmax(ratio >= 0.97)] < 8.5
+    assert not operations.switching_record(res)[0].any() and m["max_tip_error"][0] > 0.1
 
 
 def test_the_operator_switches_modes_at_the_stall_and_the_pull_resumes(door):
     """Fig. 14 d-g: the operator commands the switching state within a control period of
     the stall; the script stands still; modes 2..6 free the base joints (below 80 % of
-    their limits; the tail's theta_9, whose K_V weight is the smallest, takes 20 s,
-    measured) while the tip stays within 30 mm of the knob's place (measured 29 mm);
-    then the pull resumes, and the base reaches a limit again (Fig. 14 f): a second
-    stall by 32 s, measured at 30.3 s."""
-    res, _ = door
+    their limits, in 4.0 s, measured) while the tip stays within 30 mm of the knob's
+    place (measured 19 mm); then the pull resumes, and the base reaches a limit again
+    (Fig. 14 f): a second stall, measured at 13.1 s, freed in 3.6 s (g). By 32 s the door
+    is open past 1.0 rad (measured 1.13) with the tip within 30 mm throughout (25 mm):
+    the paper's two stalls and recoveries, the issue's bound."""
+    res, m = door
     assert res.status[1] == "ok"
     t = res.times
     ratio = _ratio(np.asarray(res.records["phi"])[1])
@@ -149,13 +152,14 @@ def test_the_operator_switches_modes_at_the_stall_and_the_pull_resumes(door):
     start = np.argmax(switching)
     assert abs(t[start] - t[np.argmax(ratio >= 0.97)]) <= 2 * operations.CONTROL_DT + 1e-9
     end = start + np.argmax(~switching[start:])
-    assert 4.9 < t[end] - t[start] < 25.0 and ratio[end - 1] < 0.8  # as the operator saw it
+    assert 0.9 < t[end] - t[start] < 10.0 and ratio[end - 1] < 0.8  # as the operator saw it
     intent = np.asarray(res.records["intent"])[1]
     assert np.ptp(intent[start + 1:end, :3], axis=0).max() < 1e-9  # the script is paused
     tip_error = np.linalg.norm(np.asarray(res.records["tip"])[1, :, :3] - intent[:, :3], axis=-1)
     assert tip_error[: end + 1].max() < 0.03
     assert np.linalg.norm(intent[end + 25, :3] - intent[end, :3]) > 0.002  # resumed
     assert np.sum(switching[1:] & ~switching[:-1]) >= 2
+    assert m["door_max"][1] > 1.0 and m["max_tip_error"][1] < 0.03
 
 
 def test_the_operations_analysis_rows_summary_and_one_compile(tmp_path):

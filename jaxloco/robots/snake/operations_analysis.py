@@ -18,7 +18,9 @@ so every threshold here is ours. Per row:
 
 Trials: floor friction mu + U(-1, 1) mu_jitter and the robot's start shifted by U(-1,
 1) place_jitter in x and y (where the operator left it in front of the object; both
-ours) from each row's seed.
+ours) from each row's seed. The controller's k_eta and W's wheel weight default to
+`operations.OPERATION_GAINS` (ours, chosen for the door; the other experiments keep 0.1
+and 1).
 
 Simulator (fixed parameter `backend`): native MuJoCo, or MJX on the MJX variant
 (`operations`: the gripper's adhesion a pulling tendon, the ground a plane).
@@ -45,10 +47,14 @@ VALVE_TURN_MIN = 0.75 * np.pi / 2  # [rad] success: 75 % of the 90 deg roll, our
 DOOR_OPEN_MIN = 1.0  # [rad] success: of the 1.2 rad the operator pulls for, ours
 
 PARAMS = snake_params.PARAMETERS.select(
-    "operation", "operator_gain", "operator_enter", "operator_exit", "operator_min_switch", "mu", "mu_jitter",
-    "place_jitter", "nthread", "backend",
+    "operation", "operator_gain", "operator_enter", "operator_exit", "operator_min_switch", "k_eta", "w_wheel", "mu",
+    "mu_jitter", "place_jitter", "nthread", "backend",
     operation={"choices": NAMES},
+    # the operations' controller values (`operations.OPERATION_GAINS`, default (ours), chosen for the door)
+    k_eta={"default": operations.OPERATION_GAINS["k_eta"]},
+    w_wheel={"default": operations.OPERATION_GAINS["w_wheel"]},
 )
+GAIN_KEYS = tuple(operations.OPERATION_GAINS)
 
 METRICS = (
     Metric("success", "the operation's goal reached (pick: pipe_lift >= 0.05 m; valve: valve_turn >= 75 % of 90 deg; "
@@ -76,9 +82,11 @@ def trial_params(operation: str, values: Mapping[str, np.ndarray], keys: np.ndar
     mu = np.maximum(np.asarray(values["mu"], float) + u[:, 0] * np.asarray(values["mu_jitter"], float), trials.MU_MIN)
     shift = u[:, 1:] * np.asarray(values["place_jitter"], float)[:, None]
     operator = {k: np.asarray(values[k], float) for k in snake_operator.PARAM_DEFAULTS if k in values}
+    gains = {k: np.asarray(values[k], float) for k in GAIN_KEYS if k in values}
     start = op.start_params(n)  # how the robot stands at the object; the jitter shifts it
     x0, y0 = start.pop("x0", 0.0) + shift[:, 0], start.pop("y0", 0.0) + shift[:, 1]
-    params = operations.script_params(op.script, op.grip_at, n, mu=mu, x0=x0, y0=y0, **start, **operator)
+    params = operations.script_params(op.script, op.grip_at, n, mu=mu, x0=x0, y0=y0,
+                                      **{**operations.OPERATION_GAINS, **gains}, **start, **operator)
     params["key"] = np.asarray(keys, np.uint32)
     return params
 
