@@ -162,6 +162,29 @@ def test_the_operator_switches_modes_at_the_stall_and_the_pull_resumes(door):
     assert m["door_max"][1] > 1.0 and m["max_tip_error"][1] < 0.03
 
 
+def test_the_door_run_plot_shades_the_switching_states(door):
+    """`plots.plot_door_run` of the switching run: four traces (door, tip error, psi_2,
+    link 7's heading) with the 1.0 rad and 30 mm lines and one shaded span per switching
+    state (two by 32 s); its title gives the largest tip error."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from jaxloco.robots.snake import plots
+
+    res, m = door
+    rec = {k: np.asarray(v)[1] for k, v in res.records.items()}
+    fig = plots.plot_door_run(rec, res.times)
+    axes = fig.axes
+    assert len(axes) == 4
+    spans = [p for p in axes[0].patches]
+    assert len(spans) == int(np.sum(np.diff(operations.switching(rec).astype(int)) == 1)) == 2
+    assert [ln.get_ydata()[0] for ln in axes[1].lines[1:]] == [30.0]
+    assert f"{1e3 * m['max_tip_error'][1]:.0f} mm" in fig.get_suptitle()
+    plt.close(fig)
+
+
 def test_the_operations_analysis_rows_summary_and_one_compile(tmp_path):
     """`snake.operations` as a sweep of two one-row chunks (a pick with the operator's
     correction, then one without): each operation's measure in its own column (NaN

@@ -7,6 +7,7 @@ the `snake.kv` sweep and recorded kinematic runs.
     plot_accuracy(errors, paper)      Table III: error of the changed component per target [%]
     plot_contact_forces(table)        Tables IV-V: f_x, f_y, f_z per posture, ours beside the paper's
     plot_operations(table)            Sec. V-D: each operation's goal and tip error per operator gain
+    plot_door_run(records, t)         Fig. 14 as traces: door, tip error, switching, psi_2, link 7's heading
 
 `runs` maps a label to the records of one `kinsim.rollout` (arrays over time, e.g. a
 slice of the vmapped `analysis.run_one` records): t [s], phi (12 joints), error (7: tip
@@ -25,8 +26,8 @@ import numpy as np
 
 from jaxloco.plots import column, heatmap
 
-__all__ = ["plot_accuracy", "plot_base_joints", "plot_contact_forces", "plot_kv_maps", "plot_limit_runs",
-           "plot_operations", "rows_where"]
+__all__ = ["plot_accuracy", "plot_base_joints", "plot_contact_forces", "plot_door_run", "plot_kv_maps",
+           "plot_limit_runs", "plot_operations", "rows_where"]
 
 
 def plot_kv_maps(table: Any, *, where: np.ndarray | None = None, paper: Mapping[str, float] | None = None,
@@ -224,6 +225,44 @@ def plot_operations(table: Any, *, figsize=(10.0, 3.2)):
         ax.set_xticks(range(len(names)), names)
         ax.set_title(title, fontsize=9)
     a1.legend(fontsize=8)
+    return fig
+
+
+def plot_door_run(records: Mapping[str, Any], t: np.ndarray, *, label: str = "", figsize=(10.0, 5.0)):
+    """One door run (`operations.run_door` / the door rows of `snake.operations`; records
+    of one run, time first, t [s]) as the paper's Fig. 14 in traces: the door's angle
+    [rad], the gripper tip's distance from the operator's intended position [mm] against
+    the 30 mm bound, psi_2 [rad] (0: links 2 and 3 in line, the head part's singular
+    pose) and link 7's heading [rad], the switching state shaded (Fig. 14 e, g)."""
+    import matplotlib.pyplot as plt
+
+    from jaxloco.robots.snake import operations, operations_analysis
+
+    t = np.asarray(t, float)
+    door = np.asarray(records["fixture"])[:, 0]
+    err = 1e3 * operations.tip_distance(records)
+    switching = operations.switching(records)
+    phi, base = np.asarray(records["phi"]), np.asarray(records["base"])
+    fig, axes = plt.subplots(2, 2, figsize=figsize, sharex=True, layout="constrained")
+    traces = (
+        (door, "door angle [rad]", operations_analysis.DOOR_OPEN_MIN),
+        (err, "tip error [mm]", 1e3 * operations_analysis.TIP_BOUND),
+        (phi[:, 3], "psi_2 [rad] (0: singular)", 0.0),
+        (base[:, 5], "link 7 heading [rad]", None),
+    )
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], switching.astype(int), [0]])))
+    for ax, (y, name, line) in zip(axes.flat, traces):
+        for a, b in zip(edges[::2], edges[1::2]):
+            ax.axvspan(t[a], t[min(b, len(t) - 1)], color="C1", alpha=0.2, lw=0)
+        ax.plot(t, y, lw=1.2)
+        if line is not None:
+            ax.axhline(line, color="k", lw=0.8, ls="--")
+        ax.set_ylabel(name, fontsize=9)
+    for ax in axes[1]:
+        ax.set_xlabel("t [s]")
+    stalls = len(edges) // 2
+    fig.suptitle(f"{label + ': ' if label else ''}opening the door, {stalls} switching state(s) shaded; "
+                 f"largest tip error {np.max(err):.0f} mm", fontsize=10)
     return fig
 
 
