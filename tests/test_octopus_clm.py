@@ -116,14 +116,15 @@ def test_support_arms_hold_their_ground_contacts_while_driving():
 
 
 def test_clm_climbs_a_low_step_through_every_phase():
-    """200 mm step, the arm climb forced (crawl_max_h = 0): a front arm stops on the step
+    """200 mm step, our level lift (climb_paper = 0, a named option), the arms climbing
+    (crawl_max_h = 0, the default): a front arm stops on the step
     top (arm stop case: obstacle on the target), the other front arm follows, H_EST is
     confirmed, the crawlers stop, the rear arms are placed, the arms lift the body level,
     the flippers pull it onto the top, the release lowers it and it drives on (WALK,
     PREPARE, CLIMB, RELEASE, DONE)."""
     height = 0.2
     sc = _scenario("step1", horizon_s=84.0, record_every=10)
-    r = rollout(sc, scenarios.params_batch(1, height=height, crawl_max_h=0.0), nthread=2)
+    r = rollout(sc, scenarios.params_batch(1, height=height, climb_paper=0.0, crawl_max_h=0.0), nthread=2)
     row = r.row(0)
     assert row["status"] == "ok" and row["success"], row
     R = {k: v[0] for k, v in r.records.items()}
@@ -139,13 +140,14 @@ def test_clm_climbs_a_low_step_through_every_phase():
 
 
 def test_clm_crawls_up_a_two_terrace_staircase():
-    """Two 200 mm terraces from the front (H_EST <= crawl_max_h): the arms grope the first
+    """Two 200 mm terraces from the front, CRAWL on (crawl_max_h = 0.25 m, a named option of
+    ours; H_EST <= crawl_max_h): the arms grope the first
     riser, the step is confirmed, and the robot climbs it in CRAWL with the arms carried;
     blocked again by the second riser right after (DONE, stalled) it climbs that one in
     CRAWL too, and ends on the top. The arms are in the carrying pose (booms up) while
     crawling, and the robot never tips."""
     sc = _scenario("step2_front", horizon_s=90.0, record_every=10)
-    r = rollout(sc, scenarios.params_batch(1, height=0.4), nthread=2)
+    r = rollout(sc, scenarios.params_batch(1, height=0.4, crawl_max_h=0.25), nthread=2)
     row = r.row(0)
     assert row["status"] == "ok" and row["success"], row
     R = {k: v[0] for k, v in r.records.items()}

@@ -164,7 +164,11 @@ def test_phase_transitions(p):
     assert phase == clm.RELEASE and bool(tr.changed) and not bool(tr.finished)
     assert nxt(clm.WALK)[0] == clm.WALK
     assert nxt(clm.WALK, at_riser=yes)[0] == clm.PREPARE
-    assert nxt(clm.WALK, h_est=0.2, at_riser=yes)[0] == clm.CRAWL  # H_EST <= crawl_max_h
+    assert nxt(clm.WALK, h_est=0.2, at_riser=yes)[0] == clm.PREPARE  # CRAWL off: the paper's default
+    crawl = p | {"crawl_max_h": jnp.asarray(0.25, jnp.asarray(p["crawl_max_h"]).dtype)}
+    assert int(clm.phase_transition(crawl, s._replace(phase=jnp.asarray(clm.WALK, jnp.int32)),
+                                    clm.phase_masks(jnp.asarray(clm.WALK, jnp.int32)), s.arms, yes,
+                                    jnp.asarray(0.2), yes, jnp.asarray(0.0), no, no, no).phase) == clm.CRAWL
     phase, tr = nxt(clm.RELEASE, release_over=yes)
     assert phase == clm.DONE and bool(tr.finished) and not bool(tr.crawled)
     phase, tr = nxt(clm.CRAWL, crawl_over=yes)

@@ -24,13 +24,14 @@ level lift or `paper_climb_step`), `release_step` (or `paper_release_step`), `cr
 `Controller(clm_init, clm_step)`.
 
 Where this differs from the paper (the open gap, measured in docs/octopus.md): the
-default CLIMB is our level lift, not Eqs. 28-29. The paper's climb is built
-(`climb_paper` = 1, `paper_climb_step`, `paper_release_step`) but in our simulation it
-has not yet climbed a step of 200, 300 or 400 mm in any of about 600 gain / reading /
+default CLIMB is the paper's, Eqs. 28-29 (`climb_paper` = 1, `paper_climb_step`,
+`paper_release_step`; the default since 7 Dec 2026, our level lift before), but in our
+simulation it has not yet climbed a step of 200, 300 or 400 mm in any of about 600 gain / reading /
 PREPARE-posture combinations: the booms lift the nose to the pitch that booms alone
 give (0.54 rad on 400 mm; the paper's is 0.60, closed form in docs/octopus.md), the
 front arm rollers roll back to the edge, and the robot stalls leaning on the edge with
-its main crawler slipping. CRAWL is ours too.
+its main crawler slipping. Our level lift (`climb_paper` = 0) and CRAWL (`crawl_max_h` >
+0) are named options, not the paper's method.
 
 Robot phases (`PHASE_NAMES`; Fig. 9 a-h and the phases A-F of Fig. 14):
   WALK 0 (Fig. 9a-c, Fig. 14 A-C): crawlers at `clm_speed`; front flippers
@@ -227,8 +228,8 @@ PARAM_DEFAULTS: dict[str, float] = {
     "delta_e": _P.default("delta_e"),  # [rad/period] boom step (the EPRA moves Delta_E l1 per period)
     "delta_f": _P.default("delta_f"),  # [rad/period] flipper step
     "settle_distance": 0.3,  # [m] L = 0.6 x 500 mm
-    # 1: CLIMB by Eqs. 28-29 as printed (the paper's; not yet climbing in our simulation, see the module
-    # docstring); 0: our level lift (the default until the paper's works)
+    # 1: CLIMB by Eqs. 28-29 as printed (the paper's, the default; not yet climbing in our simulation, see the
+    # module docstring); 0: our level lift (a named option)
     "climb_paper": _P.default("climb_paper"),
     # 1: PREPARE places the rear arms at their Table 2 start points (ours, the level lift's choice); 0: at
     # their Table 2 targets (near under the rear boom axes)

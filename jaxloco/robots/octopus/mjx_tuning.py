@@ -4,9 +4,10 @@ loop in forward mode (`Objective.grad_mode = "forward"`, `jax.jacfwd`: MJX's con
 solver is a `while_loop`, which reverse mode cannot differentiate, see `jaxloco.sim.mjx`).
 
 The question: which Delta_E lifts the body at a wanted speed? The CLIMB (our level lift,
-`climb_paper` = 0, the default) lowers the pushing arms' EPRAs by Delta_E l1 per period
-along the world vertical, so the body rises about 24.5 Delta_E m/s as commanded; the
-actual rise is slower and not proportional: the arms take turns to keep the body within
+`climb_paper` = 0, set here: `LEVEL_LIFT`; the controller's default is the paper's climb)
+lowers the pushing arms' EPRAs by Delta_E l1 per period along the world vertical, so
+the body rises about 24.5 Delta_E m/s as commanded; the actual rise is slower and not
+proportional: the arms take turns to keep the body within
 the level band, the servos lag and the arms sag under the load. The loss is the mean
 squared error [cm^2] between the COG's rise and `lift_speed` x t over the first `horizon`
 seconds of the CLIMB (`lift_metrics`); its optimum is the Delta_E whose lift runs at
@@ -56,6 +57,9 @@ KIND = "step1"  # the 400 mm one-terrace step of the paper (any height in the se
 MAX_APPROACH_S = 45.0  # [s] the walk, detection and PREPARE reach the CLIMB within this (40.3 s at 0.55 m)
 LIFT_UNIT = 0.01  # [m] the loss is in cm^2
 
+# the climb tuned here: our level lift (a named option; the CLM's default is the paper's Eqs. 28-29, whose
+# booms turn by Delta_E in joint space)
+LEVEL_LIFT = {"climb_paper": 0.0}
 TUNABLES = (PARAMETERS.tunable("delta_e", lo=0.001, hi=0.02, scale="log"),)  # tighter than the sweep's range
 SETTINGS = (
     *PARAMETERS.select(
@@ -99,7 +103,7 @@ def climb_start(height: float) -> ClimbStart:
     from jaxloco.sim.rollout import rollout
 
     walk = scenarios.make_scenario(KIND, _controller(), horizon_s=MAX_APPROACH_S, record_every=1)
-    p = scenarios.params_batch(1, height=height)
+    p = scenarios.params_batch(1, height=height, **LEVEL_LIFT)
 
     def record(p, data, obs, c, e):
         leaves = {f"ctrl_state_{i}": x for i, x in enumerate(jax.tree_util.tree_leaves(c))}
@@ -151,8 +155,9 @@ def climb_scenario(height: float, horizon: float) -> Scenario:
 
 def params(n: int = 1, height: float = 0.4, **overrides) -> dict[str, jax.Array]:
     """The parameters of n climbs of `climb_scenario(height, ...)`: the step_climb
-    defaults with the step height and `overrides` (e.g. delta_e, arrays of length n)."""
-    return scenarios.params_batch(n, height=height, **overrides)
+    defaults with the step height, our level lift (`LEVEL_LIFT`) and `overrides` (e.g.
+    delta_e, arrays of length n)."""
+    return scenarios.params_batch(n, height=height, **{**LEVEL_LIFT, **overrides})
 
 
 def lift_metrics(cog_z: jax.Array, dt: float, lift_speed: jax.Array | float) -> dict[str, jax.Array]:
