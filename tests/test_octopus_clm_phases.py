@@ -153,7 +153,7 @@ def test_phase_transitions(p):
     s = clm.clm_init(p, _obs())
     no, yes = jnp.asarray(False), jnp.asarray(True)
 
-    def nxt(phase, h_est=0.4, at_riser=no, climb_over=no, release_over=no, crawl_over=no, s=s):
+    def nxt(phase, h_est=0.4, at_riser=no, climb_over=no, release_over=no, crawl_over=no, s=s, p=p):
         s = s._replace(phase=jnp.asarray(phase, jnp.int32))
         tr = clm.phase_transition(p, s, clm.phase_masks(s.phase), s.arms, yes, jnp.asarray(h_est), at_riser,
                                   jnp.asarray(0.0), climb_over, release_over, crawl_over)
@@ -165,10 +165,8 @@ def test_phase_transitions(p):
     assert nxt(clm.WALK)[0] == clm.WALK
     assert nxt(clm.WALK, at_riser=yes)[0] == clm.PREPARE
     assert nxt(clm.WALK, h_est=0.2, at_riser=yes)[0] == clm.PREPARE  # CRAWL off: the paper's default
-    crawl = p | {"crawl_max_h": jnp.asarray(0.25, jnp.asarray(p["crawl_max_h"]).dtype)}
-    assert int(clm.phase_transition(crawl, s._replace(phase=jnp.asarray(clm.WALK, jnp.int32)),
-                                    clm.phase_masks(jnp.asarray(clm.WALK, jnp.int32)), s.arms, yes,
-                                    jnp.asarray(0.2), yes, jnp.asarray(0.0), no, no, no).phase) == clm.CRAWL
+    crawl = p | {"crawl_max_h": jnp.asarray(0.25, jnp.asarray(p["crawl_max_h"]).dtype)}  # the named option
+    assert nxt(clm.WALK, h_est=0.2, at_riser=yes, p=crawl)[0] == clm.CRAWL  # H_EST <= crawl_max_h
     phase, tr = nxt(clm.RELEASE, release_over=yes)
     assert phase == clm.DONE and bool(tr.finished) and not bool(tr.crawled)
     phase, tr = nxt(clm.CRAWL, crawl_over=yes)

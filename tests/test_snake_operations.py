@@ -178,8 +178,7 @@ def test_the_door_run_plot_shades_the_switching_states(door):
     fig = plots.plot_door_run(rec, res.times)
     axes = fig.axes
     assert len(axes) == 4
-    spans = [p for p in axes[0].patches]
-    assert len(spans) == int(np.sum(np.diff(operations.switching(rec).astype(int)) == 1)) == 2
+    assert len(axes[0].patches) == int(np.sum(np.diff(operations.switching(rec).astype(int)) == 1)) == 2
     assert [ln.get_ydata()[0] for ln in axes[1].lines[1:]] == [30.0]
     assert f"{1e3 * m['max_tip_error'][1]:.0f} mm" in fig.get_suptitle()
     plt.close(fig)

@@ -7,8 +7,8 @@ The question: which Delta_E lifts the body at a wanted speed? The CLIMB (our lev
 `climb_paper` = 0, set here: `LEVEL_LIFT`; the controller's default is the paper's climb)
 lowers the pushing arms' EPRAs by Delta_E l1 per period along the world vertical, so
 the body rises about 24.5 Delta_E m/s as commanded; the actual rise is slower and not
-proportional: the arms take turns to keep the body within
-the level band, the servos lag and the arms sag under the load. The loss is the mean
+proportional: the arms take turns to keep the body within the level band, the servos
+lag and the arms sag under the load. The loss is the mean
 squared error [cm^2] between the COG's rise and `lift_speed` x t over the first `horizon`
 seconds of the CLIMB (`lift_metrics`); its optimum is the Delta_E whose lift runs at
 `lift_speed` (default 0.1 m/s, ours; the paper gives neither Delta_E nor a lift speed).

@@ -54,7 +54,6 @@ PARAMS = snake_params.PARAMETERS.select(
     k_eta={"default": operations.OPERATION_GAINS["k_eta"]},
     w_wheel={"default": operations.OPERATION_GAINS["w_wheel"]},
 )
-GAIN_KEYS = tuple(operations.OPERATION_GAINS)
 
 METRICS = (
     Metric("success", "the operation's goal reached (pick: pipe_lift >= 0.05 m; valve: valve_turn >= 75 % of 90 deg; "
@@ -82,11 +81,10 @@ def trial_params(operation: str, values: Mapping[str, np.ndarray], keys: np.ndar
     mu = np.maximum(np.asarray(values["mu"], float) + u[:, 0] * np.asarray(values["mu_jitter"], float), trials.MU_MIN)
     shift = u[:, 1:] * np.asarray(values["place_jitter"], float)[:, None]
     operator = {k: np.asarray(values[k], float) for k in snake_operator.PARAM_DEFAULTS if k in values}
-    gains = {k: np.asarray(values[k], float) for k in GAIN_KEYS if k in values}
+    gains = {k: np.asarray(values.get(k, v), float) for k, v in operations.OPERATION_GAINS.items()}
     start = op.start_params(n)  # how the robot stands at the object; the jitter shifts it
     x0, y0 = start.pop("x0", 0.0) + shift[:, 0], start.pop("y0", 0.0) + shift[:, 1]
-    params = operations.script_params(op.script, op.grip_at, n, mu=mu, x0=x0, y0=y0,
-                                      **{**operations.OPERATION_GAINS, **gains}, **start, **operator)
+    params = operations.script_params(op.script, op.grip_at, n, mu=mu, x0=x0, y0=y0, **gains, **start, **operator)
     params["key"] = np.asarray(keys, np.uint32)
     return params
 

@@ -260,8 +260,7 @@ def plot_door_run(records: Mapping[str, Any], t: np.ndarray, *, label: str = "",
         ax.set_ylabel(name, fontsize=9)
     for ax in axes[1]:
         ax.set_xlabel("t [s]")
-    stalls = len(edges) // 2
-    fig.suptitle(f"{label + ': ' if label else ''}opening the door, {stalls} switching state(s) shaded; "
+    fig.suptitle(f"{label + ': ' if label else ''}opening the door, {len(edges) // 2} switching state(s) shaded; "
                  f"largest tip error {np.max(err):.0f} mm", fontsize=10)
     return fig
 
