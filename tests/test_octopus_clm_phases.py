@@ -63,6 +63,36 @@ def test_support_arms_hold_ground_contacts(p):
     assert float(clm.terrain_pitch(arms.contacts, jnp.asarray(0.0), jnp.asarray(0.0))) == pytest.approx(0.0, abs=1e-5)
 
 
+def test_a_support_arm_that_would_leave_its_joint_range_holds_its_last_command(p):
+    """A support arm whose ground-fixed contact needs joint angles beyond the arm's range
+    (beyond ARM_LO / ARM_HI by more than HOLD_RANGE_TOL) to be held holds its last command
+    instead of a clipped solution: clipped, the boom stops at its limit and the elbow alone
+    chases the contact, pressing the roller into the ground (on the block task's 500 mm top
+    the right front roller pressed 430 N and lifted the right crawler off the floor). Within
+    the tolerance (an encoder a few mrad past a limit under load) it still holds."""
+    s = clm.clm_init(p, _obs())
+    arm = 1  # RF
+    # the RF arm on a 0.5 m top (z = 0.026 in {R}) with its boom raised to its limit
+    q = s.arms.q_cmd.at[arm].set(jnp.array([-0.19, float(clm.ARM_LO[1]) + 0.005, 2.40]))
+    tips = kin.arm_tips(KP, q)
+    last = q.at[arm, 2].add(0.03)
+    arms = s.arms._replace(contacts=tips, q_cmd=last)
+    pitch = jnp.asarray(0.0)
+    # a short drive keeps the solution within the range: held at the contact
+    _, q_near = clm.support_arms(p, arms, jnp.asarray(0.002), pitch, pitch)
+    assert float(q_near[arm, 1]) >= float(clm.ARM_LO[1]) - clm.HOLD_RANGE_TOL
+    np.testing.assert_allclose(np.asarray(kin.arm_tips(KP, q_near))[arm], np.asarray(tips)[arm]
+                               - [0.002, 0.0, 0.0], atol=1e-6)
+    # driving on 0.1 m needs the boom beyond its limit: the last command, not a clipped one
+    _, q_far = clm.support_arms(p, arms, jnp.asarray(0.1), pitch, pitch)
+    q_ik, _ = kin.inverse_kinematics_all(KP, np.asarray(tips) - [0.1, 0.0, 0.0])
+    assert float(q_ik[arm, 1]) < float(clm.ARM_LO[1]) - clm.HOLD_RANGE_TOL
+    np.testing.assert_allclose(q_far[arm], last[arm])
+    # the other support arms are unaffected
+    np.testing.assert_allclose(np.asarray(kin.arm_tips(KP, q_far))[[0, 2, 3]],
+                               np.asarray(tips)[[0, 2, 3]] - [0.1, 0.0, 0.0], atol=1e-6)
+
+
 def test_gait_starts_the_next_arm_in_crawl_order_after_the_pause(p):
     s = clm.clm_init(p, _obs())
     ph = clm.phase_masks(s.phase)
@@ -262,18 +292,21 @@ def test_release_and_carry(p):
 @pytest.mark.parametrize("phase", [cr.LIFT, cr.SWING, cr.OVER])
 def test_collision_stops_a_transfer_in_lift_swing_and_over(p, phase):
     """Figs. 19-20: a boom torque beyond collision_torque while the boom stands still, for
-    collision_periods periods in a row, stops the transferring arm where it is (PLACED,
-    command held, its contact at its EPRA) in LIFT, SWING and OVER alike. In LIFT the
-    signal counts only once the boom has risen collision_lift from where the lift began:
-    an arm that starts on the ground presses it first (no obstacle)."""
+    collision_periods periods in a row, stops the transferring arm where it is (PLACED, its
+    command the *measured* angles: "all of the joints in that arm stopped in this sample
+    period", not the last command, which the blocked servo lags behind; its contact at its
+    EPRA) in LIFT, SWING and OVER alike. In LIFT the signal counts only once the boom has
+    risen collision_lift from where the lift began: an arm that starts on the ground
+    presses it first (no obstacle)."""
     arm = 3  # RR
     s = clm.clm_init(p, _obs())
     obs = _obs()
     q = obs["arm_q"].reshape(4, 3)
     risen = q.at[arm, 1].add(-2.0 * float(p["collision_lift"]))  # boom turned up past collision_lift
+    ahead = risen.at[arm, 1:].add(0.05)  # the commands the blocked servos lag behind
     tau = jnp.zeros((4, 3)).at[arm, 1].set(2.0 * float(p["collision_torque"]))
     arms = s.arms._replace(arm_phase=s.arms.arm_phase.at[arm].set(phase), active=jnp.asarray(arm, jnp.int32),
-                           q_cmd=risen, q_cmd2=risen, q_prev=risen, lift_from=q[:, 1])
+                           q_cmd=ahead, q_cmd2=ahead, q_prev=risen, lift_from=q[:, 1])
     sense = clm.measure({**obs, "arm_q": risen.reshape(-1), "arm_tau": tau.reshape(-1)})
     no = jnp.asarray(False)
     n = int(p["collision_periods"])
@@ -282,7 +315,7 @@ def test_collision_stops_a_transfer_in_lift_swing_and_over(p, phase):
         stopped = int(tr.arm_phase[arm]) == cr.PLACED
         assert stopped == (k == n - 1), (k, int(tr.arm_phase[arm]))
         arms = arms._replace(hit_n=tr.hit_n)
-    np.testing.assert_allclose(tr.cmd[arm], risen[arm])
+    np.testing.assert_allclose(tr.cmd[arm], risen[arm])  # stopped where it is, not at the command
     np.testing.assert_allclose(tr.contacts[arm], sense.tips[arm], atol=1e-12)
     if phase == cr.LIFT:  # the same torque before the boom has risen: no collision
         arms = arms._replace(hit_n=jnp.zeros(4, jnp.int32), q_cmd=q, q_cmd2=q, q_prev=q)

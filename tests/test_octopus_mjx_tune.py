@@ -63,7 +63,10 @@ def test_forward_gradient_matches_central_differences(mjx_loss):
     points = [mjx_loss(K0 + j * h) for j in (-2, -1, 0, 1, 2)]
     losses, grads = np.array([p[0] for p in points]), np.array([p[2] for p in points])
     grad = grads[2]
-    assert grad > 100.0  # a real slope (measured 1059 cm^2 per rad/period; loss ~0.6 cm^2)
+    # a real slope (measured -284 cm^2 per rad/period, loss 0.27 cm^2: over these 0.6 s the
+    # default step lifts the COG 0.061 m, about the wanted 0.1 m/s, and a larger one helps;
+    # 1059 before 7 Dec 2026, from a start 2 s later)
+    assert abs(grad) > 100.0
     slopes = np.diff(losses) / h
     trapezoid = 0.5 * (grads[1:] + grads[:-1])
     smooth = np.abs(slopes - trapezoid) <= 1e-6 * abs(grad)
@@ -74,9 +77,14 @@ def test_forward_gradient_matches_central_differences(mjx_loss):
 
 @pytest.mark.slow  # an MJX compile of the OCTOPUS loop: start it first
 def test_mjx_loss_agrees_with_native_mujoco(mjx_loss):
-    """The same CLIMB (start, scenario, controller) on MuJoCo's C code."""
+    """The same CLIMB (start, scenario, controller) on MuJoCo's C code. At this start the
+    body still rests on one track segment (333 N) and lifts off it onto its rollers within
+    0.2 s, rolling 0.04 rad and drifting sideways: through that contact transition the two
+    solvers part by 2e-5 m (the COG) within three periods and 2.4e-4 m in 0.6 s, the loss
+    by 0.3 % and the lift by 1.3 um (measured 7 Dec 2026; from the earlier start, already
+    on its rollers, they agreed to 1e-9 m). Hence 1 % and 10 um."""
     start = mjx_tuning.climb_start(SETTINGS["height"])
-    assert int(start.ctrl_state.phase) == clm.CLIMB and 20.0 < float(start.time) < 30.0  # 25.4 s on 400 mm
+    assert int(start.ctrl_state.phase) == clm.CLIMB and 20.0 < float(start.time) < 30.0  # 23.2 s on 400 mm
     gains = (K0, 0.0045)
     sc = mjx_tuning.climb_scenario(SETTINGS["height"], HORIZON)
     res = rollout(sc, mjx_tuning.params(2, SETTINGS["height"], delta_e=np.array(gains)), backend="native", nthread=1)
@@ -87,8 +95,8 @@ def test_mjx_loss_agrees_with_native_mujoco(mjx_loss):
                                          SETTINGS["lift_speed"])
         loss, aux, _ = mjx_loss(k)
         losses.append(loss)
-        assert loss == pytest.approx(float(native["loss"]), rel=1e-6)
-        assert aux["lift"] == pytest.approx(float(native["lift"]), abs=1e-6)  # 1 um
+        assert loss == pytest.approx(float(native["loss"]), rel=1e-2)
+        assert aux["lift"] == pytest.approx(float(native["lift"]), abs=1e-5)  # 10 um
     assert abs(losses[1] - losses[0]) > 0.1 * losses[0]  # the steps differ measurably
 
 

@@ -38,8 +38,10 @@ Robot phases (`PHASE_NAMES`; Fig. 9 a-h and the phases A-F of Fig. 14):
     by the torque rule (`clm_rules.flipper_rule`, Cases 1-3: T0, flip_delta_a, A0,
     flip_delta_b), rear flippers 0. Arms: the support arms hold their ground contacts
     (Eqs. 22-27, `predict_contacts` with the crawler-encoder travel, then inverse
-    kinematics); one arm at a time transfers (`transfer_step`, Eqs. 19-21: lift to A_B,
-    swing to A_S, over the target, lower until contact) to its Table 2 target, in
+    kinematics; an arm whose hold would leave its joint range holds its last command,
+    its roller rolling along: HOLD_RANGE_TOL); one arm at a time transfers
+    (`transfer_step`, Eqs. 19-21: lift to A_B, swing to A_S, over the target, lower until
+    contact) to its Table 2 target, in
     `CRAWL_ORDER` (RR, RF, LR, LF) with `gait_pause` between transfers: at least three
     arms support the robot at any time (while any arm is IDLE the crawlers wait). Where a
     transfer stopped is classified by `arm_stop_case` (delta_c, delta_d).
@@ -118,8 +120,9 @@ Readings resolved here (the paper's text is ambiguous or not physically consiste
     before (a blocked arm), or the boom at its joint limit (deep pit). In LIFT, SWING and
     OVER a boom or elbow torque beyond collision_torque and rising (80 N m; free motion reaches 48 N m,
     a torque *rise* is no signal there: single jumps of 35 N m per period in free air)
-    stops the arm where it is: PLACED, its contact where the encoders put the EPRA, its
-    stop case from there. The joints aim
+    stops the arm where it is: PLACED, its command the measured angles ("all of the
+    joints in that arm stopped in this sample period"), its contact where the encoders
+    put the EPRA, its stop case from there. The joints aim
     transfer_press below the target, so the roller meets the ground before the command
     stops, and past the target angles the boom creeps down by Delta_B per period.
   * A_B, A_S: our joint zeros differ from the authors' (see `clm_rules.transfer_step`):
@@ -281,6 +284,10 @@ _KP = params.default_params()
 BOOM_MAX = model.ARM_RANGE[1][1]
 ARM_LO = np.array([r[0] for r in model.ARM_RANGE])
 ARM_HI = np.array([r[1] for r in model.ARM_RANGE])
+# [rad] a support arm's hold may lie this far outside the joint range and is clipped
+# (an encoder reads a few mrad past a limit under load); beyond it the arm holds its last
+# command (`support_arms`). Ours
+HOLD_RANGE_TOL = 0.02
 FLIPPER_MAX = params.FLIPPER_LIMIT
 HOME_BOOM = model.home_arm_angles()[:, 1]  # boom angles of the start pose (the authors' zero)
 
@@ -686,13 +693,17 @@ def support_arms(p, arms: ArmState, moved: Array, t_p: Array, pitch: Array) -> t
     body `moved` [m] on (Eqs. 22-27, `clm_rules.predict_contacts`: a ground-fixed point moves by
     -moved (cos a, 0, sin a) in {R}, a = t_p - pitch), then inverse kinematics, aiming
     `press` [m] below the contacts. Returns the contact points (4, 3) in {R} (the other
-    arms' unchanged) and the joint commands (4, 3) [rad] that hold them (out of reach:
-    the last command)."""
+    arms' unchanged) and the joint commands (4, 3) [rad] that hold them (out of reach, or
+    beyond the joint range by more than HOLD_RANGE_TOL: the last command)."""
     support = arms.arm_phase == clm_rules.PLACED
     contacts = jnp.where(support[:, None], clm_rules.predict_contacts(arms.contacts, moved, t_p, pitch), arms.contacts)
     press = jnp.stack([jnp.zeros_like(p["press"]), jnp.zeros_like(p["press"]), p["press"]])
     q_hold, reach = kinematics.inverse_kinematics_all(_KP, contacts - press)
-    q_hold = jnp.where((reach > 0.005)[:, None], q_hold, arms.q_cmd)  # out of reach: hold
+    # out of reach, or only beyond the joint range: the last command. Clipped instead, a
+    # boom at its limit stays there and the elbow alone chases the contact, pressing the
+    # roller down (an arm riding the 500 mm block lifted the robot's side off the floor)
+    in_range = jnp.all((q_hold >= ARM_LO - HOLD_RANGE_TOL) & (q_hold <= ARM_HI + HOLD_RANGE_TOL), axis=-1)
+    q_hold = jnp.where(((reach > 0.005) & in_range)[:, None], q_hold, arms.q_cmd)
     return contacts, q_hold
 
 
@@ -725,8 +736,10 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     the command of two periods before (a blocked arm: the servo follows a free arm within
     a period), or the boom at its joint limit (deep pit); past the target's angles the
     boom creeps down by Delta_B per period until then. In LIFT, SWING and OVER a boom or
-    elbow torque beyond collision_torque [N m] stops the arm where it is (the paper's "the
-    torque of elbow joint would reach to the setting value"; free motion reaches 48 N m).
+    elbow torque beyond collision_torque [N m] stops the arm where it is, its command the
+    measured angles (the paper's "the torque of elbow joint would reach to the setting
+    value ... all of the joints in that arm stopped in this sample period"; free motion
+    reaches 48 N m).
     A_B: lift_boom (rear) / lift_boom_front (front), or lift_min above the current boom if
     that is higher (`lift_to`). A placed arm's contact is its EPRA (encoders), its stop
     case `clm_rules.arm_stop_case` (delta_c, delta_d) against its target; a front arm stopped on
@@ -781,7 +794,7 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
         (jnp.abs(tau[:, 1:]) > p["collision_torque"]) & still, axis=-1)
     hit_n = jnp.where(over, arms.hit_n + 1, 0)
     collided = hit_n >= p["collision_periods"]
-    tr_cmd = jnp.where(collided[:, None], arms.q_cmd, tr_cmd)
+    tr_cmd = jnp.where(collided[:, None], sense.q.astype(dt), tr_cmd)
     tr_next = jnp.where(collided, clm_rules.PLACED, tr_next)
     # Case 3 (a pit at the target) of a front arm: a deep one (above), or the roller
     # stopped more than delta_d below its target: hold this period, then LIFT again (A_B

@@ -15,7 +15,7 @@ seconds of the CLIMB (`lift_metrics`); its optimum is the Delta_E whose lift run
 
 The experiment starts at the CLIMB start (`climb_start`): the CLM walks up to the step of
 `height` from the `octopus.step_climb` defaults (0.7 m away, heading straight, mu 0.8),
-detects it, squares up and places its rear arms (PREPARE), 25.4 s on a 400 mm step,
+detects it, squares up and places its rear arms (PREPARE), 23.2 s on a 400 mm step,
 simulated once in MuJoCo's C code outside the gradient. Nothing before the CLIMB reads
 Delta_E, so that state is the same for every Delta_E, and the rollout (`climb_scenario`)
 continues from it, the controller resumed with its state and clock (`resumed`). Within
@@ -23,7 +23,8 @@ the horizon only the CLIMB's lift runs: Delta_E enters through the arms' command
 
 Gradients through contact: the arm rollers and crawler wheels switch contacts at periods
 that move with Delta_E (at Delta_E = 0.006 on the 400 mm step the left-front roller, which
-carries 0.2 N, lifts off in period 37 or 38 of the CLIMB), so over 1 s the loss jumps by
+carried 0.2 N, lifted off in period 37 or 38 of the CLIMB from the CLIMB start before 7 Dec
+2026), so over 1 s the loss jumps by
 ~1e-4 cm^2 between smooth pieces 1e-6 to 1e-5 rad/period wide. Forward mode gives the
 slope of the piece: central differences with steps of 1e-6 agree to 2e-9 relative
 (tests/test_octopus_mjx_tune.py, over 0.6 s), while a stencil of 1e-5 straddles the
