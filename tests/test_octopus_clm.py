@@ -166,7 +166,10 @@ def test_clm_walks_past_a_block_beside_its_right_side():
     A right arm's transfer collides with the block (the torque reaches collision_torque),
     the arm stops there, rides the block top in support (PLACED, roller above 0.5 m), and
     later returns to the floor (`arm_over_obstacle`); the left arms stay on the floor, no
-    step is confirmed, and the robot walks on past the block in WALK without tipping."""
+    step is confirmed, and the robot walks on past the block in WALK without tipping, its
+    right crawler on the floor: |roll| < 0.1 rad (until 7 Dec 2026 the riding arm, its boom
+    at its limit, chased its contact with the elbow, pressed the roller down and held the
+    right crawler off the floor: 0.21 rad)."""
     sc = _scenario("block", horizon_s=60.0, record_every=10)
     r = rollout(sc, scenarios.params_batch(1, height=0.5), nthread=2)
     row = r.row(0)
@@ -180,7 +183,7 @@ def test_clm_walks_past_a_block_beside_its_right_side():
     first = np.argmax(riding[:, right].any(axis=1))
     assert (z[first:, right] < params.ROLLER_RADIUS + 0.02).any()  # back on the floor afterwards
     assert z[:, ~right][(R["arm_phase"] == cr.PLACED)[:, ~right]].max() < 0.2
-    assert row["max_abs_roll"] < 0.3
+    assert row["max_abs_roll"] < 0.1, row["max_abs_roll"]
 
 
 def test_prepare_approach_squares_up_on_a_high_step():
