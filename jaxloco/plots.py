@@ -7,6 +7,8 @@
     plot_validation(comparison, metrics)         a validation table (`tune.handoff.validate`):
                                                  one bar per compared set and metric
     column(table, name), ok_fraction(table)      a column as numpy; the fraction of ok rows
+    spans(t, values)                             (start, end, value) of each run of equal values
+                                                 over time, to shade phases and states
 
 A table is a `pyarrow.Table` or a mapping of column name to array. Every plot function
 returns the matplotlib Figure; matplotlib is imported inside the functions, JAX never.
@@ -20,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["column", "grid_mean", "heatmap", "new_axes", "ok_fraction", "plot_tuning", "plot_validation"]
+__all__ = ["column", "grid_mean", "heatmap", "new_axes", "ok_fraction", "plot_tuning", "plot_validation", "spans"]
 
 SET_COLORS = {"initial": "0.55", "tuned": "C0", "paper": "C3"}
 
@@ -89,6 +91,17 @@ def new_axes(ax, figsize):
         fig, ax = plt.subplots(figsize=figsize, layout="constrained")
         return fig, ax
     return ax.figure, ax
+
+
+def spans(t: np.ndarray, values: np.ndarray) -> list[tuple[float, float, int]]:
+    """(start, end, value) of every run of equal (integer) values over the uniform times t
+    [s], each run ending one sample after its last: the phases or states to shade in a
+    time plot."""
+    values = np.asarray(values)
+    edges = np.flatnonzero(np.diff(values)) + 1
+    starts, ends = np.r_[0, edges], np.r_[edges, len(values)]
+    dt = t[1] - t[0] if len(t) > 1 else 0.0
+    return [(float(t[a]), float(t[b - 1] + dt), int(values[a])) for a, b in zip(starts, ends)]
 
 
 # ------------------------------------------------------------------------- workbench plots

@@ -8,6 +8,7 @@ matplotlib.use("Agg")
 import numpy as np
 import pytest
 
+from jaxloco.plots import spans
 from jaxloco.robots.octopus import clm, plots, scenarios
 
 N_SUPPORT = len(scenarios.SUPPORT_BODIES)
@@ -54,7 +55,7 @@ def test_climb_trace_signals():
 
 def test_phase_spans():
     t = np.arange(6) * 0.5
-    assert plots._phase_spans(t, np.array([0, 0, 1, 1, 1, 2])) == [(0.0, 1.0, 0), (1.0, 2.5, 1), (2.5, 3.0, 2)]
+    assert spans(t, np.array([0, 0, 1, 1, 1, 2])) == [(0.0, 1.0, 0), (1.0, 2.5, 1), (2.5, 3.0, 2)]
 
 
 def test_figures():

@@ -794,7 +794,7 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
         (jnp.abs(tau[:, 1:]) > p["collision_torque"]) & still, axis=-1)
     hit_n = jnp.where(over, arms.hit_n + 1, 0)
     collided = hit_n >= p["collision_periods"]
-    tr_cmd = jnp.where(collided[:, None], sense.q.astype(dt), tr_cmd)
+    tr_cmd = jnp.where(collided[:, None], sense.q, tr_cmd)
     tr_next = jnp.where(collided, clm_rules.PLACED, tr_next)
     # Case 3 (a pit at the target) of a front arm: a deep one (above), or the roller
     # stopped more than delta_d below its target: hold this period, then LIFT again (A_B

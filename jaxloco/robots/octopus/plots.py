@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxloco.plots import column, heatmap
+from jaxloco.plots import column, heatmap, spans
 
 __all__ = ["TERRAIN_NAMES", "climb_trace", "plot_accuracy_map", "plot_arm_joints", "plot_arm_on_obstacle",
            "plot_attitude_traces", "plot_climb_traces"]
@@ -127,14 +127,6 @@ def plot_climb_traces(traces: Mapping[str, Mapping[str, np.ndarray]],
                       ("pitch angle (Fig. 12)", "static stability margin (Fig. 13)"), paper, margin_line, figsize)
 
 
-def _phase_spans(t: np.ndarray, phase: np.ndarray) -> list[tuple[float, float, int]]:
-    """(start, end, phase) of every run of equal phase values over time t [s]."""
-    edges = np.flatnonzero(np.diff(phase)) + 1
-    starts, ends = np.r_[0, edges], np.r_[edges, len(phase)]
-    dt = t[1] - t[0] if len(t) > 1 else 0.0
-    return [(float(t[a]), float(t[b - 1] + dt), int(phase[a])) for a, b in zip(starts, ends)]
-
-
 def plot_attitude_traces(traces: Mapping[str, Mapping[str, np.ndarray]],
                          paper: Mapping[str, Mapping[str, float]] | None = None, *, figsize=(9.0, 3.4)):
     """Nose-up pitch and roll [rad] over time, one line per labelled run (the paper's Figs.
@@ -158,12 +150,12 @@ def plot_arm_joints(trace: Mapping[str, np.ndarray], arms: Sequence[int] = (1, 3
     import matplotlib.pyplot as plt
 
     t, q = trace["t"], trace["arm_q"]
-    spans = _phase_spans(t, np.asarray(trace["phase"]))
+    phase_spans = spans(t, np.asarray(trace["phase"]))
     fig, axes = plt.subplots(3, len(arms), figsize=figsize, layout="constrained", sharex=True, squeeze=False)
     for col, arm in enumerate(arms):
         for row, joint in enumerate(("swing", "boom", "elbow")):
             ax = axes[row, col]
-            for a, b, ph in spans:
+            for a, b, ph in phase_spans:
                 ax.axvspan(a, b, color=f"C{ph}", alpha=0.12, lw=0)
                 if row == 0 and b - a > 0.04 * (t[-1] - t[0] + 1e-9):
                     name = phase_names[ph] if ph < len(phase_names) else str(ph)
@@ -191,7 +183,7 @@ def plot_arm_on_obstacle(trace: Mapping[str, np.ndarray], arm: int = 1, *, title
     t, q, tau = trace["t"], trace["arm_q"], trace["arm_tau"]
     up = np.asarray(trace["roller_on"], bool)[:, arm] & (np.asarray(trace["roller_z"])[:, arm] > OBSTACLE_MIN)
     fig, (a1, a2) = plt.subplots(1, 2, figsize=figsize, layout="constrained", sharex=True)
-    for a, b, on in _phase_spans(t, up.astype(int)):
+    for a, b, on in spans(t, up.astype(int)):
         if on:
             for ax in (a1, a2):
                 ax.axvspan(a, b, color="C3", alpha=0.15, lw=0)

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxloco.plots import column, heatmap
+from jaxloco.plots import column, heatmap, spans
 
 __all__ = ["plot_accuracy", "plot_base_joints", "plot_contact_forces", "plot_door_run", "plot_kv_maps",
            "plot_limit_runs", "plot_operations", "rows_where"]
@@ -250,17 +250,17 @@ def plot_door_run(records: Mapping[str, Any], t: np.ndarray, *, label: str = "",
         (phi[:, 3], "psi_2 [rad] (0: singular)", 0.0),
         (base[:, 5], "link 7 heading [rad]", None),
     )
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], switching.astype(int), [0]])))
+    shaded = [(a, b) for a, b, on in spans(t, switching.astype(int)) if on]
     for ax, (y, name, line) in zip(axes.flat, traces):
-        for a, b in zip(edges[::2], edges[1::2]):
-            ax.axvspan(t[a], t[min(b, len(t) - 1)], color="C1", alpha=0.2, lw=0)
+        for a, b in shaded:
+            ax.axvspan(a, b, color="C1", alpha=0.2, lw=0)
         ax.plot(t, y, lw=1.2)
         if line is not None:
             ax.axhline(line, color="k", lw=0.8, ls="--")
         ax.set_ylabel(name, fontsize=9)
     for ax in axes[1]:
         ax.set_xlabel("t [s]")
-    fig.suptitle(f"{label + ': ' if label else ''}opening the door, {len(edges) // 2} switching state(s) shaded; "
+    fig.suptitle(f"{label + ': ' if label else ''}opening the door, {len(shaded)} switching state(s) shaded; "
                  f"largest tip error {np.max(err):.0f} mm", fontsize=10)
     return fig
 
