@@ -26,7 +26,7 @@ level lift or `paper_climb_step`), `release_step` (or `paper_release_step`), `cr
 Where this differs from the paper (the open gap, measured in docs/octopus.md): the
 default CLIMB is the paper's, Eqs. 28-29 (`climb_paper` = 1, `paper_climb_step`,
 `paper_release_step`; the default since 7 Dec 2026, our level lift before), but in our
-simulation it has not yet climbed a step of 200, 300 or 400 mm in any of about 600 gain / reading /
+simulation it has not yet climbed a step of 200, 300 or 400 mm in any of about 850 gain / reading /
 PREPARE-posture combinations: the booms lift the nose to the pitch that booms alone
 give (0.54 rad on 400 mm; the paper's is 0.60, closed form in docs/octopus.md), the
 front arm rollers roll back to the edge, and the robot stalls leaning on the edge with
