@@ -10,7 +10,7 @@ Prints, per phase, the number of arm-periods, the largest |boom or elbow torque|
 the max, 99th and 99.9th percentile of the per-period rise max over the arm's three
 joints of |tau| - |tau'| [N m] (the `clm_rules.collision` signal of LOWER), and in how
 many arm-periods the CLM's collision rule of LIFT/SWING/OVER would fire (torque above
-collision_torque with the joint still, collision_periods in a row): on flat ground every
+collision_torque, in LIFT with the joint still, collision_periods in a row): on flat ground every
 one would be a false stop. On flat ground every rise in LIFT/SWING/OVER is free motion; on "block" (a
 500 mm block beside the right side) the arms meet the block.
 """
@@ -25,7 +25,7 @@ from jaxloco import runtime
 
 runtime.configure(x64=True, cache_dir=True)
 
-from jaxloco.robots.octopus import clm, scenarios
+from jaxloco.robots.octopus import clm, clm_rules, scenarios
 from jaxloco.sim.rollout import rollout
 
 
@@ -47,12 +47,10 @@ def main(argv: list[str]) -> None:
     rise = np.max(tau[1:] - tau[:-1], axis=-1)
     q = np.asarray(r.records["q"])[0].reshape(-1, 4, 3)
     d = clm.PARAM_DEFAULTS
-    # the CLM's collision rule: |boom or elbow torque| > collision_torque while that joint
-    # moved less than collision_still, collision_periods periods in a row
-    held = np.any(
-        (tau[1:, :, 1:] > d["collision_torque"]) & (np.abs(q[1:, :, 1:] - q[:-1, :, 1:]) < d["collision_still"]),
-        axis=-1,
-    )
+    # the CLM's collision rule: |boom or elbow torque| > collision_torque (in LIFT while that
+    # joint moved less than collision_still), collision_periods periods in a row
+    still = (np.abs(q[1:, :, 1:] - q[:-1, :, 1:]) < d["collision_still"]) | (phase != clm_rules.LIFT)[..., None]
+    held = np.any((tau[1:, :, 1:] > d["collision_torque"]) & still, axis=-1)
     run = np.zeros_like(held, dtype=int)
     for k in range(held.shape[0]):
         run[k] = np.where(held[k], (run[k - 1] if k else 0) + 1, 0)

@@ -289,15 +289,17 @@ def test_release_and_carry(p):
     np.testing.assert_allclose(q_d[:, 2], up[:, 2] + np.clip(float(p["carry_elbow"]) - up[:, 2], -db, db))
 
 
-@pytest.mark.parametrize("phase", [cr.LIFT, cr.SWING, cr.OVER])
-def test_collision_stops_a_transfer_in_lift_swing_and_over(p, phase):
-    """Figs. 19-20: a boom torque beyond collision_torque while the boom stands still, for
-    collision_periods periods in a row, stops the transferring arm where it is (PLACED, its
-    command the *measured* angles: "all of the joints in that arm stopped in this sample
-    period", not the last command, which the blocked servo lags behind; its contact at its
-    EPRA) in LIFT, SWING and OVER alike. In LIFT the signal counts only once the boom has
-    risen collision_lift from where the lift began: an arm that starts on the ground
-    presses it first (no obstacle)."""
+@pytest.mark.parametrize(("phase", "moving"), [(cr.LIFT, False), (cr.SWING, False), (cr.OVER, False),
+                                               (cr.SWING, True), (cr.OVER, True)])
+def test_collision_stops_a_transfer_in_lift_swing_and_over(p, phase, moving):
+    """Figs. 19-20: a boom torque beyond collision_torque for collision_periods periods in a
+    row stops the transferring arm where it is (PLACED, its command the *measured* angles:
+    "all of the joints in that arm stopped in this sample period", not the last command,
+    which the blocked servo lags behind; its contact at its EPRA) in LIFT, SWING and OVER
+    alike; in SWING and OVER also while the pressed joint still moves (an arm pressing an
+    obstacle top lifts the body and keeps turning). In LIFT the boom must stand still, and
+    the signal counts only once it has risen collision_lift from where the lift began: an
+    arm that starts on the ground presses it first (no obstacle)."""
     arm = 3  # RR
     s = clm.clm_init(p, _obs())
     obs = _obs()
@@ -305,8 +307,9 @@ def test_collision_stops_a_transfer_in_lift_swing_and_over(p, phase):
     risen = q.at[arm, 1].add(-2.0 * float(p["collision_lift"]))  # boom turned up past collision_lift
     ahead = risen.at[arm, 1:].add(0.05)  # the commands the blocked servos lag behind
     tau = jnp.zeros((4, 3)).at[arm, 1].set(2.0 * float(p["collision_torque"]))
+    step = 4.0 * float(p["collision_still"]) if moving else 0.0  # the boom turned this much in the last period
     arms = s.arms._replace(arm_phase=s.arms.arm_phase.at[arm].set(phase), active=jnp.asarray(arm, jnp.int32),
-                           q_cmd=ahead, q_cmd2=ahead, q_prev=risen, lift_from=q[:, 1])
+                           q_cmd=ahead, q_cmd2=ahead, q_prev=risen.at[arm, 1].add(step), lift_from=q[:, 1])
     sense = clm.measure({**obs, "arm_q": risen.reshape(-1), "arm_tau": tau.reshape(-1)})
     no = jnp.asarray(False)
     n = int(p["collision_periods"])
@@ -317,7 +320,14 @@ def test_collision_stops_a_transfer_in_lift_swing_and_over(p, phase):
         arms = arms._replace(hit_n=tr.hit_n)
     np.testing.assert_allclose(tr.cmd[arm], risen[arm])  # stopped where it is, not at the command
     np.testing.assert_allclose(tr.contacts[arm], sense.tips[arm], atol=1e-12)
-    if phase == cr.LIFT:  # the same torque before the boom has risen: no collision
+    if phase == cr.LIFT:  # the same torque while the boom still turns: no collision in LIFT
+        turning = arms._replace(hit_n=jnp.zeros(4, jnp.int32), q_prev=risen.at[arm, 1].add(
+            4.0 * float(p["collision_still"])))
+        for _ in range(n + 2):
+            tr = clm.arm_transfer(p, turning, turning.contacts, sense, no, jnp.asarray(0.0))
+            assert int(tr.arm_phase[arm]) != cr.PLACED and int(tr.hit_n[arm]) == 0
+            turning = turning._replace(hit_n=tr.hit_n)
+        # the same torque before the boom has risen: no collision
         arms = arms._replace(hit_n=jnp.zeros(4, jnp.int32), q_cmd=q, q_cmd2=q, q_prev=q)
         grounded = clm.measure({**obs, "arm_tau": tau.reshape(-1)})
         for _ in range(n + 2):
