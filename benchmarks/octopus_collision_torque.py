@@ -1,6 +1,6 @@
 """How large the arm joint torques get in free motion, per arm transfer phase of the CLM
 (`clm.ARM_PHASE_NAMES`): the evidence for the collision thresholds `collision_torque`
-(LIFT, SWING, OVER) and `collision_threshold` (LOWER) in
+(LIFT, SWING, OVER; in LOWER a contact) and `collision_threshold` (LOWER) in
 `jaxloco.robots.octopus.clm.PARAM_DEFAULTS`. The collision stop is switched off for the
 run (collision_torque = 1e6), so that an arm meeting the block shows its torque.
 
@@ -27,6 +27,9 @@ runtime.configure(x64=True, cache_dir=True)
 
 from jaxloco.robots.octopus import clm, clm_rules, scenarios
 from jaxloco.sim.rollout import rollout
+
+TOUCH_FREE = 20.0  # [N] a roller below this touches nothing
+N_CONTACT = len(scenarios.CONTACT_TOUCH)  # the rollers are the last four of the CONTACT_TOUCH sensors
 
 
 def main(argv: list[str]) -> None:
@@ -65,6 +68,13 @@ def main(argv: list[str]) -> None:
             print(f"  {name:7s} {int(sel.sum()):6d} arm-periods  max |tau| {peak:6.1f}  rise: max {v.max():6.1f}"
                   f"  p99 {np.percentile(v, 99):6.1f}  p99.9 {np.percentile(v, 99.9):6.1f}"
                   f"  collision rule fires: {int(fires[sel].sum())}")
+    # LOWER ends on contact (the torque rule among its signals): how large the torque gets
+    # before the arm's roller touches anything (its touch sensor below TOUCH_FREE)
+    roller = np.asarray(r.records["touch"])[0][1:, N_CONTACT - 4:N_CONTACT]  # the four rollers' touch [N]
+    free = (phase == clm_rules.LOWER) & (roller < TOUCH_FREE)
+    if free.any():
+        print(f"  lower before the roller touches ({int(free.sum())} arm-periods): max |tau| "
+              f"{tau[1:, :, 1:].max(axis=-1)[free].max():6.1f}")
 
 
 if __name__ == "__main__":

@@ -93,6 +93,58 @@ def test_a_support_arm_that_would_leave_its_joint_range_holds_its_last_command(p
                                np.asarray(tips)[[0, 2, 3]] - [0.1, 0.0, 0.0], atol=1e-6)
 
 
+def test_a_support_arm_keeps_its_command_where_the_hold_would_flip_the_ik_branch(p):
+    """A roller pushed under its arm's swing axis (a block run's left rear arm, boom 1.11,
+    elbow 2.29 rad) is reached by the closed-form inverse kinematics with the swing turned
+    by about pi: a hold that jumps more than HOLD_JUMP from the last command is another
+    branch, and the arm keeps its last command (on 7 Dec 2026 the arm whipped round and
+    threw the robot off the floor). The other support arms hold their contacts."""
+    s = clm.clm_init(p, _obs())
+    arm = 2  # LR
+    q = s.arms.q_cmd.at[arm].set(jnp.array([1.196, 1.113, 2.292]))
+    tips = kin.arm_tips(KP, q)
+    arms = s.arms._replace(contacts=tips, q_cmd=q)
+    zero = jnp.asarray(0.0)
+    q_ik, reach = kin.inverse_kinematics_all(KP, tips)
+    assert float(reach[arm]) > 0.005 and float(jnp.max(jnp.abs(q_ik[arm] - q[arm]))) > 2.0  # the other branch
+    np.testing.assert_allclose(np.asarray(kin.arm_tips(KP, q_ik))[arm], np.asarray(tips)[arm], atol=1e-9)
+    _, q_hold = clm.support_arms(p, arms, zero, zero, zero)
+    np.testing.assert_allclose(q_hold[arm], q[arm])
+    others = [0, 1, 3]
+    np.testing.assert_allclose(np.asarray(kin.arm_tips(KP, q_hold))[others], np.asarray(tips)[others], atol=1e-9)
+    np.testing.assert_allclose(np.asarray(q_hold)[others], np.asarray(q)[others], atol=1e-6)
+
+
+@pytest.mark.parametrize("torque_factor", [0.8, 1.5])
+def test_lower_ends_on_a_sustained_torque_without_a_rise_or_a_lag(p, torque_factor):
+    """A lowering arm whose roller meets the ground at a slant rolls on: its joints follow
+    the command (no lag) and the torque climbs by a few N m per period (no rise beyond
+    collision_threshold), yet it presses the robot up. The torque rule of the other
+    phases ends LOWER too: a boom or elbow torque beyond collision_torque for
+    collision_periods periods is a contact (PLACED); below it the arm lowers on."""
+    arm = 2  # LR
+    s = clm.clm_init(p, _obs())
+    obs = _obs()
+    q = obs["arm_q"].reshape(4, 3)
+    lifted = q.at[arm, 1].add(-0.3)  # the boom on its way down, well above its target
+    level = torque_factor * float(p["collision_torque"])
+    arms = s.arms._replace(arm_phase=s.arms.arm_phase.at[arm].set(cr.LOWER), active=jnp.asarray(arm, jnp.int32),
+                           q_cmd=lifted, q_cmd2=lifted, q_prev=lifted,
+                           tau_prev=jnp.zeros((4, 3)).at[arm, 2].set(-(level - 5.0)))
+    no = jnp.asarray(False)
+    n = int(p["collision_periods"])
+    for k in range(n + 1):
+        tau = jnp.zeros((4, 3)).at[arm, 2].set(-(level + 5.0 * k))  # 5 N m more every period
+        sense = clm.measure({**obs, "arm_q": arms.q_cmd.reshape(-1), "arm_tau": tau.reshape(-1)})
+        tr = clm.arm_transfer(p, arms, arms.contacts, sense, no, jnp.asarray(0.0))
+        placed = int(tr.arm_phase[arm]) == cr.PLACED
+        assert placed == (torque_factor > 1.0 and k == n - 1), (k, int(tr.arm_phase[arm]))
+        if placed:
+            break
+        assert int(tr.arm_phase[arm]) == cr.LOWER
+        arms = arms._replace(hit_n=tr.hit_n, q_prev=sense.q, q_cmd2=arms.q_cmd, q_cmd=tr.cmd, tau_prev=tau)
+
+
 def test_gait_starts_the_next_arm_in_crawl_order_after_the_pause(p):
     s = clm.clm_init(p, _obs())
     ph = clm.phase_masks(s.phase)

@@ -117,7 +117,9 @@ Readings resolved here (the paper's text is ambiguous or not physically consiste
   * the "down arm" period ends on contact: the torque-based collision signal
     (`collision`, a joint torque rising by more than collision_threshold in a period),
     or the boom / elbow held more than contact_lag short of the command of two periods
-    before (a blocked arm), or the boom at its joint limit (deep pit). In SWING and OVER
+    before (a blocked arm), or the torque rule below (a roller meeting the ground at a
+    slant rolls on, so neither fires), or the boom at its joint limit (deep pit). In
+    SWING and OVER
     a boom or elbow torque beyond collision_torque for collision_periods periods (80 N m
     and 2; free motion reaches 45 N m, a torque *rise* is no signal there: single jumps of
     35 N m per period in free air), in LIFT the same with that joint standing still,
@@ -207,7 +209,8 @@ PARAM_DEFAULTS: dict[str, float] = {
     "clearance_rear": 0.2,  # [m] the rear ones
     "collision_threshold": 50.0,  # [N m] joint torque rise in one period = contact (LOWER)
     "collision_torque": 80.0,  # [N m] |boom or elbow torque| above this for collision_periods = collision in
-    # SWING, OVER, and in LIFT with the joint still (below) (`python benchmarks/octopus_collision_torque.py`)
+    # SWING, OVER, and in LIFT with the joint still (below); a contact in LOWER
+    # (`python benchmarks/octopus_collision_torque.py`)
     "collision_still": 0.005,  # [rad] ... (LIFT) the joint moved less than this in a period
     "collision_periods": 2.0,  # periods in a row
     "collision_lift": 0.05,  # [rad] ... in LIFT once the boom has risen this much (default (ours))
@@ -289,6 +292,10 @@ ARM_HI = np.array([r[1] for r in model.ARM_RANGE])
 # (an encoder reads a few mrad past a limit under load); beyond it the arm holds its last
 # command (`support_arms`). Ours
 HOLD_RANGE_TOL = 0.02
+# [rad] the most a support arm's hold may move a joint command in one period, default (ours): holding a
+# contact moves them by at most 0.01 rad per period, the first hold after LOWER (from the command aimed
+# transfer_press below the ground) by up to 0.45; the other branch of the inverse kinematics is >= 2 away
+HOLD_JUMP = 1.0
 FLIPPER_MAX = params.FLIPPER_LIMIT
 HOME_BOOM = model.home_arm_angles()[:, 1]  # boom angles of the start pose (the authors' zero)
 
@@ -694,8 +701,9 @@ def support_arms(p, arms: ArmState, moved: Array, t_p: Array, pitch: Array) -> t
     body `moved` [m] on (Eqs. 22-27, `clm_rules.predict_contacts`: a ground-fixed point moves by
     -moved (cos a, 0, sin a) in {R}, a = t_p - pitch), then inverse kinematics, aiming
     `press` [m] below the contacts. Returns the contact points (4, 3) in {R} (the other
-    arms' unchanged) and the joint commands (4, 3) [rad] that hold them (out of reach, or
-    beyond the joint range by more than HOLD_RANGE_TOL: the last command)."""
+    arms' unchanged) and the joint commands (4, 3) [rad] that hold them (out of reach,
+    beyond the joint range by more than HOLD_RANGE_TOL, or more than HOLD_JUMP from the
+    last command, another branch of the inverse kinematics: the last command)."""
     support = arms.arm_phase == clm_rules.PLACED
     contacts = jnp.where(support[:, None], clm_rules.predict_contacts(arms.contacts, moved, t_p, pitch), arms.contacts)
     press = jnp.stack([jnp.zeros_like(p["press"]), jnp.zeros_like(p["press"]), p["press"]])
@@ -704,7 +712,12 @@ def support_arms(p, arms: ArmState, moved: Array, t_p: Array, pitch: Array) -> t
     # boom at its limit stays there and the elbow alone chases the contact, pressing the
     # roller down (an arm riding the 500 mm block lifted the robot's side off the floor)
     in_range = jnp.all((q_hold >= ARM_LO - HOLD_RANGE_TOL) & (q_hold <= ARM_HI + HOLD_RANGE_TOL), axis=-1)
-    q_hold = jnp.where(((reach > 0.005) & in_range)[:, None], q_hold, arms.q_cmd)
+    # and where the closed form's branch (the arm reaching away from its swing axis) is
+    # not the arm's: a roller pushed under its swing axis is reached by the swing turned
+    # about pi, a step no servo makes in a period (a block run, 7 Dec 2026: the command
+    # jumped by 2.8 rad, the arm whipped round and threw the robot off the floor)
+    continuous = jnp.all(jnp.abs(q_hold - arms.q_cmd) <= HOLD_JUMP, axis=-1)
+    q_hold = jnp.where(((reach > 0.005) & in_range & continuous)[:, None], q_hold, arms.q_cmd)
     return contacts, q_hold
 
 
@@ -728,6 +741,23 @@ def transfer_targets(p, prepare: Array, h_est: Array, dt, backoff: Array) -> tup
     return tgt, q_tgt, q_abv
 
 
+def _torque_periods(p, arms: ArmState, sense: Sensed, transferring: Array) -> Array:
+    """(4,) int32: consecutive periods in which a transferring arm's boom or elbow torque
+    was beyond collision_torque [N m] (arms.hit_n + 1, else 0). In LIFT only with that
+    joint standing still (moved less than collision_still since the last period: a
+    lifting arm pressed on the ground by its folding elbow reaches 117 N m on the step),
+    and only once the boom has risen collision_lift [rad] from where the lift began (an
+    arm starting on the ground first presses it: the elbow turns by Delta_B while the
+    loaded boom has barely moved, which is no obstacle; without this the rear arm in
+    PREPARE "collided" in its first 0.1 s and was never moved)."""
+    still = jnp.abs(sense.q[:, 1:] - arms.q_prev[:, 1:]) < p["collision_still"]
+    lifting = arms.arm_phase == clm_rules.LIFT
+    grounded = lifting & (sense.q[:, 1] > arms.lift_from - p["collision_lift"])
+    over = transferring & ~grounded & jnp.any(
+        (jnp.abs(sense.tau[:, 1:]) > p["collision_torque"]) & (still | ~lifting[:, None]), axis=-1)
+    return jnp.where(over, arms.hit_n + 1, 0)
+
+
 def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Array, h_est: Array) -> Transfer:
     """One period of the active arm's transfer (Eqs. 19-21, `clm_rules.transfer_step`: LIFT to
     A_B, SWING to A_S, OVER the target, LOWER until contact) and its collision stop.
@@ -735,7 +765,8 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     LOWER ends on contact: a joint torque rising by more than collision_threshold in a
     period (`clm_rules.collision`), the boom or elbow held more than contact_lag [rad] short of
     the command of two periods before (a blocked arm: the servo follows a free arm within
-    a period), or the boom at its joint limit (deep pit); past the target's angles the
+    a period), a boom or elbow torque beyond collision_torque for collision_periods
+    periods, or the boom at its joint limit (deep pit); past the target's angles the
     boom creeps down by Delta_B per period until then. In SWING and OVER a boom or
     elbow torque beyond collision_torque [N m] for collision_periods periods (in LIFT
     with that joint standing still: a grounded arm's folding elbow presses) stops the arm
@@ -758,7 +789,16 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     hit = clm_rules.collision(tau, arms.tau_prev, p["collision_threshold"])
     lower = arm_phase == clm_rules.LOWER
     at_limit = arms.q_cmd[:, 1] >= BOOM_MAX - 1e-6
-    contact = lower & (hit | (lag > p["contact_lag"]))
+    transferring = is_active & (arm_phase <= clm_rules.LOWER)
+    hit_n = _torque_periods(p, arms, sense, transferring)
+    # LOWER also ends on the torque rule of the other phases (collision_torque for
+    # collision_periods): a roller that meets the ground at a slant rolls on, so neither
+    # the rise nor the lag fires, and the arm pressed on (a block run, 7 Dec 2026: the
+    # elbow torque climbed 50 -> 270 N m over 1.6 s, the roller swept under the body and
+    # lifted the robot's side). Free LOWER motion stays below 65 N m before the roller
+    # touches (flat and block, 1,400 descents)
+    pressed = lower & (hit_n >= p["collision_periods"])
+    contact = lower & (hit | (lag > p["contact_lag"]) | pressed)
     # Case 3, a deep pit: the boom at its limit and still no contact ("a new target point
     # will be selected"): the arm lifts again for a target pit_backoff nearer the body
     deep = lower & at_limit & ~contact & (arms.backoff < p["pit_backoff_max"])
@@ -777,30 +817,18 @@ def arm_transfer(p, arms: ArmState, contacts: Array, sense: Sensed, prepare: Arr
     creeping = lower & (jnp.abs(arms.q_cmd[:, 2] - q_tgt[:, 2]) < 1e-6) & (arms.q_cmd[:, 1] >= q_tgt[:, 1] - 1e-6)
     tr_cmd = jnp.where(creeping[:, None], arms.q_cmd.at[:, 1].add(p["delta_b"]), tr_cmd)
     tr_cmd = tr_cmd.at[:, 1].set(jnp.minimum(tr_cmd[:, 1], BOOM_MAX))
-    transferring = is_active & (arm_phase <= clm_rules.LOWER)
     # a collision in any phase of the transfer stops the arm: "all of the joints in that
     # arm stopped in this sample period, and arm state moved to arm moving phase from
     # the next sample period" (Figs. 19-20). In SWING and OVER the signal is the paper's,
     # a boom or elbow torque beyond collision_torque ("the torque of elbow joint would
     # reach to the setting value"), collision_periods periods in a row (free motion
-    # reaches 26 and 45 N m there: benchmarks/octopus_collision_torque.py). In LIFT that
-    # joint must also stand still (moved less than collision_still since the last
-    # period): a lifting arm pressed on the ground by its folding elbow reaches 117 N m
-    # on the step. (Until 7 Dec 2026 SWING and OVER asked for the stillness too; an arm
-    # whose OVER drove its roller into the 500 mm block top then lifted the robot's side
-    # off the floor for 0.25 s, the pressed elbow still moving as the body rose, and
-    # dropped it when the stop came.) In LOWER the contact signal above
-    still = jnp.abs(sense.q[:, 1:] - arms.q_prev[:, 1:]) < p["collision_still"]
-    lifting = arm_phase == clm_rules.LIFT
-    # In LIFT only once the boom has risen collision_lift [rad] from where the lift
-    # began: an arm starting on the ground first presses it (the elbow turns by Delta_B
-    # while the loaded boom has barely moved), which is no obstacle; without this the
-    # rear arm in PREPARE "collided" in its first 0.1 s and was never moved
-    grounded = lifting & (sense.q[:, 1] > arms.lift_from - p["collision_lift"])
-    over = transferring & (arm_phase < clm_rules.LOWER) & ~grounded & jnp.any(
-        (jnp.abs(tau[:, 1:]) > p["collision_torque"]) & (still | ~lifting[:, None]), axis=-1)
-    hit_n = jnp.where(over, arms.hit_n + 1, 0)
-    collided = hit_n >= p["collision_periods"]
+    # reaches 26 and 45 N m there: benchmarks/octopus_collision_torque.py); in LIFT that
+    # joint must also stand still (`_torque_periods`). (Until 7 Dec 2026 SWING and OVER
+    # asked for the stillness too; an arm whose OVER drove its roller into the 500 mm
+    # block top then lifted the robot's side off the floor for 0.25 s, the pressed elbow
+    # still moving as the body rose, and dropped it when the stop came.) In LOWER the
+    # same count is a contact (above)
+    collided = (arm_phase < clm_rules.LOWER) & (hit_n >= p["collision_periods"])
     tr_cmd = jnp.where(collided[:, None], sense.q, tr_cmd)
     tr_next = jnp.where(collided, clm_rules.PLACED, tr_next)
     # Case 3 (a pit at the target) of a front arm: a deep one (above), or the roller
