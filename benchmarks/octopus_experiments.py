@@ -79,7 +79,8 @@ def main(argv: list[str]) -> None:
             for note in summary.notes[1:]:
                 print(f"{label:<26} {note}")
     print("(pitch / roll [rad], margin [m]: mean over the runs, worst run in brackets, then the paper's value;"
-          " time: mean climb time of the successful runs; failures: tipped = turned over, stuck = never on the top)")
+          " time: mean climb time of the successful runs; failures: tipped = turned over, stuck = never on the top; "
+          "m short: how far the failed runs' COG stayed, at its nearest, from 0.3 m beyond the last riser)")
     for label, runs, wall in throughput:
         print(f"throughput, {label}: {runs} runs x 150 s in {wall:.0f} s = {runs / wall:.2f} rollouts/s "
               f"({runs * 150 / wall:.0f} simulated s per wall s, first set includes compilation)")

@@ -67,6 +67,10 @@ def test_summary_puts_the_papers_numbers_beside_ours(tiny):
     ccm = dict(zip(s.columns, s.rows[0]))
     assert ccm["success / paper"] == "0/2 / 0%"
     assert ccm["max |roll| / paper"].endswith("/ 0.14")
+    # how the failures end, and how near the COG came to the success line
+    short = np.asarray(tiny.table.column("shortfall"))[2:]
+    assert ccm["failures"] == f"2 stuck; {short.mean():.2f} ({short.min():.2f}) m short"
+    assert (short > 0.5).all()  # 1 s of driving from 0.6-0.8 m before the riser, the line 0.3 m beyond it
     assert "Eqs. 28-29" in s.title
 
 

@@ -56,7 +56,7 @@ def test_ccm_climbs_150mm_and_fails_400mm():
     assert (r.status != "diverged").all()
     low, high = r.row(0), r.row(1)
     assert low["success"] and low["status"] == "ok"
-    assert 0.0 < low["climb_time"] < 22.0
+    assert 0.0 < low["climb_time"] < 22.0 and low["shortfall"] == 0.0
     assert low["final_z"] > 0.15 + 0.2  # the COG on the step
     assert 0.1 < low["max_pitch"] < 0.6 and low["max_abs_roll"] < 0.05
     assert np.isfinite(low["min_margin"])
@@ -64,6 +64,10 @@ def test_ccm_climbs_150mm_and_fails_400mm():
     assert {ccm.LOWER, ccm.PUSH, ccm.LEVEL} <= set(r.records["phase"][0].tolist())
     assert not high["success"] and high["status"] == "failed"
     assert high["final_x"] < 0.5  # stuck at the riser
+    # short of the success line (0.3 m beyond the riser at 0.5 m) by what the COG never covered
+    line = 0.5 + scenarios.PARAM_DEFAULTS["pass_distance"]
+    assert high["shortfall"] == pytest.approx(line - r.records["cog"][1, :, 0].max(), abs=1e-9)
+    assert high["shortfall"] > scenarios.PARAM_DEFAULTS["pass_distance"]
     # ... after trying: the flipper tips stayed below the edge, so the front flippers went
     # up to their limit against the riser (RAISE), and the front could not climb its face
     assert ccm.RAISE in r.records["phase"][1].tolist() and ccm.RAISE not in r.records["phase"][0].tolist()

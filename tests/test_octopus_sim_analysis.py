@@ -91,9 +91,9 @@ def test_tiny_sweep_runs_and_resumes(tmp_path):
     # 2 s on the floor before the step: not over it, standing stable, nothing diverged
     assert (col["status"] == "failed").all()
     assert not col["success"].any() and not col["tipped"].any()
-    for name in ("min_margin", "max_pitch", "max_abs_roll", "final_x", "final_z"):
+    for name in ("min_margin", "max_pitch", "max_abs_roll", "final_x", "final_z", "shortfall"):
         assert np.isfinite(col[name]).all(), name
-    assert (col["min_margin"] > 0.0).all()
+    assert (col["min_margin"] > 0.0).all() and (col["shortfall"] > 0.3).all()
     assert np.isnan(col["climb_time"]).all() and np.isnan(col["t_diverged"]).all()
     assert (col["final_phase"] == clm.PHASE_NAMES.index("walk")).all()
     assert full.summary is not None and full.summary_error is None

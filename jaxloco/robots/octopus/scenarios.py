@@ -67,7 +67,8 @@ of the step, no tipping: max |roll| < `roll_limit`, max nose-up pitch < `pitch_l
 the run, no divergence), max_pitch (nose up), max_abs_roll, min_margin (static stability
 margin over the support set, the loaded or seated wheels and rollers, samples with
 >= 3 of them, `jaxloco.sim.metrics.support_margins`), climb_time (first time the success
-position holds), final_x, final_z, tipped, status (0 ok, 1 failed), arm_over_obstacle
+position holds), shortfall (how far the COG still had to go, at its nearest, to the
+success line: 0 once there), final_x, final_z, tipped, status (0 ok, 1 failed), arm_over_obstacle
 (an arm roller carried load on top of an obstacle, >= OBSTACLE_MIN above the floor, and
 later on the floor again: the block task's arm sequence, Figs. 19-20).
 """
@@ -359,6 +360,11 @@ def make_scenario(
         on_top = (cog[:, 0] > top_x(kind, p) + p["pass_distance"]) & (ground >= top - 1e-6)
         if kind == "pit":  # the task is to stay on the platform, short of its edge
             on_top = (cog[:, 0] < top_x(kind, p)) & (cog[:, 2] > top)
+        # how far the COG still had to go, at best, to where success is counted (the last
+        # riser's x plus pass_distance; pit: back to the platform side of its edge) [m]
+        line = top_x(kind, p) + (0.0 if kind == "pit" else p["pass_distance"])
+        to_go = cog[:, 0] - line if kind == "pit" else line - cog[:, 0]
+        shortfall = jnp.min(jnp.maximum(to_go, 0.0))
         ok_att = (jnp.abs(roll) < p["roll_limit"]) & (nose_up < p["pitch_limit"])
         there = on_top & ok_att
         success = there[-1] & ~tipped & final.alive
@@ -381,6 +387,7 @@ def make_scenario(
             "max_abs_roll": max_roll,
             "min_margin": jnp.where(jnp.any(use), sm.masked_min(margins, use), jnp.nan),
             "climb_time": sm.first_time(there, times),
+            "shortfall": shortfall,
             "final_x": cog[-1, 0],
             "final_z": cog[-1, 2],
             "tipped": tipped,

@@ -45,6 +45,8 @@ METRICS = (
     Metric("success", "the COG ends pass_distance beyond the last riser on top, no tipping, no divergence",
            kind="bool"),
     Metric("climb_time", "first time the success position holds (nan if never)", "s"),
+    Metric("shortfall", "how far the COG still had to go, at its nearest, to pass_distance beyond the last riser "
+           "(0: it got there; pit: back to the platform side of the edge)", "m"),
     Metric("min_margin", "smallest static stability margin over the contacts that carry load (>= 3 contacts)", "m"),
     Metric("max_pitch", "largest nose-up pitch of the body (IMU)", "rad"),
     Metric("max_abs_roll", "largest |roll| of the body (IMU)", "rad"),
@@ -129,9 +131,12 @@ def summarize(table) -> Summary:
         for v in values:
             sel = cols[name] == v
             ok = sel & cols["success"].astype(bool)
+            failed = sel & ~cols["success"].astype(bool)
+            short = cols["shortfall"][failed] if "shortfall" in cols else np.zeros(0)  # older tables lack it
             rows.append((
                 name, f"{float(v):g}", str(int(sel.sum())), f"{100 * np.mean(cols['success'][sel]):.0f}%",
                 _fmt(_median(cols["climb_time"][ok]), 1.0, 1),
+                _fmt(_median(short), 1000.0, 0),
                 _fmt(_median(cols["min_margin"][sel]), 1000.0, 0),
                 _fmt(_median(cols["max_pitch"][sel]), 180.0 / np.pi, 1),
                 str(int(np.sum(status[sel] == "tipped"))), str(int(np.sum(status[sel] == "diverged"))),
@@ -144,10 +149,12 @@ def summarize(table) -> Summary:
     backend = {"native": "native MuJoCo", "mjx": "MJX"}[first("backend")]
     return Summary(
         title=f"OCTOPUS {controller} getting over a step ({kind}, {backend})",
-        columns=("param", "value", "runs", "success", "climb s", "margin mm", "pitch deg", "tipped", "div."),
+        columns=("param", "value", "runs", "success", "climb s", "short mm", "margin mm", "pitch deg", "tipped",
+                 "div."),
         rows=tuple(rows),
-        notes=(("climb s: median climb time of the successful runs; margin mm, pitch deg: medians of the min "
-                "margin and the max nose-up pitch; tipped / div.: runs with that status"),
+        notes=(("climb s: median climb time of the successful runs; short mm: median shortfall of the others (how "
+                "far their COG stayed, at its nearest, from pass_distance beyond the last riser); margin mm, pitch "
+                "deg: medians of the min margin and the max nose-up pitch; tipped / div.: runs with that status"),
                "each block pools every other swept parameter; paper: CLM 100% on 400 mm, CCM 0%"),
     )
 
