@@ -4,6 +4,8 @@ sweep end to end with finite metrics and a summary, and resume after an interrup
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from compile_count import run_counting
@@ -111,3 +113,19 @@ def test_tiny_sweep_runs_and_resumes(tmp_path):
     for name in ("max_abs_roll", "min_margin", "final_x", "status", "height", "delta_e"):
         np.testing.assert_array_equal(resumed.table.column(name).to_numpy(zero_copy_only=False),
                                       full.table.column(name).to_numpy(zero_copy_only=False))
+
+
+def test_a_diverged_run_has_no_shortfall():
+    """A run whose simulation diverged reports no shortfall (nan): its COG flies off or
+    falls through the floor, so how near it came to the success line means nothing (in a
+    192-climb search the diverged runs read 0 m short). Its success is False, its status
+    "diverged"; a run that did not diverge keeps its shortfall."""
+    result = SimpleNamespace(
+        metrics={"success": np.array([1.0, 0.0]), "tipped": np.array([0.0, 0.0]),
+                 "shortfall": np.array([0.0, 0.42]), "min_margin": np.array([0.1, 0.2])},
+        records={"phase": np.zeros((2, 3))}, diverged=np.array([True, False]),
+        t_diverged=np.array([12.0, np.nan]), status=["ok", "failed"])
+    out = sim_analysis.metrics({}, result)
+    assert np.isnan(out["shortfall"][0]) and out["shortfall"][1] == 0.42
+    assert list(out["success"]) == [False, False]
+    assert [sim_analysis.STATUSES[k] for k in out["status"]] == ["diverged", "failed"]

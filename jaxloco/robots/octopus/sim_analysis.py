@@ -46,7 +46,7 @@ METRICS = (
            kind="bool"),
     Metric("climb_time", "first time the success position holds (nan if never)", "s"),
     Metric("shortfall", "how far the COG still had to go, at its nearest, to pass_distance beyond the last riser "
-           "(0: it got there; pit: back to the platform side of the edge)", "m"),
+           "(0: it got there; pit: back to the platform side of the edge; nan: diverged)", "m"),
     Metric("min_margin", "smallest static stability margin over the contacts that carry load (>= 3 contacts)", "m"),
     Metric("max_pitch", "largest nose-up pitch of the body (IMU)", "rad"),
     Metric("max_abs_roll", "largest |roll| of the body (IMU)", "rad"),
@@ -93,6 +93,8 @@ def metrics(values: Mapping[str, Any], result: RolloutResult) -> dict[str, np.nd
     code = np.where(diverged, 2, np.where(tipped, 3, code))
     out["tipped"] = tipped
     out["success"] = np.asarray(out["success"], bool) & ~diverged
+    # a diverged run's COG flies off (or through the floor): how near it came means nothing
+    out["shortfall"] = np.where(diverged, np.nan, np.asarray(out["shortfall"], float))
     out["status"] = code
     return out
 
