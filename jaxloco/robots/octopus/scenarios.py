@@ -357,14 +357,16 @@ def make_scenario(
         left, right = _heights(kind, p)
         top = jnp.minimum(left, right)
         ground = terrain_height(kind, p, cog[:, :2])
-        on_top = (cog[:, 0] > top_x(kind, p) + p["pass_distance"]) & (ground >= top - 1e-6)
-        if kind == "pit":  # the task is to stay on the platform, short of its edge
-            on_top = (cog[:, 0] < top_x(kind, p)) & (cog[:, 2] > top)
-        # how far the COG still had to go, at best, to where success is counted (the last
-        # riser's x plus pass_distance; pit: back to the platform side of its edge) [m]
-        line = top_x(kind, p) + (0.0 if kind == "pit" else p["pass_distance"])
-        to_go = cog[:, 0] - line if kind == "pit" else line - cog[:, 0]
-        shortfall = jnp.min(jnp.maximum(to_go, 0.0))
+        # how far the COG still has to go to where success is counted [m], < 0 once there:
+        # pass_distance beyond the last riser, on its top; pit: the task is to stay on the
+        # platform, short of its edge
+        if kind == "pit":
+            to_go = cog[:, 0] - top_x(kind, p)
+            on_top = (to_go < 0.0) & (cog[:, 2] > top)
+        else:
+            to_go = top_x(kind, p) + p["pass_distance"] - cog[:, 0]
+            on_top = (to_go < 0.0) & (ground >= top - 1e-6)
+        shortfall = jnp.min(jnp.maximum(to_go, 0.0))  # at its nearest
         ok_att = (jnp.abs(roll) < p["roll_limit"]) & (nose_up < p["pitch_limit"])
         there = on_top & ok_att
         success = there[-1] & ~tipped & final.alive
