@@ -25,7 +25,10 @@ Readings and choices (the paper does not give them):
     the speed [m/s] it gives a point one link length from a joint or the rim of a
     wheel. K = 1 /s on every controlled variable, k_eta = 0.1: first choices, swept and
     tuned in `snake.kv`. `w_wheel` scales the wheels' part: it sets which joints the
-    null-space term moves first (docs/snake.md, "the order of the joints").
+    null-space term moves first (docs/snake.md, "the order of the joints"). The
+    paper's reason for W bounds it: W = I lets the wheel speeds dominate the norm, so
+    its W weighs the wheels less than W = I does (our reading), i.e. `w_wheel` below
+    l^2 / r^2 = 3.28; ours (1) is.
   * eta (Eq. 17) is the partial derivative of V with respect to varphi = [phi, rho] at
     a fixed w, as Eq. 18 splits dV/dt; V does not depend on rho (zeros).
   * Eq. 20: d_i is the signed distance of the projected centre of mass P_G from the
