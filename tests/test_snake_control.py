@@ -89,6 +89,22 @@ def test_weighted_pinv_is_the_papers_formula_on_the_compacted_rows(seed):
             np.testing.assert_allclose(Bc @ got[:, keep], np.eye(14), rtol=0, atol=1e-9)  # a right inverse
 
 
+def test_the_wheel_weight_of_w_equal_to_the_identity_is_l2_over_r2():
+    """`w_wheel` = l^2 / r^2 (3.28, the bound the docs read from the paper's Sec. III-B) makes
+    W a multiple of I, so the weighted pseudo-inverse is the plain minimum-norm one (numpy's
+    pinv of the paper's compacted rows); ours (1) is not."""
+    _, phi, w = _posture(0)
+    bound = float(params.LINK_LENGTH**2 / params.WHEEL_RADIUS**2)
+    assert bound == pytest.approx(3.28, abs=0.005)
+    g = MODES[1]
+    _, Bt = _AUG(jnp.asarray(w), jnp.asarray(phi), jnp.asarray(g))
+    keep = np.asarray(control.keep_rows(jnp.asarray(g)))
+    plain = np.linalg.pinv(kinematics.compact_rows(np.asarray(Bt), g, extra=1))
+    for w_wheel, same in ((bound, True), (1.0, False)):
+        got = np.asarray(_PINV(Bt, control.default_weights(None, w_wheel), jnp.asarray(keep)))[:, keep]
+        assert np.allclose(got, plain, rtol=0, atol=1e-9 * np.abs(plain).max()) == same
+
+
 # -------------------------------------------------------------------- Eqs. 12 - 14, 18
 def _case(seed: int, sigma: int):
     """A posture, a mode, a target (angles up to 2 pi away: wrapping), a target velocity,
