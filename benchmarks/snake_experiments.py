@@ -62,7 +62,8 @@ def accuracy_table() -> None:
 def _rows(tuned: dict[str, float] | None) -> list[tuple[str, dict[str, float]]]:
     rows = [("paper K_V (Eq. 19)", {}), ("Eq. 20, a2 = 100", {"a2": 100.0}),
             # W and k_eta are ours: wheels 10 x dearer in W and k_eta 0.7 free the joints from the tail to the head,
-            # as the paper's Fig. 10 (`jaxloco sweep snake_order`)
+            # as the paper's Fig. 10 (`jaxloco sweep snake_order`); that is 3 x dearer than W = I, which the paper's
+            # Sec. III-B argues against (docs/snake.md)
             ("paper K_V, wheels 10x in W, k_eta 0.7", {"w_wheel": 10.0, "k_eta": 0.7})]
     if tuned:
         rows.append(("tuned (kinematic)", tuned))
