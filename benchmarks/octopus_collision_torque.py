@@ -29,8 +29,6 @@ from jaxloco.robots.octopus import clm, clm_rules, scenarios
 from jaxloco.sim.rollout import rollout
 
 TOUCH_FREE = 20.0  # [N] a roller below this touches nothing
-# the arm rollers' touch sensors: the last N_ARM_SITES of the CONTACT_TOUCH ones
-ROLLERS = slice(len(scenarios.CONTACT_TOUCH) - scenarios.N_ARM_SITES, len(scenarios.CONTACT_TOUCH))
 
 
 def main(argv: list[str]) -> None:
@@ -71,7 +69,7 @@ def main(argv: list[str]) -> None:
                   f"  collision rule fires: {int(fires[sel].sum())}")
     # LOWER ends on contact (the torque rule among its signals): how large the torque gets
     # before the arm's roller touches anything (its touch sensor below TOUCH_FREE)
-    roller = np.asarray(r.records["touch"])[0][1:, ROLLERS]  # [N]
+    roller = np.asarray(r.records["touch"])[0][1:, scenarios.ROLLERS]  # [N]
     free = (phase == clm_rules.LOWER) & (roller < TOUCH_FREE)
     if free.any():
         print(f"  lower before the roller touches ({int(free.sum())} arm-periods): max |tau| "

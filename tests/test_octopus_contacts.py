@@ -25,7 +25,7 @@ from jaxloco.sim.scenario import Controller
 WEIGHT = octopus_params.TOTAL_MASS * octopus_params.G
 N_SITES = len(scenarios.CONTACT_SITES)
 N_SUPPORT = len(scenarios.SUPPORT_BODIES)
-ARMS = slice(N_SITES - scenarios.N_ARM_SITES, N_SITES)
+ARMS = scenarios.ROLLERS
 
 
 def _hold(arms, flips) -> Controller:

@@ -115,6 +115,9 @@ CONTACT_SITES = (
     + tuple(f"{a}_tip" for a in params.ARM_NAMES)
 )
 N_ARM_SITES = 4  # the last CONTACT_SITES are the arm roller centres
+# the arm rollers among the CONTACT_SITES, hence also among the support set (SUPPORT_BODIES order)
+# and the touch sensors (`model.touch_names` order), which both start with them
+ROLLERS = slice(len(CONTACT_SITES) - N_ARM_SITES, len(CONTACT_SITES))
 # the touch sensors of the CONTACT_SITES, in that order (`model.touch_names`): main
 # end wheels, flipper tip wheels, rollers
 CONTACT_TOUCH = tuple(n.removesuffix("_tip") + "_touch" for n in CONTACT_SITES)
@@ -375,9 +378,8 @@ def make_scenario(
         use = (jnp.sum(contacts, axis=1) >= 3).at[0].set(False)
         # the block task's arm sequence (Figs. 19-20): an arm roller loaded on top of an
         # obstacle (its contact >= OBSTACLE_MIN above the floor) and later on the floor again
-        arm = slice(len(CONTACT_SITES) - N_ARM_SITES, len(CONTACT_SITES))  # the rollers
-        arm_on = contacts[:, arm]
-        arm_z = r["contact_points"][:, arm, 2]
+        arm_on = contacts[:, ROLLERS]
+        arm_z = r["contact_points"][:, ROLLERS, 2]
         up = arm_on & (arm_z > OBSTACLE_MIN)
         down = arm_on & (arm_z < FLOOR_TOL)
         first_up = jnp.where(jnp.any(up, axis=0), jnp.argmax(up, axis=0), n_rec)
