@@ -153,3 +153,67 @@ def test_contact_force_plot_has_ours_and_the_papers_bars():
     heights = [p.get_height() for p in ax.patches]
     assert heights[0] == 2.0 and np.isnan(heights[1])  # ours: (i) the mean of the ok trials, (ii) none ok
     assert heights[2:] == [contact.PAPER_FORCES["i"][0][0], contact.PAPER_FORCES["ii"][0][0]]
+
+
+def test_the_tail_reading_of_the_l_bends_theta_8_and_theta_9():
+    """`l_bend` "tail": the L of Fig. 12(b) (missing from our copy) turned at the tail,
+    theta_8 = theta_9 = 45 deg; the head still where the paper says (posture (x))."""
+    import jax.numpy as jnp
+
+    from jaxloco.robots.snake import kinematics
+    z, y, base = contact.POSTURES["x"]
+    phi, b = contact.head_posture(z, y, base, "tail")
+    np.testing.assert_array_equal(phi[params.N_H:], [0.0, 0.0, 0.0, 0.0, np.pi / 4, np.pi / 4])
+    w = np.asarray(kinematics.base_frame_pose(jnp.asarray(b), jnp.asarray(phi)))
+    assert w[2] == pytest.approx(z, abs=0.005) and w[1] == pytest.approx(y, abs=0.005)
+    with pytest.raises(analysis.SpecError, match="l_bend: 'knee' is not one of middle, tail"):
+        contact.head_posture(z, y, base, "knee")
+
+
+def _side_creep_speed(wheel_creep: float, side_force: float = 30.0) -> float:
+    """How fast [m/s] the straight robot, standing on its servos, slides sideways under a
+    steady side force [N] on link 7 (below mu N of its weight): over the second second
+    of the load, after the contacts' elastic give."""
+    from jaxloco.robots.snake import model as snake_model
+    m = scenarios.build_model(wheel_creep=wheel_creep)[0]
+    d = mujoco.MjData(m)
+    d.qpos[:], d.ctrl[:] = snake_model.pose_qpos_ctrl(m, np.zeros(params.N_H + params.N_B))
+    mujoco.mj_step(m, d, nstep=250)  # settle on the wheels (0.5 s)
+    link = m.body("link7").id
+    d.xfrc_applied[link, 1] = side_force
+    second = round(1.0 / m.opt.timestep)
+    mujoco.mj_step(m, d, nstep=second)
+    y1 = d.xpos[link, 1]
+    mujoco.mj_step(m, d, nstep=second)
+    return float(d.xpos[link, 1] - y1)
+
+
+def test_creeping_wheels_give_under_a_side_load_where_hard_ones_hold():
+    """`wheel_creep` (`scenarios.creeping_wheels`): the wheel-floor contacts become
+    explicit pairs with solreffriction on an elliptic cone, replacing the dynamic ones;
+    under a side load below mu N the robot then creeps sideways several times faster
+    than on MuJoCo's default friction (which creeps too, slowly: measured 1.8 against
+    6.8 mm/s at 30 N). Native only: MJX is refused in one line."""
+    hard = scenarios.build_model()[0]
+    soft = scenarios.build_model(wheel_creep=0.2)[0]
+    wheels = sum(1 for g in range(soft.ngeom) if soft.geom(g).name.startswith("wheel"))
+    assert hard.npair == 0 and hard.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+    assert soft.npair == soft.nexclude == wheels == 2 * params.N_PAIRS
+    assert soft.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+    np.testing.assert_array_equal(soft.pair_solreffriction, np.tile([0.2, 1.0], (wheels, 1)))
+    held, crept = _side_creep_speed(0.0), _side_creep_speed(0.2)
+    assert 0.0 < held < 0.003 and crept > 3 * held, (held, crept)
+    with pytest.raises(analysis.SpecError, match="wheel_creep: 0.2 s needs .* native MuJoCo"):
+        scenarios.build_model(backend="mjx", wheel_creep=0.2)
+
+
+def test_creeping_wheels_take_each_simulations_floor_friction():
+    """The pairs' friction is per simulation, params["mu"] (as the geoms' is): a batch of
+    two floors writes 0.6 and 1.2 into every pair's two sliding coefficients."""
+    from jaxloco.sim import native
+    sc = scenarios.snake_scenario(0.1, wheel_creep=0.2)
+    batch = native.make_batch(sc, scenarios.params_batch(2, mu=np.array([0.6, 1.2])), 2)
+    for i, mu in enumerate((0.6, 1.2)):
+        friction = batch.get_model(i).pair_friction
+        np.testing.assert_allclose(friction[:, :2], mu)
+        np.testing.assert_allclose(friction[:, 2:], [[0.005, 0.0001, 0.0001]] * sc.model.npair)

@@ -101,6 +101,8 @@ PAPER_FORCES: dict[str, tuple[tuple[float, float], ...]] = {
 DIRECTIONS = ("x", "y", "z")  # pushes along +x, +y, -z (the paper's "x, y, -z")
 PUSH = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]])  # in the base frame
 L_SHAPE = np.array([0.0, 0.0, math.pi / 4, math.pi / 4, 0.0, 0.0])  # theta_4..theta_9 [rad], ours
+# where the L bends (`l_bend`): theta_4..theta_9 [rad] of each reading of Fig. 12(b) (missing from our copy)
+L_SHAPES = {"middle": L_SHAPE, "tail": np.array([0.0, 0.0, 0.0, 0.0, math.pi / 4, math.pi / 4])}
 PLATE_HALF = (0.004, 0.03, 0.05)  # [m] thickness, width, height (half sizes), ours
 POSTURE_RAMP = 4.0  # [s] the head's move from the Sec. V-A posture to a contact posture, ours
 PLATE_GAP = 0.03  # [m] from the settled gripper (`settled_heads`) to the plate's face at the start, ours
@@ -117,7 +119,8 @@ GRIPPER_MID = (
 )  # [m] the gripper's centre ahead of the head frame
 
 PARAMS = snake_params.PARAMETERS.select(
-    "posture", "overshoot", "mu", "mu_jitter", "heading_jitter", "ramp", "hold", "settle", "nthread", "backend",
+    "posture", "overshoot", "mu", "mu_jitter", "heading_jitter", "ramp", "hold", "settle", "l_bend", "wheel_creep",
+    "nthread", "backend",
     posture={"doc": snake_params.PARAMETERS["posture"].doc + ": " + "; ".join(
         f"{k}: z_h {z:g} m, y_h {y:g} m, {b}" for k, (z, y, b) in POSTURES.items()), "choices": POSTURE_NAMES},
     mu={"default": FLOOR_MU},  # FLOOR_MU: the floor of the contact experiment
@@ -145,12 +148,12 @@ def _posture_start(phi0: Array) -> tuple[kinsim.SnakeState, Array]:
 
 
 @functools.lru_cache(maxsize=32)
-def head_posture(z_h: float, y_h: float, base: str) -> tuple[np.ndarray, np.ndarray]:
+def head_posture(z_h: float, y_h: float, base: str, l_bend: str = "middle") -> tuple[np.ndarray, np.ndarray]:
     """(phi (12,) [rad], base (3,) = [x, y, heading] of link 7 [m, rad]) of a
     contact-force posture: what the paper's controller makes of "controlling the
     position of the head" on the no-skid model (`kinsim`, feedforward, fixing state,
     the paper's K_V): from the Sec. V-A head part (psi_3 at its SCP target 110 deg) on
-    the straight or L-shaped (`L_SHAPE`) base, the head target moves to height z_h [m]
+    the straight or L-shaped (`L_SHAPES[l_bend]`) base, the head target moves to height z_h [m]
     and y_h [m] to the left of the start, its attitude held (level, facing +x), over
     POSTURE_RAMP s. On the way Eq. 13 also bends the base (theta_4 0.8 rad in (vii),
     the L of (iv) spread over theta_6..theta_9), but the paper's base part "was straight
@@ -159,10 +162,11 @@ def head_posture(z_h: float, y_h: float, base: str) -> tuple[np.ndarray, np.ndar
     head does not get there (5 mm, 0.02 rad)."""
     if base not in ("straight", "L"):
         raise SpecError(f"base: {base!r} is not 'straight' or 'L'")
+    if l_bend not in L_SHAPES:
+        raise SpecError(f"l_bend: {l_bend!r} is not one of {', '.join(L_SHAPES)}")
     with jax.enable_x64(True):
-        phi0 = np.concatenate(
-            [snake_params.INITIAL_PHI[: snake_params.N_H], L_SHAPE if base == "L" else np.zeros(snake_params.N_B)]
-        )
+        shape = L_SHAPES[l_bend] if base == "L" else np.zeros(snake_params.N_B)
+        phi0 = np.concatenate([snake_params.INITIAL_PHI[: snake_params.N_H], shape])
         phi0[snake_params.SCP_INDEX] = snake_params.SCP_TARGET
         x0, w0 = _posture_start(jnp.asarray(phi0))
         delta = jnp.zeros(7).at[1].set(y_h).at[2].set(z_h - w0[2])
@@ -243,13 +247,15 @@ PLATE = scenarios.Fixture(add=_add_plate, bodies=("plate",), pose=_plate_pose, s
 
 
 @functools.lru_cache(maxsize=4)
-def contact_scenario(ramp: float, hold: float, settle: float, backend: str = "native") -> Scenario:
+def contact_scenario(ramp: float, hold: float, settle: float, backend: str = "native",
+                     wheel_creep: float = 0.0) -> Scenario:
     """The flat-ground snake scenario with the force plate, the head driven by the
     paper's feedforward task-space control (`sim_control.task_space_controller`); for
-    `backend` "mjx" on the model's MJX variant."""
+    `backend` "mjx" on the model's MJX variant; `wheel_creep` [s] > 0: the wheels' grip
+    creeps (`scenarios.creeping_wheels`)."""
     horizon = settle + experiments.T_START + ramp + hold
     return scenarios.snake_scenario(horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "head", False),
-                                    fixture=PLATE, backend=backend)
+                                    fixture=PLATE, backend=backend, wheel_creep=wheel_creep)
 
 
 def _rotate_z(v: np.ndarray, heading: np.ndarray) -> np.ndarray:
@@ -264,14 +270,14 @@ def _quat_z_times(heading: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 def _scene_params(postures: np.ndarray, mu: np.ndarray, heading: np.ndarray, travel: np.ndarray, ramp: float,
-                  settle: float, plate: np.ndarray) -> dict[str, Any]:
+                  settle: float, plate: np.ndarray, l_bend: str = "middle") -> dict[str, Any]:
     """The simulation params of 3 n pushes (row-major: row i's x, y, -z pushes at 3 i,
     3 i + 1, 3 i + 2) for n rows of postures, floor friction, heading [rad] (the whole
     scene turns about the world origin), the head target's travel [m] along each push
     (over `ramp` s from t = settle + T_START) and the plates' poses `plate` (n, 3, 7)
-    = centre (3,) [m], quaternion (4,) in the unturned scene."""
+    = centre (3,) [m], quaternion (4,) in the unturned scene; `l_bend`: where the L bends."""
     n = len(postures)
-    solved = [head_posture(*POSTURES[str(k)]) for k in postures]
+    solved = [head_posture(*POSTURES[str(k)], l_bend) for k in postures]
     phis, bases = np.stack([s[0] for s in solved]), np.stack([s[1] for s in solved])
     h3 = np.repeat(heading, 3)
     b3 = np.repeat(bases, 3, axis=0)
@@ -299,25 +305,27 @@ FAR = np.array([100.0, 100.0, 1.0, 1.0, 0.0, 0.0, 0.0])  # a plate pose out of t
 
 
 def push_params(postures: np.ndarray, mu: np.ndarray, heading: np.ndarray, overshoot: np.ndarray, ramp: float,
-                settle: float, heads: np.ndarray) -> dict[str, Any]:
+                settle: float, heads: np.ndarray, l_bend: str = "middle") -> dict[str, Any]:
     """The simulation params of 3 n pushes (row-major: row i's x, y, -z pushes at 3 i,
     3 i + 1, 3 i + 2) for n rows of postures, floor friction, heading [rad] and
     overshoot [m]: each plate PLATE_GAP beyond the gripper of the settled head pose
     `heads` (n, 6) (`settled_heads`, unturned scene), and the head target moving
-    PLATE_GAP + overshoot along the push over `ramp` s from t = settle + T_START."""
+    PLATE_GAP + overshoot along the push over `ramp` s from t = settle + T_START; the L
+    bent at `l_bend` (`L_SHAPES`)."""
     n = len(postures)
     plate = np.zeros((n, 3, 7))
     for i in range(n):
         for d in range(3):
             plate[i, d] = np.concatenate(plate_pose(heads[i], d))
-    return _scene_params(postures, mu, heading, PLATE_GAP + np.asarray(overshoot, float), ramp, settle, plate)
+    return _scene_params(postures, mu, heading, PLATE_GAP + np.asarray(overshoot, float), ramp, settle, plate,
+                         l_bend)
 
 
-_SETTLED: dict[tuple[str, float, float, float, str], np.ndarray] = {}
+_SETTLED: dict[tuple[str, float, float, float, str, str, float], np.ndarray] = {}
 
 
 def settled_heads(postures: np.ndarray, ramp: float, hold: float, settle: float, simulator: Simulator,
-                  batch: int = 0) -> np.ndarray:
+                  batch: int = 0, l_bend: str = "middle", wheel_creep: float = 0.0) -> np.ndarray:
     """The head pose (n, 6) = [x, y, z [m], roll, pitch, yaw [rad]] of each posture as the
     robot stands on its servos when the push starts (mean over the 0.5 s before t =
     settle + T_START; heading 0, floor friction FLOOR_MU, no plate within reach, the head
@@ -325,19 +333,20 @@ def settled_heads(postures: np.ndarray, ramp: float, hold: float, settle: float,
     plate is placed from it, as the paper's plate is placed at the robot standing in
     front of it. One simulation per posture on `simulator` (its backend's model), cached;
     `batch` > 0 pads that rollout to `batch` simulations (MJX: the pushes' batch, whose
-    compiled rollout then serves the settling too)."""
+    compiled rollout then serves the settling too); the L bent at `l_bend`, the wheels'
+    grip creeping with `wheel_creep` [s] (`contact_scenario`)."""
     postures = np.asarray(postures).astype(str)
-    key = (float(ramp), float(hold), float(settle), simulator.backend)
+    key = (float(ramp), float(hold), float(settle), simulator.backend, str(l_bend), float(wheel_creep))
     todo = sorted({k for k in postures if (k, *key) not in _SETTLED})
     if todo:
         m = len(todo)
         params = _scene_params(np.array(todo), np.full(m, FLOOR_MU), np.zeros(m), np.zeros(m), ramp, settle,
-                               np.broadcast_to(FAR, (m, 3, 7)).copy())
+                               np.broadcast_to(FAR, (m, 3, 7)).copy(), l_bend)
         params = {k: v[::3] for k, v in params.items()}  # one run per posture: no push, no plate
         params["key"] = np.zeros((m, 2), np.uint32)  # PRNGKey(0)
         if batch > m:  # copies of the last posture
             params = {k: np.concatenate([v, np.repeat(v[-1:], batch - m, axis=0)]) for k, v in params.items()}
-        res = simulator.run(contact_scenario(ramp, hold, settle, simulator.backend), params)
+        res = simulator.run(contact_scenario(ramp, hold, settle, simulator.backend, wheel_creep), params)
         head = np.asarray(res.records["head"], float)  # (m, T, 6), one record per control period
         t = (np.arange(head.shape[1]) + 1) * CONTROL_DT
         t0 = settle + experiments.T_START
@@ -353,14 +362,16 @@ def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) 
     plates (`settled_heads`) run on the same backend and threads, but are not the row's
     rollout (a replay shows the pushes)."""
     ramp, hold, settle = float(values["ramp"]), float(values["hold"]), float(values["settle"])
-    scenario = contact_scenario(ramp, hold, settle, simulator.backend)
+    l_bend, creep = str(values["l_bend"]), float(values["wheel_creep"])
+    scenario = contact_scenario(ramp, hold, settle, simulator.backend, creep)
     n = keys.shape[0]
     v = {p.name: np.asarray(values[p.name]) for p in PARAMS if p.sweepable}
     postures = v["posture"].astype(str)
     mu, heading = trials.perturbed(v, keys)
     settler = replace(simulator, record_state=False, runs=[])  # the same simulator, recording nothing
-    heads = settled_heads(postures, ramp, hold, settle, settler, batch=3 * n if simulator.backend == "mjx" else 0)
-    params = push_params(postures, mu, heading, v["overshoot"].astype(float), ramp, settle, heads)
+    heads = settled_heads(postures, ramp, hold, settle, settler, batch=3 * n if simulator.backend == "mjx" else 0,
+                          l_bend=l_bend, wheel_creep=creep)
+    params = push_params(postures, mu, heading, v["overshoot"].astype(float), ramp, settle, heads, l_bend)
     params["key"] = np.repeat(keys, 3, axis=0)
     res = simulator.run(scenario, params)
     force = np.array([push_force(f) for f in np.asarray(res.records["fixture"])[..., 0]]).reshape(n, 3)

@@ -259,6 +259,15 @@ PARAMETERS = ParamTable("snake", (
           "Table IV: contact.OVERSHOOT)", "m", lo=0.0, hi=0.5),
     Param("hold", 3.0, "time the target is held in the plate after the ramp", "s", lo=0.0, hi=30.0,
           sweepable=False),
+    # the L of Tables IV-V's L-shaped base: which two base yaw joints turn by 45 deg each (the paper's Fig. 12(b),
+    # missing from our copy, shows it). "middle": theta_6, theta_7 (default (ours)); "tail": theta_8, theta_9
+    Param("l_bend", "middle", "where the L-shaped base of Tables IV-V bends: middle (theta_6 = theta_7 = 45 deg, "
+          "default (ours)) or tail (theta_8 = theta_9 = 45 deg)", kind="str", choices=("middle", "tail"),
+          sweepable=False),
+    # a tyre's sideways give (docs/snake.md, Table V): 0 is MuJoCo's hard friction, the model's default
+    Param("wheel_creep", 0.0, "time constant of the wheel-floor friction (MuJoCo solreffriction on an elliptic "
+          "cone: the wheels creep under a side load, a tyre's give); 0: hard friction, default (ours); native "
+          "MuJoCo only", "s", lo=0.0, hi=2.0, sweepable=False),
     Param("operation", "pick", "the operation (Sec. V-D): pick (a T-joint pipe), valve (a gate valve), door (a "
           "door with a knob)", kind="str"),
     # the teleoperator (`operator`; off in a simulation's params dict unless set)

@@ -103,6 +103,7 @@ import mujoco
 import numpy as np
 
 from jaxloco import geometry as geo
+from jaxloco.errors import SpecError
 from jaxloco.robots.snake import kinematics
 from jaxloco.robots.snake import model as snake_model
 from jaxloco.robots.snake import params as snake_params
@@ -110,7 +111,7 @@ from jaxloco.sim import metrics as sm
 from jaxloco.sim import terrain as tr
 from jaxloco.sim.backend import BACKENDS
 from jaxloco.sim.data import SimData
-from jaxloco.sim.scenario import Controller, InitialState, Scenario, friction_field, position_servo_fields
+from jaxloco.sim.scenario import Controller, InitialState, ModelField, Scenario, friction_field, position_servo_fields
 from jaxloco.sim.scenario import params_batch as sim_params_batch
 
 Array = jax.Array
@@ -474,22 +475,61 @@ def mjx_variant(spec: mujoco.MjSpec, floor: tuple[str, ...]) -> None:
             geom.contype, geom.conaffinity = MJX_OBJECT, MJX_FLOOR if geom.name in free else 0
 
 
-def build_model(fixture: Fixture | None = None, backend: str = "native") -> tuple[mujoco.MjModel, tr.Terrain]:
+WHEEL_FLOOR_FRICTION = (0.005, 0.0001)  # torsional [m], rolling [m]: the terrain's (`build_model`)
+
+
+def build_model(fixture: Fixture | None = None, backend: str = "native",
+                wheel_creep: float = 0.0) -> tuple[mujoco.MjModel, tr.Terrain]:
     """The robot (`models/t2snake3.xml`) on flat ground (top face z = 0), with the
     fixture's bodies if given; for `backend` "mjx" its MJX variant (`mjx_variant`, then
-    the fixture's `mjx`), with the same indices."""
+    the fixture's `mjx`), with the same indices. `wheel_creep` [s] > 0: the wheels'
+    friction on the ground creeps (`creeping_wheels`; native only)."""
     if backend not in BACKENDS:
         raise ValueError(f"backend: expected one of {', '.join(BACKENDS)}, got {backend!r}")
+    if wheel_creep < 0.0 or (wheel_creep > 0.0 and backend != "native"):
+        raise SpecError(f"wheel_creep: {wheel_creep:g} s needs a value >= 0 and native MuJoCo (backend {backend!r})")
     spec = snake_model.load_spec()
     terrain = tr.flat(half_extent=10.0, half_depth=0.5)
-    terrain.add_to(spec, friction=(PARAM_DEFAULTS["mu"], 0.005, 0.0001))
+    terrain.add_to(spec, friction=(PARAM_DEFAULTS["mu"], *WHEEL_FLOOR_FRICTION))
     if fixture is not None:
         fixture.add(spec)
+    if wheel_creep > 0.0:
+        creeping_wheels(spec, tuple(terrain.body_names()), wheel_creep)
     if backend == "mjx":
         mjx_variant(spec, tuple(terrain.body_names()))
         if fixture is not None and fixture.mjx is not None:
             fixture.mjx(spec)
     return spec.compile(), terrain
+
+
+def pair_friction_fields(m: mujoco.MjModel, key: str = "mu") -> tuple[ModelField, ...]:
+    """The sliding friction (both tangent directions) of the model's explicit contact
+    pairs (`creeping_wheels`) set per simulation to params[key]; none without pairs."""
+    if m.npair == 0:
+        return ()
+    rows = np.repeat(np.arange(m.npair), 2)
+    cols = np.tile(np.array([0, 1]), m.npair)
+    return (ModelField("pair_friction", (rows, cols), lambda p: jnp.full(rows.shape, p[key])),)
+
+
+def creeping_wheels(spec: mujoco.MjSpec, floor: tuple[str, ...], creep: float) -> None:
+    """Give the wheels' grip on the floor a time constant `creep` [s] (a rubber tyre's
+    sideways give), in place: each wheel-floor contact becomes an explicit MuJoCo pair
+    (condim 3) with solreffriction (creep, 1), replacing the dynamic one (a body
+    exclusion), on an elliptic friction cone (the pyramidal cone, the model's default,
+    ignores solreffriction; the cone is the whole model's). A side load then moves a
+    wheel sideways at a speed that grows with the load instead of holding it until mu N.
+    The pairs' sliding friction is set per simulation with params["mu"] (`pair_friction_field`).
+    Measured on Tables IV-V and III in docs/snake.md; default (ours) 0: hard friction."""
+    wheels = [g for g in spec.geoms if g.name in _robot_geoms()[1]]
+    torsion, rolling = WHEEL_FLOOR_FRICTION
+    for wheel in wheels:
+        for floor_geom in floor:
+            spec.add_pair(geomname1=wheel.name, geomname2=floor_geom, condim=3,
+                          friction=[PARAM_DEFAULTS["mu"]] * 2 + [torsion, rolling, rolling],
+                          solreffriction=[creep, 1.0])
+            spec.add_exclude(bodyname1=wheel.parent.name, bodyname2=floor_geom)
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
 
 
 def snake_scenario(
@@ -500,6 +540,7 @@ def snake_scenario(
     record_every: int = 1,
     fixture: Fixture | None = None,
     backend: str = "native",
+    wheel_creep: float = 0.0,
 ) -> Scenario:
     """T² Snake-3 on flat ground for `horizon_s` seconds at the control period
     `control_dt` [s] (a multiple of the 2 ms physics step), recording every
@@ -507,8 +548,9 @@ def snake_scenario(
     `constant_controller(phi0)`), starting in the posture phi0 (12,) (default
     params.INITIAL_PHI, Sec. V-A; a params entry "phi0" (12,) per simulation replaces
     it) with the wheels of params["mode"] lifted; `fixture`: bodies beside the ground;
-    `backend` "mjx": on the MJX variant of the model (`build_model`)."""
-    m, terrain = build_model(fixture, backend)
+    `backend` "mjx": on the MJX variant of the model (`build_model`); `wheel_creep` [s]
+    > 0: the wheels' grip on the floor creeps (`creeping_wheels`)."""
+    m, terrain = build_model(fixture, backend, wheel_creep)
     phi0 = np.asarray(snake_params.INITIAL_PHI if phi0 is None else phi0, float)
     controller = controller or constant_controller(phi0)
     if fixture is not None and fixture.actuators:
@@ -617,7 +659,8 @@ def snake_scenario(
         substeps=substeps,
         record_every=record_every,
         model_fields=(friction_field(np.concatenate([ground, robot])),
-                      *position_servo_fields(_actuator_ids()[0][:snake_params.N_H], "head_kp", "head_kv")),
+                      *position_servo_fields(_actuator_ids()[0][:snake_params.N_H], "head_kp", "head_kv"),
+                      *pair_friction_fields(m)),
         statuses=STATUSES,
     )
 
