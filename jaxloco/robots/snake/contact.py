@@ -42,7 +42,13 @@ Ours:
     the ratios between postures hardly change: (i) / (ii) f_x 0.63 / 0.65 / 0.69).
     `ramp` (4 s) is ours, and OVERSHOOT is fitted with it;
   * trials: floor friction mu + U(-1, 1) mu_jitter and heading U(-1, 1)
-    heading_jitter from the row's seed (the plate and the push turn with the robot).
+    heading_jitter from the row's seed (the plate and the push turn with the robot);
+  * two options for the paper's reason why f_x falls as y_h grows ("the direction of the
+    contact force does not correspond to the direction of the wheels"): `wheel_creep`
+    [s] > 0 lets the wheels give sideways (`scenarios.creeping_wheels`) and `l_bend`
+    "tail" bends the L at theta_8, theta_9 (`L_SHAPES`); `jaxloco sweep
+    snake_contact_creep` runs both (every f_x trend holds, f_y falls; docs/snake.md).
+    Defaults: hard friction, the middle bend.
 
 `jaxloco sweep snake_contact`: postures (i)-(x) x 5 seeds; the summary prints mean ± SD of
 f_x, f_y, f_z beside the paper's and checks the paper's trends.
