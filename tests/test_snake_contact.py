@@ -134,10 +134,15 @@ def test_summary_has_the_papers_forces_and_checks_the_trends():
     assert [r[0] for r in s.rows] == [f"({k})" for k in names]
     assert s.rows[2][5] == "30.4 ± 0.0 / 30.4 ± 1.7" and all(r[-1] == "yes" for r in s.rows)
     # the paper's own means satisfy the paper's trends
-    assert all(t.endswith(": holds") for t in s.notes[1:]) and len(s.notes) == 5
+    assert all(t.endswith(": holds") for t in s.notes[1:5]) and len(s.notes) == 6
+    # which model made the table: the defaults where the table has no l_bend / wheel_creep columns
+    assert s.notes[5] == "model: the L bent at the middle (theta_6 = theta_7 = 45 deg), hard wheel friction"
     flipped = pa.table({"posture": names, "status": ["ok"] * len(names), "fx": paper[::-1, 0], "fy": paper[:, 1],
-                        "fz": paper[:, 2]})
-    assert any(t.endswith("does not hold") for t in contact.summarize(flipped).notes[1:])
+                        "fz": paper[:, 2], "l_bend": ["tail"] * len(names), "wheel_creep": [0.2] * len(names)})
+    s = contact.summarize(flipped)
+    assert any(t.endswith("does not hold") for t in s.notes[1:5])
+    assert s.notes[5] == ("model: the L bent at the tail (theta_8 = theta_9 = 45 deg), wheels creeping sideways "
+                          "(wheel_creep 0.2 s)")
 
 
 def test_contact_force_plot_has_ours_and_the_papers_bars():

@@ -453,6 +453,16 @@ def log_error(means: Mapping[str, np.ndarray]) -> float:
     return float(np.sqrt(np.mean(np.log(ours / paper) ** 2)))
 
 
+def _model_note(cols: Mapping[str, np.ndarray]) -> str:
+    """Which model made the table: where the L bends and how the wheels grip (from the
+    table's l_bend and wheel_creep columns; tables written before 7 Dec 2026 have none)."""
+    bend = str(cols["l_bend"][0]) if "l_bend" in cols else "middle"
+    creep = float(cols["wheel_creep"][0]) if "wheel_creep" in cols else 0.0
+    joints = "theta_8 = theta_9" if bend == "tail" else "theta_6 = theta_7"
+    grip = f"wheels creeping sideways (wheel_creep {creep:g} s)" if creep > 0 else "hard wheel friction"
+    return f"model: the L bent at the {bend} ({joints} = 45 deg), {grip}"
+
+
 def summarize(table) -> Summary:
     """Per posture: f_x, f_y, f_z mean ± SD over the trials beside the paper's, and the
     paper's trends checked on our means."""
@@ -480,7 +490,7 @@ def summarize(table) -> Summary:
                  "f_z [N] ours / paper", "all within 25 %"),
         rows=tuple(rows),
         notes=(("largest normal force on the plate over each push, mean ± SD over the trials; paper: Tanaka et al. "
-                "2019, Tables IV-V (5 trials)"), *notes),
+                "2019, Tables IV-V (5 trials)"), *notes, _model_note(cols)),
     )
 
 
