@@ -519,7 +519,7 @@ def creeping_wheels(spec: mujoco.MjSpec, floor: tuple[str, ...], creep: float) -
     exclusion), on an elliptic friction cone (the pyramidal cone, the model's default,
     ignores solreffriction; the cone is the whole model's). A side load then moves a
     wheel sideways at a speed that grows with the load instead of holding it until mu N.
-    The pairs' sliding friction is set per simulation with params["mu"] (`pair_friction_field`).
+    The pairs' sliding friction is set per simulation with params["mu"] (`pair_friction_fields`).
     Measured on Tables IV-V and III in docs/snake.md; default (ours) 0: hard friction."""
     wheels = [g for g in spec.geoms if g.name in _robot_geoms()[1]]
     torsion, rolling = WHEEL_FLOOR_FRICTION
@@ -528,7 +528,7 @@ def creeping_wheels(spec: mujoco.MjSpec, floor: tuple[str, ...], creep: float) -
             spec.add_pair(geomname1=wheel.name, geomname2=floor_geom, condim=3,
                           friction=[PARAM_DEFAULTS["mu"]] * 2 + [torsion, rolling, rolling],
                           solreffriction=[creep, 1.0])
-            spec.add_exclude(bodyname1=wheel.parent.name, bodyname2=floor_geom)
+            spec.add_exclude(bodyname1=wheel.parent.name, bodyname2=spec.geom(floor_geom).parent.name)
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
 
 
