@@ -2,11 +2,16 @@
 chosen times every robot geom touching the terrain, with the contact's point, its
 normal's angle from the horizontal and the load.
 
-    python benchmarks/octopus_contacts.py [--time T ...] [--set name=value ...] [--horizon S]
+    python benchmarks/octopus_contacts.py [--time T ...] [--set name=value ...] [--horizon S] [--push F]
 
 Defaults: the paper's climb (`climb_paper` = 1, no CRAWL) at its default gains, times
 24 30 40 60 s. `--set` changes any simulation parameter (`scenarios.PARAM_DEFAULTS`),
 e.g. `--set climb_common_axis=1 --set delta_e=0.02`.
+
+`--push F` adds a forward push (world +x, towards the step) of F times each body's
+weight, as a horizontal component F g of gravity: the help a stalled climb would need
+from outside (traction, an operator's tether). The controller does not see it (the IMU
+gives attitude from the orientation).
 
 Loads: wheels and rollers carry MuJoCo touch sensors (their normal load, recorded during
 the run); the arm links (boom, forearm) and the chassis do not, so a link's contact is
@@ -46,10 +51,11 @@ def parse_set(items: list[str]) -> dict[str, float]:
     return out
 
 
-def report(times: list[float], overrides: dict[str, float], horizon: float) -> None:
+def report(times: list[float], overrides: dict[str, float], horizon: float, push: float = 0.0) -> None:
     over = {"height": 0.4, "climb_paper": 1.0, "crawl_max_h": 0.0, **overrides}
     sc = scenarios.make_scenario("step1", operator.with_operator(clm.make_controller()), horizon_s=horizon,
                                  record_every=RECORD_EVERY)
+    sc.model.opt.gravity[0] = push * -sc.model.opt.gravity[2]
     params = scenarios.params_batch(1, **over)
     res = rollout(sc, params, record_state=True)
     rec = {k: np.asarray(v)[0] for k, v in res.records.items()}
@@ -59,6 +65,7 @@ def report(times: list[float], overrides: dict[str, float], horizon: float) -> N
     touch_of = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b): k for k, b in enumerate(scenarios.SUPPORT_BODIES)}
     robot = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "chassis")
     print(f"400 mm step, riser at x = {edge:.2f} m; {', '.join(f'{k} = {v:g}' for k, v in over.items())}; "
+          f"forward push {push:g} x weight; "
           f"status {res.status[0]}, success {bool(res.metrics['success'][0])}")
     for t in times:
         i = int(np.argmin(np.abs(states["time"] - t)))
@@ -88,9 +95,12 @@ def main() -> None:
     ap.add_argument("--time", type=float, nargs="+", default=[24.0, 30.0, 40.0, 60.0], help="times [s]")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="a simulation parameter")
     ap.add_argument("--horizon", type=float, default=None, help="simulated time [s] (default: the last time + 1)")
+    ap.add_argument("--push", type=float, default=0.0, help="forward push, a fraction of the weight (default 0)")
     args = ap.parse_args()
+    if not 0.0 <= args.push <= 2.0:
+        ap.error(f"--push {args.push:g}: expected a fraction of the weight in [0, 2]")
     horizon = args.horizon if args.horizon is not None else max(args.time) + 1.0
-    report(sorted(args.time), parse_set(args.set), horizon)
+    report(sorted(args.time), parse_set(args.set), horizon, args.push)
 
 
 if __name__ == "__main__":
