@@ -464,3 +464,45 @@ def test_vmap_equals_loop_and_jit():
     f32 = kin.arm_tips(P32, qs[0].astype(jnp.float32))
     assert f32.dtype == jnp.float32
     np.testing.assert_allclose(f32, batched[0], atol=1e-5)
+
+
+# ------------------------------------------------------------------ crawler side profile
+@pytest.mark.parametrize("pitch, rear", [(0.3, 0.0), (0.65, 0.045), (0.6, -0.83), (0.9, -0.4), (0.2, 0.1)])
+def test_front_axle_height_on_rear_tips_against_mujoco(mj, pitch, rear):
+    """The closed form against the MJCF: the chassis pitched nose-up, the rear flippers
+    set, the floor put under the rear tip wheels (their lowest point). To 1 um: the MJCF
+    prints its positions to 8 digits."""
+    model, data = mj
+    data.qpos[:] = model.qpos0
+    data.qpos[3:7] = [np.cos(-pitch / 2), 0.0, np.sin(-pitch / 2), 0.0]  # nose up: about -y
+    for name in ("flipper_rl", "flipper_rr"):
+        data.qpos[model.joint(name).qposadr[0]] = rear
+    mujoco.mj_kinematics(model, data)
+    tip = f"flipper_rl_w{params.FLIPPER_WHEELS}"
+    tip_r = model.geom(tip).size[0]
+    floor = data.xpos[model.body(tip).id][2] - tip_r
+    left = ("wheel_l", "flipper_fl_w", "flipper_rl_w")
+    wheels = [b for b in range(model.nbody) if model.body(b).name.startswith(left)]
+    lowest = min(data.xpos[b][2] - model.geom(model.body(b).name).size[0] for b in wheels)
+    assert lowest == pytest.approx(floor, abs=1e-6)  # the tip wheel touches the floor first
+    front = data.xpos[model.body(f"wheel_l{params.MAIN_WHEELS}").id][2] - floor
+    np.testing.assert_allclose(kin.front_axle_height_on_rear_tips(pitch, rear), front, atol=1e-6)
+    rear_axle = data.xpos[model.body("wheel_l1").id][2] - floor
+    np.testing.assert_allclose(kin.rear_axle_height_to_mount(front - params.MAIN_WHEEL_RADIUS, pitch), rear_axle,
+                               atol=1e-6)
+
+
+def test_mount_pitch_solves_the_front_axle_height():
+    h = 0.4
+    rears = jnp.array([0.0, -0.3, -0.6, -0.83, -1.2])
+    pitch = kin.mount_pitch_on_rear_tips(h, rears)
+    np.testing.assert_allclose(jax.vmap(kin.front_axle_height_on_rear_tips)(pitch, rears),
+                               h + params.MAIN_WHEEL_RADIUS, atol=1e-12)
+    for p, a in zip(pitch, rears):  # the least such pitch: 0.01 rad less falls short
+        assert kin.front_axle_height_on_rear_tips(p - 0.01, a) < h + params.MAIN_WHEEL_RADIUS
+    # the in-line flippers need 0.81 rad; straight down in the world (a = -0.83) 0.62, the
+    # least over a; at the joint limit no pitch reaches the 400 mm top
+    np.testing.assert_allclose(pitch[0], 0.8095, atol=1e-4)
+    assert float(jnp.min(pitch)) == pytest.approx(float(pitch[3]), abs=1e-12) and 0.61 < pitch[3] < 0.62
+    assert np.isnan(kin.mount_pitch_on_rear_tips(h, -params.FLIPPER_LIMIT))
+    check_grads(lambda a: kin.mount_pitch_on_rear_tips(h, a), (jnp.asarray(-0.5),), order=1)

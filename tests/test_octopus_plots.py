@@ -77,3 +77,17 @@ def test_figures():
     (span,) = [p for p in a1.patches]  # the roller on the obstacle top, samples 10-19
     assert span.get_x() == pytest.approx(5.0) and span.get_x() + span.get_width() == pytest.approx(10.0)
     assert max(a2.get_lines()[0].get_ydata()) == 90.0
+
+
+def test_climb_geometry_figure_marks_each_mount_pitch():
+    from jaxloco.robots.octopus import kinematics, params
+
+    fig = plots.plot_climb_geometry(0.4, rear_flippers=(0.0, -0.83), stall=None)
+    a1, a2 = fig.get_axes()
+    dots = [ln for ln in a1.get_lines() if ln.get_marker() == "o"]
+    assert [float(d.get_xdata()[0]) for d in dots] == pytest.approx(
+        [float(kinematics.mount_pitch_on_rear_tips(0.4, a)) for a in (0.0, -0.83)])
+    assert all(float(d.get_ydata()[0]) == pytest.approx(0.4 + params.MAIN_WHEEL_RADIUS) for d in dots)
+    least = a2.get_lines()[0].get_ydata()
+    assert np.nanmin(least) == pytest.approx(0.6166, abs=1e-3) and np.isnan(least[0])  # none at -85 deg
+    assert not a1.patches and not a2.patches  # stall=None: no band

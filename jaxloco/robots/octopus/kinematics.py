@@ -1,5 +1,7 @@
 """OCTOPUS arm kinematics (Eqs. 1-6, Table 1), terrain exploration from the four arm
-endpoints (Cases 1-3, Eqs. 7-9), COG height (Eqs. 10-17) and travelled distance (Eq. 18).
+endpoints (Cases 1-3, Eqs. 7-9), COG height (Eqs. 10-17), travelled distance (Eq. 18) and
+the crawlers' side profile on a step edge (`CrawlerProfile`: what pitch and tail height
+put the front main wheel on a step top; ours, docs/octopus.md "What the geometry asks").
 
 Pure JAX: every function works on one robot with fixed shapes (jit, vmap, grad); SI units
 (m, rad). Frames ({R} robot, {J_i} arm joint frame, {C} level frame) and the arm numbering
@@ -33,6 +35,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxloco import geometry as geo
+from jaxloco.robots.octopus import params as _params
 from jaxloco.robots.octopus.params import OctopusParams
 
 Array = jax.Array
@@ -305,3 +308,50 @@ def travelled_distance(step_lengths: Array, pitches: Array, mask: Array | None =
 def travel_update(distance: Array, step_length: Array, pitch: Array) -> Array:
     """One sampling period of Eq. 18: S + L cos(R_P), for a controller's state."""
     return distance + step_length * jnp.cos(pitch)
+
+
+# ------------------------------------------------------------------ crawler side profile
+class CrawlerProfile(NamedTuple):
+    """The crawler seen from the side (`params.py`, ours) [m, rad]: the main crawler's end
+    axles `axle_spacing` apart with wheels of `wheel_radius`, the flippers pivoting on the
+    end axles, `flipper_length` to their tip wheel of `tip_radius`; at flipper angle 0 a
+    flipper's centre line dips by `dip` below the main crawler's axis (bottoms in line)."""
+
+    axle_spacing: float = 2.0 * _params.MAIN_AXLE_X
+    wheel_radius: float = _params.MAIN_WHEEL_RADIUS
+    flipper_length: float = _params.FLIPPER_LENGTH
+    tip_radius: float = _params.FLIPPER_TIP_RADIUS
+    dip: float = _params.FLIPPER_DIP
+
+
+def front_axle_height_on_rear_tips(pitch: Array, rear_flipper: Array, profile: CrawlerProfile = CrawlerProfile()
+                                   ) -> Array:
+    """Height [m] of the main crawler's front axle above a flat floor when the robot rests
+    on its rear flipper tip wheels, pitched nose-up by `pitch` [rad], the rear flippers at
+    `rear_flipper` [rad] (the joint angle: 0 in line with the main crawler, > 0 lifts the
+    tip, < 0 turns it down and lifts the tail). Side view, no roll. Valid while the tip
+    wheel is the crawler's lowest point (pitch >= rear_flipper)."""
+    rear_axle = profile.tip_radius + profile.flipper_length * jnp.sin(pitch + profile.dip - rear_flipper)
+    return rear_axle + profile.axle_spacing * jnp.sin(pitch)
+
+
+def rear_axle_height_to_mount(step_height: Array, pitch: Array, profile: CrawlerProfile = CrawlerProfile()) -> Array:
+    """Height [m] the rear main axle must have, at nose-up `pitch` [rad], for the front main
+    wheel to reach the top of a step `step_height` [m] high (its axle at step_height plus
+    the wheel radius): what the arms or rear flippers must lift the tail to."""
+    return step_height + profile.wheel_radius - profile.axle_spacing * jnp.sin(pitch)
+
+
+def mount_pitch_on_rear_tips(step_height: Array, rear_flipper: Array, profile: CrawlerProfile = CrawlerProfile()
+                             ) -> Array:
+    """The least nose-up pitch [rad] at which the robot, resting on its rear flipper tips
+    at `rear_flipper` [rad], holds its front main wheel at the top of a step `step_height`
+    [m] high (`front_axle_height_on_rear_tips` = step_height + wheel radius); NaN where no
+    pitch does. Closed form: A sin(p) + B cos(p) = C with A = l_f cos(dip - a) + s,
+    B = l_f sin(dip - a), C = h + r - r_tip."""
+    phi = profile.dip - jnp.asarray(rear_flipper)
+    a = profile.flipper_length * jnp.cos(phi) + profile.axle_spacing
+    b = profile.flipper_length * jnp.sin(phi)
+    c = jnp.asarray(step_height) + profile.wheel_radius - profile.tip_radius
+    ratio = c / jnp.hypot(a, b)
+    return jnp.where(ratio <= 1.0, jnp.arcsin(jnp.clip(ratio, -1.0, 1.0)) - jnp.arctan2(b, a), jnp.nan)

@@ -12,6 +12,9 @@ read any table (heatmap, plot_tuning, plot_validation) are in `jaxloco.plots`.
                                                  robot phases shaded (Fig. 14, phases A-F)
     plot_arm_on_obstacle(trace, arm)             one arm's joints and elbow torque over time, with
                                                  the time its roller rode an obstacle (Fig. 20)
+    plot_climb_geometry(step_height)             what pitch puts the front main wheel on a step top
+                                                 with the robot on its rear flipper tips (closed
+                                                 form, `kinematics.mount_pitch_on_rear_tips`)
 
 A table is a `pyarrow.Table` or a mapping of column name to array. Every plot function
 returns the matplotlib Figure; matplotlib is imported inside the functions. Nothing here
@@ -28,7 +31,7 @@ import numpy as np
 from jaxloco.plots import column, heatmap, spans
 
 __all__ = ["TERRAIN_NAMES", "climb_trace", "plot_accuracy_map", "plot_arm_joints", "plot_arm_on_obstacle",
-           "plot_attitude_traces", "plot_climb_traces"]
+           "plot_attitude_traces", "plot_climb_geometry", "plot_climb_traces"]
 
 TERRAIN_NAMES = ("flat", "step up", "step down", "slope up", "slope down", "rough")  # analysis.TERRAINS order
 ARM_LABELS = ("LF", "RF", "LR", "RR")  # params.ARM_LABELS (arms 1..4)
@@ -199,4 +202,51 @@ def plot_arm_on_obstacle(trace: Mapping[str, np.ndarray], arm: int = 1, *, title
                   title_fontsize="x-small")
     if title:
         fig.suptitle(title, fontsize="medium")
+    return fig
+
+
+def plot_climb_geometry(step_height: float = 0.4, rear_flippers: Sequence[float] = (0.0, -0.3, -0.83), *,
+                        mu: float = 0.8, paper_pitch: float = 0.60, stall: tuple[float, float] | None = (0.80, 0.93),
+                        figsize=(10.0, 4.0)):
+    """What the crawlers' side profile asks of a climb (closed form, `kinematics`): left,
+    the front main axle's height [m] against the nose-up pitch [rad] with the robot on its
+    rear flipper tips, one line per rear flipper angle [rad] (0 in line, < 0 turned down),
+    and the height that puts the front wheel on a `step_height` top; right, the least
+    such pitch against the rear flipper angle. Both mark the paper's pitch, atan(mu) (a
+    track driving up the edge slips above it, by friction alone) and, if given, the
+    pitches at which our simulated climbs stall with their tracks loaded (the common-axis
+    and rear-flipper readings, docs/octopus.md)."""
+    import matplotlib.pyplot as plt
+
+    from jaxloco.robots.octopus import kinematics, params
+
+    need = step_height + params.MAIN_WHEEL_RADIUS
+    slip = float(np.arctan(mu))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=figsize, layout="constrained")
+    pitch = np.linspace(0.0, 1.2, 241)
+    for k, rear in enumerate(rear_flippers):
+        h = np.asarray(kinematics.front_axle_height_on_rear_tips(pitch, rear))
+        valid = pitch >= rear
+        a1.plot(pitch[valid], h[valid], color=f"C{k}", lw=1.3, label=f"rear flippers {rear:+.2f} rad")
+        p0 = float(kinematics.mount_pitch_on_rear_tips(step_height, rear))
+        if np.isfinite(p0):
+            a1.plot([p0], [need], "o", color=f"C{k}", ms=5)
+    a1.axhline(need, color="k", lw=0.9, ls="--", label=f"front wheel on a {step_height:g} m top")
+    a1.set_ylabel("front main axle height [m]")
+    rear = np.linspace(-params.FLIPPER_LIMIT, 0.3, 241)
+    a2.plot(rear, np.asarray(kinematics.mount_pitch_on_rear_tips(step_height, rear)), color="k", lw=1.3,
+            label="least pitch, front wheel on the top")
+    a2.set_xlabel("rear flipper angle [rad] (< 0: turned down)")
+    a2.set_ylabel("pitch [rad]")
+    for ax, horizontal in ((a1, False), (a2, True)):
+        line = ax.axhline if horizontal else ax.axvline
+        span = ax.axhspan if horizontal else ax.axvspan
+        line(paper_pitch, color="C2", lw=1.0, ls=":", label=f"paper's max pitch {paper_pitch:g} rad")
+        line(slip, color="C3", lw=1.0, ls="-.", label=f"atan(mu), mu {mu:g}: tracks slip beyond")
+        if stall is not None:
+            span(*stall, color="C3", alpha=0.12, lw=0, label="our climbs stall (tracks loaded)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="x-small")
+    a1.set_xlabel("nose-up pitch [rad]")
+    fig.suptitle(f"Crawler side profile on a {step_height:g} m step, robot on its rear flipper tips", fontsize="medium")
     return fig

@@ -1,0 +1,54 @@
+"""What the OCTOPUS crawlers' side profile asks of a step climb (closed form,
+`jaxloco.robots.octopus.kinematics`; docs/octopus.md, "What the geometry asks"): for each
+rear flipper angle, the least nose-up pitch at which the robot, resting on its rear
+flipper tips, holds its front main wheel at the top of the step, and the height of the
+rear axle the paper's 0.60 rad would need. Optionally writes the figure
+(`plots.plot_climb_geometry`).
+
+    python benchmarks/octopus_climb_geometry.py [--height H] [--out docs/gallery/octopus_climb_geometry.png]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from jaxloco import runtime
+
+runtime.configure(x64=True, cache_dir=False)
+
+from jaxloco.robots.octopus import kinematics, params, plots  # noqa: E402
+
+PAPER_PITCH = 0.60  # [rad] the paper's max pitch climbing the 400 mm step (Fig. 12)
+MU = 0.8  # the scenarios' nominal friction (default, ours)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--height", type=float, default=0.4, help="step height [m] (default 0.4)")
+    ap.add_argument("--out", default=None, help="write the figure here (PNG)")
+    args = ap.parse_args()
+    if not 0.0 < args.height < 1.0:
+        ap.error(f"--height {args.height:g}: expected a step height in (0, 1) m")
+    h = args.height
+    rear_needed = float(kinematics.rear_axle_height_to_mount(h, PAPER_PITCH))
+    print(f"step {h:g} m: front main axle needed at {h + params.MAIN_WHEEL_RADIUS:.3f} m; at the paper's "
+          f"{PAPER_PITCH:g} rad the rear axle must be {rear_needed:.3f} m up; "
+          f"atan(mu = {MU:g}) = {np.arctan(MU):.3f} rad")
+    print(f"{'rear flipper [rad]':>18} {'[deg]':>6} {'least pitch [rad]':>18} {'rear axle there [m]':>20}")
+    for rear in (0.2, 0.0, -0.2, -0.4, -0.6, -0.83, -1.0, -1.2, -params.FLIPPER_LIMIT):
+        p = float(kinematics.mount_pitch_on_rear_tips(h, rear))
+        axle = float(kinematics.rear_axle_height_to_mount(h, p)) if np.isfinite(p) else float("nan")
+        print(f"{rear:>18.2f} {np.degrees(rear):>6.0f} {p:>18.3f} {axle:>20.3f}")
+    if args.out:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        fig = plots.plot_climb_geometry(h, mu=MU, paper_pitch=PAPER_PITCH)
+        fig.savefig(args.out, dpi=110)
+        print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
