@@ -1,8 +1,9 @@
 """What the OCTOPUS crawlers' side profile asks of a step climb (closed form,
 `jaxloco.robots.octopus.kinematics`; docs/octopus.md, "What the geometry asks"): for each
 rear flipper angle, the least nose-up pitch at which the robot, resting on its rear
-flipper tips, holds its front main wheel at the top of the step, and the height of the
-rear axle the paper's 0.60 rad would need. Optionally writes the figure
+flipper tips, holds its front main wheel at the top of the step, the rear axle's height
+there, and the pitch at which it turns over backwards on those tips; and the height of
+the rear axle the paper's 0.60 rad would need. Optionally writes the figure
 (`plots.plot_climb_geometry`).
 
     python benchmarks/octopus_climb_geometry.py [--height H] [--out docs/gallery/octopus_climb_geometry.png]
@@ -36,11 +37,13 @@ def main() -> None:
     print(f"step {h:g} m: front main axle needed at {h + params.MAIN_WHEEL_RADIUS:.3f} m; at the paper's "
           f"{PAPER_PITCH:g} rad the rear axle must be {rear_needed:.3f} m up; "
           f"atan(mu = {MU:g}) = {np.arctan(MU):.3f} rad")
-    print(f"{'rear flipper [rad]':>18} {'[deg]':>6} {'least pitch [rad]':>18} {'rear axle there [m]':>20}")
+    print(f"{'rear flipper [rad]':>18} {'[deg]':>6} {'least pitch [rad]':>18} {'rear axle there [m]':>20} "
+          f"{'tips over at [rad]':>19}")
     for rear in (0.2, 0.0, -0.2, -0.4, -0.6, -0.83, -1.0, -1.2, -params.FLIPPER_LIMIT):
         p = float(kinematics.mount_pitch_on_rear_tips(h, rear))
         axle = float(kinematics.rear_axle_height_to_mount(h, p)) if np.isfinite(p) else float("nan")
-        print(f"{rear:>18.2f} {np.degrees(rear):>6.0f} {p:>18.3f} {axle:>20.3f}")
+        tip = float(kinematics.tipping_pitch_on_rear_tips(rear))
+        print(f"{rear:>18.2f} {np.degrees(rear):>6.0f} {p:>18.3f} {axle:>20.3f} {tip:>19.3f}")
     if args.out:
         import matplotlib
 

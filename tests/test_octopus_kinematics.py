@@ -506,3 +506,28 @@ def test_mount_pitch_solves_the_front_axle_height():
     assert float(jnp.min(pitch)) == pytest.approx(float(pitch[3]), abs=1e-12) and 0.61 < pitch[3] < 0.62
     assert np.isnan(kin.mount_pitch_on_rear_tips(h, -params.FLIPPER_LIMIT))
     check_grads(lambda a: kin.mount_pitch_on_rear_tips(h, a), (jnp.asarray(-0.5),), order=1)
+
+
+@pytest.mark.parametrize("rear", [0.0, -0.4, -0.6, -0.83])
+def test_tipping_pitch_puts_mujocos_com_over_the_rear_tips(mj, rear):
+    """At the closed form's pitch the whole robot's centre of mass (MuJoCo, the Table 2
+    start pose) stands over the rear tip wheels: found by bisection on MuJoCo's COM. To
+    0.015 rad: the closed form keeps the COG of the in-line flippers, and turning the
+    rear ones down moves it by millimetres."""
+    model, data = mj
+    tip = model.body(f"flipper_rl_w{params.FLIPPER_WHEELS}").id
+
+    def com_ahead(pitch):
+        mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+        data.qpos[3:7] = [np.cos(-pitch / 2), 0.0, np.sin(-pitch / 2), 0.0]
+        for name in ("flipper_rl", "flipper_rr"):
+            data.qpos[model.joint(name).qposadr[0]] = rear
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        return data.subtree_com[model.body("chassis").id][0] - data.xpos[tip][0]
+
+    lo, hi = 0.0, 1.5
+    assert com_ahead(lo) > 0 > com_ahead(hi)
+    for _ in range(40):
+        lo, hi = ((lo + hi) / 2, hi) if com_ahead((lo + hi) / 2) > 0 else (lo, (lo + hi) / 2)
+    assert float(kin.tipping_pitch_on_rear_tips(rear)) == pytest.approx(lo, abs=0.015)

@@ -91,3 +91,6 @@ def test_climb_geometry_figure_marks_each_mount_pitch():
     least = a2.get_lines()[0].get_ydata()
     assert np.nanmin(least) == pytest.approx(0.6166, abs=1e-3) and np.isnan(least[0])  # none at -85 deg
     assert not a1.patches and not a2.patches  # stall=None: no band
+    assert a2.get_lines()[1].get_ydata() == pytest.approx(
+        np.asarray(kinematics.tipping_pitch_on_rear_tips(a2.get_lines()[1].get_xdata())))
+    assert len(a2.collections) == 1  # the window where the robot mounts without slipping or tipping

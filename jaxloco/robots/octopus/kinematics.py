@@ -1,7 +1,8 @@
 """OCTOPUS arm kinematics (Eqs. 1-6, Table 1), terrain exploration from the four arm
 endpoints (Cases 1-3, Eqs. 7-9), COG height (Eqs. 10-17), travelled distance (Eq. 18) and
 the crawlers' side profile on a step edge (`CrawlerProfile`: what pitch and tail height
-put the front main wheel on a step top; ours, docs/octopus.md "What the geometry asks").
+put the front main wheel on a step top, and at what pitch the robot on its rear flipper
+tips turns over backwards; ours, docs/octopus.md "What the geometry asks").
 
 Pure JAX: every function works on one robot with fixed shapes (jit, vmap, grad); SI units
 (m, rad). Frames ({R} robot, {J_i} arm joint frame, {C} level frame) and the arm numbering
@@ -322,6 +323,10 @@ class CrawlerProfile(NamedTuple):
     flipper_length: float = _params.FLIPPER_LENGTH
     tip_radius: float = _params.FLIPPER_TIP_RADIUS
     dip: float = _params.FLIPPER_DIP
+    # the COG ahead of and above the rear main axle, in the body's x-z plane (params.COG_R,
+    # the Table 2 start pose; the arms moving shift it by centimetres)
+    cog_x: float = float(_params.COG_R[0]) + _params.MAIN_AXLE_X
+    cog_z: float = float(_params.COG_R[2] + _params.BASE_HEIGHT - _params.MAIN_WHEEL_RADIUS)
 
 
 def front_axle_height_on_rear_tips(pitch: Array, rear_flipper: Array, profile: CrawlerProfile = CrawlerProfile()
@@ -355,3 +360,14 @@ def mount_pitch_on_rear_tips(step_height: Array, rear_flipper: Array, profile: C
     c = jnp.asarray(step_height) + profile.wheel_radius - profile.tip_radius
     ratio = c / jnp.hypot(a, b)
     return jnp.where(ratio <= 1.0, jnp.arcsin(jnp.clip(ratio, -1.0, 1.0)) - jnp.arctan2(b, a), jnp.nan)
+
+
+def tipping_pitch_on_rear_tips(rear_flipper: Array, profile: CrawlerProfile = CrawlerProfile()) -> Array:
+    """The nose-up pitch [rad] at which the COG stands right above the rear flipper tips'
+    contact, the robot resting on them with its rear flippers at `rear_flipper` [rad]: any
+    more and it turns over backwards, unless something ahead pulls it down. Closed form:
+    tan(p) = (c_x + l_f cos(dip - a)) / (c_z + l_f sin(dip - a)), (c_x, c_z) the COG from
+    the rear axle (`CrawlerProfile.cog_x`, `cog_z`)."""
+    phi = profile.dip - jnp.asarray(rear_flipper)
+    return jnp.arctan2(profile.cog_x + profile.flipper_length * jnp.cos(phi),
+                       profile.cog_z + profile.flipper_length * jnp.sin(phi))

@@ -13,8 +13,8 @@ read any table (heatmap, plot_tuning, plot_validation) are in `jaxloco.plots`.
     plot_arm_on_obstacle(trace, arm)             one arm's joints and elbow torque over time, with
                                                  the time its roller rode an obstacle (Fig. 20)
     plot_climb_geometry(step_height)             what pitch puts the front main wheel on a step top
-                                                 with the robot on its rear flipper tips (closed
-                                                 form, `kinematics.mount_pitch_on_rear_tips`)
+                                                 with the robot on its rear flipper tips, and where
+                                                 it turns over backwards (closed form, `kinematics`)
 
 A table is a `pyarrow.Table` or a mapping of column name to array. Every plot function
 returns the matplotlib Figure; matplotlib is imported inside the functions. Nothing here
@@ -212,7 +212,9 @@ def plot_climb_geometry(step_height: float = 0.4, rear_flippers: Sequence[float]
     the front main axle's height [m] against the nose-up pitch [rad] with the robot on its
     rear flipper tips, one line per rear flipper angle [rad] (0 in line, < 0 turned down),
     and the height that puts the front wheel on a `step_height` top; right, the least
-    such pitch against the rear flipper angle. Both mark the paper's pitch, atan(mu) (a
+    such pitch and the pitch at which the robot turns over backwards on its rear flipper
+    tips (`tipping_pitch_on_rear_tips`) against the rear flipper angle, the window between
+    them and atan(mu) shaded. Both mark the paper's pitch, atan(mu) (a
     track driving up the edge slips above it, by friction alone) and, if given, the
     pitches at which our simulated climbs stall with their tracks loaded (the common-axis
     and rear-flipper readings, docs/octopus.md)."""
@@ -234,8 +236,13 @@ def plot_climb_geometry(step_height: float = 0.4, rear_flippers: Sequence[float]
     a1.axhline(need, color="k", lw=0.9, ls="--", label=f"front wheel on a {step_height:g} m top")
     a1.set_ylabel("front main axle height [m]")
     rear = np.linspace(-params.FLIPPER_LIMIT, 0.3, 241)
-    a2.plot(rear, np.asarray(kinematics.mount_pitch_on_rear_tips(step_height, rear)), color="k", lw=1.3,
-            label="least pitch, front wheel on the top")
+    mount = np.asarray(kinematics.mount_pitch_on_rear_tips(step_height, rear))
+    tip = np.asarray(kinematics.tipping_pitch_on_rear_tips(rear))
+    a2.plot(rear, mount, color="k", lw=1.3, label="least pitch, front wheel on the top")
+    a2.plot(rear, tip, color="C1", lw=1.3, label="turns over backwards beyond")
+    window = np.isfinite(mount) & (mount < np.minimum(tip, slip))
+    a2.fill_between(rear, mount, np.minimum(tip, slip), where=window, color="C2", alpha=0.25, lw=0,
+                    label="mounts without slipping or tipping")
     a2.set_xlabel("rear flipper angle [rad] (< 0: turned down)")
     a2.set_ylabel("pitch [rad]")
     for ax, horizontal in ((a1, False), (a2, True)):
