@@ -23,6 +23,9 @@ from jaxloco.robots.octopus import kinematics, params, plots  # noqa: E402
 
 PAPER_PITCH = 0.60  # [rad] the paper's max pitch climbing the 400 mm step (Fig. 12)
 MU = 0.8  # the scenarios' nominal friction (default, ours)
+# [rad] where our climbs stall with their tracks loaded: the common-axis and rear-flipper
+# readings of `python benchmarks/octopus_experiments.py 20` and docs/octopus.md's climb table
+STALL = (0.80, 0.93)
 
 
 def cog_ahead_of_edge(step_height: float, profile: kinematics.CrawlerProfile = kinematics.CrawlerProfile()
@@ -34,10 +37,9 @@ def cog_ahead_of_edge(step_height: float, profile: kinematics.CrawlerProfile = k
     for the robot to tip forward onto the top on these two supports alone."""
     best = (-np.inf, np.nan, np.nan)
     for rear in np.linspace(-params.FLIPPER_LIMIT, 0.3, 71):
-        phi = profile.dip - rear
         tipping = float(kinematics.tipping_pitch_on_rear_tips(rear, profile))
         pitch = np.linspace(0.02, tipping, 300)
-        rear_axle = profile.tip_radius + profile.flipper_length * np.sin(pitch + phi)
+        rear_axle = np.asarray(kinematics.rear_axle_height_on_rear_tips(pitch, rear, profile))
         # where the edge meets the main crawler's bottom line, from the rear axle along the body
         along = (step_height - rear_axle + profile.wheel_radius * np.cos(pitch)) / np.sin(pitch)
         edge_x = profile.wheel_radius * np.sin(pitch) + along * np.cos(pitch)
@@ -76,7 +78,7 @@ def main() -> None:
         import matplotlib
 
         matplotlib.use("Agg")
-        fig = plots.plot_climb_geometry(h, mu=MU, paper_pitch=PAPER_PITCH)
+        fig = plots.plot_climb_geometry(h, mu=MU, paper_pitch=PAPER_PITCH, stall=STALL)
         fig.savefig(args.out, dpi=110)
         print(f"wrote {args.out}")
 

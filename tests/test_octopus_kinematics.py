@@ -488,6 +488,7 @@ def test_front_axle_height_on_rear_tips_against_mujoco(mj, pitch, rear):
     front = data.xpos[model.body(f"wheel_l{params.MAIN_WHEELS}").id][2] - floor
     np.testing.assert_allclose(kin.front_axle_height_on_rear_tips(pitch, rear), front, atol=1e-6)
     rear_axle = data.xpos[model.body("wheel_l1").id][2] - floor
+    np.testing.assert_allclose(kin.rear_axle_height_on_rear_tips(pitch, rear), rear_axle, atol=1e-6)
     np.testing.assert_allclose(kin.rear_axle_height_to_mount(front - params.MAIN_WHEEL_RADIUS, pitch), rear_axle,
                                atol=1e-6)
 

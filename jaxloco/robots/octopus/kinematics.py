@@ -329,15 +329,21 @@ class CrawlerProfile(NamedTuple):
     cog_z: float = float(_params.COG_R[2] + _params.BASE_HEIGHT - _params.MAIN_WHEEL_RADIUS)
 
 
-def front_axle_height_on_rear_tips(pitch: Array, rear_flipper: Array, profile: CrawlerProfile = CrawlerProfile()
-                                   ) -> Array:
-    """Height [m] of the main crawler's front axle above a flat floor when the robot rests
+def rear_axle_height_on_rear_tips(pitch: Array, rear_flipper: Array, profile: CrawlerProfile = CrawlerProfile()
+                                  ) -> Array:
+    """Height [m] of the main crawler's rear axle above a flat floor when the robot rests
     on its rear flipper tip wheels, pitched nose-up by `pitch` [rad], the rear flippers at
     `rear_flipper` [rad] (the joint angle: 0 in line with the main crawler, > 0 lifts the
     tip, < 0 turns it down and lifts the tail). Side view, no roll. Valid while the tip
     wheel is the crawler's lowest point (pitch >= rear_flipper)."""
-    rear_axle = profile.tip_radius + profile.flipper_length * jnp.sin(pitch + profile.dip - rear_flipper)
-    return rear_axle + profile.axle_spacing * jnp.sin(pitch)
+    return profile.tip_radius + profile.flipper_length * jnp.sin(pitch + profile.dip - rear_flipper)
+
+
+def front_axle_height_on_rear_tips(pitch: Array, rear_flipper: Array, profile: CrawlerProfile = CrawlerProfile()
+                                   ) -> Array:
+    """Height [m] of the main crawler's front axle above a flat floor, the robot as in
+    `rear_axle_height_on_rear_tips`."""
+    return rear_axle_height_on_rear_tips(pitch, rear_flipper, profile) + profile.axle_spacing * jnp.sin(pitch)
 
 
 def rear_axle_height_to_mount(step_height: Array, pitch: Array, profile: CrawlerProfile = CrawlerProfile()) -> Array:

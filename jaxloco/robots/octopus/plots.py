@@ -206,7 +206,7 @@ def plot_arm_on_obstacle(trace: Mapping[str, np.ndarray], arm: int = 1, *, title
 
 
 def plot_climb_geometry(step_height: float = 0.4, rear_flippers: Sequence[float] = (0.0, -0.3, -0.83), *,
-                        mu: float = 0.8, paper_pitch: float = 0.60, stall: tuple[float, float] | None = (0.80, 0.93),
+                        mu: float = 0.8, paper_pitch: float = 0.60, stall: tuple[float, float] | None = None,
                         figsize=(10.0, 4.0)):
     """What the crawlers' side profile asks of a climb (closed form, `kinematics`): left,
     the front main axle's height [m] against the nose-up pitch [rad] with the robot on its
