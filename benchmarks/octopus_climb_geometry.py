@@ -52,6 +52,24 @@ def cog_ahead_of_edge(step_height: float, profile: kinematics.CrawlerProfile = k
     return best
 
 
+def cog_needed_ahead(step_height: float, profile: kinematics.CrawlerProfile = kinematics.CrawlerProfile(),
+                     tol: float = 1e-3) -> float:
+    """How far ahead of the rear main axle [m] (along the body, at the profile's COG
+    height) the COG would have to be for `cog_ahead_of_edge` to reach 0: for the robot to
+    tip forward onto the top on its rear flipper tips and the edge alone. Bisection over
+    0-1 m; inf if even 1 m is not enough."""
+    def passes(cog_x: float) -> bool:
+        return cog_ahead_of_edge(step_height, profile._replace(cog_x=cog_x))[0] >= 0.0
+
+    lo, hi = 0.0, 1.0
+    if not passes(hi):
+        return float("inf")
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if passes(mid) else (mid, hi)
+    return hi
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--height", type=float, default=0.4, help="step height [m] (default 0.4)")
@@ -74,6 +92,13 @@ def main() -> None:
     margin, rear, pitch = cog_ahead_of_edge(h)
     print(f"on the rear flipper tips with the main crawler's bottom on the edge, short of turning over backwards: "
           f"the COG at best {margin:+.3f} m ahead of the edge (rear flippers {rear:+.2f} rad, pitch {pitch:.2f} rad)")
+    profile = kinematics.CrawlerProfile()
+    body = profile.axle_spacing + 2 * profile.wheel_radius
+    for label, cog_z in (("at our COG height", profile.cog_z), ("at the rear axle's height", 0.0)):
+        need = cog_needed_ahead(h, profile._replace(cog_z=cog_z))
+        print(f"for that bound to reach 0 the COG ({label}, {cog_z:.3f} m above the axle) would have to be "
+              f"{need:.3f} m ahead of the rear axle (ours {profile.cog_x:.3f}; the main crawler ends "
+              f"{profile.axle_spacing + profile.wheel_radius:.3f} m ahead of it, the body is {body:.2f} m long)")
     if args.out:
         import matplotlib
 
