@@ -28,38 +28,15 @@ MU = 0.8  # the scenarios' nominal friction (default, ours)
 STALL = (0.80, 0.93)
 
 
-def cog_ahead_of_edge(step_height: float, profile: kinematics.CrawlerProfile = kinematics.CrawlerProfile()
-                      ) -> tuple[float, float, float]:
-    """The most the COG gets ahead of the step edge [m] (negative: behind it) while the robot
-    rests on its rear flipper tips and on the edge under its main crawler's bottom line,
-    short of turning over backwards, over a grid of rear flipper angles and pitches [rad];
-    with the rear flipper angle and pitch where that happens. The COG must pass the edge
-    for the robot to tip forward onto the top on these two supports alone."""
-    best = (-np.inf, np.nan, np.nan)
-    for rear in np.linspace(-params.FLIPPER_LIMIT, 0.3, 71):
-        tipping = float(kinematics.tipping_pitch_on_rear_tips(rear, profile))
-        pitch = np.linspace(0.02, tipping, 300)
-        rear_axle = np.asarray(kinematics.rear_axle_height_on_rear_tips(pitch, rear, profile))
-        # where the edge meets the main crawler's bottom line, from the rear axle along the body
-        along = (step_height - rear_axle + profile.wheel_radius * np.cos(pitch)) / np.sin(pitch)
-        edge_x = profile.wheel_radius * np.sin(pitch) + along * np.cos(pitch)
-        cog_x = profile.cog_x * np.cos(pitch) - profile.cog_z * np.sin(pitch)
-        on_belly = (along >= 0.0) & (along <= profile.axle_spacing)
-        if np.any(on_belly):
-            i = int(np.argmax(np.where(on_belly, cog_x - edge_x, -np.inf)))
-            if cog_x[i] - edge_x[i] > best[0]:
-                best = (float(cog_x[i] - edge_x[i]), float(rear), float(pitch[i]))
-    return best
-
-
 def cog_needed_ahead(step_height: float, profile: kinematics.CrawlerProfile = kinematics.CrawlerProfile(),
                      tol: float = 1e-3) -> float:
     """How far ahead of the rear main axle [m] (along the body, at the profile's COG
-    height) the COG would have to be for `cog_ahead_of_edge` to reach 0: for the robot to
+    height) the COG would have to be for `kinematics.cog_lead_over_edge_on_rear_tips` to
+    reach 0: for the robot to
     tip forward onto the top on its rear flipper tips and the edge alone. Bisection over
     0-1 m; inf if even 1 m is not enough."""
     def passes(cog_x: float) -> bool:
-        return cog_ahead_of_edge(step_height, profile._replace(cog_x=cog_x))[0] >= 0.0
+        return float(kinematics.cog_lead_over_edge_on_rear_tips(step_height, profile._replace(cog_x=cog_x))[0]) >= 0.0
 
     lo, hi = 0.0, 1.0
     if not passes(hi):
@@ -89,7 +66,7 @@ def main() -> None:
         axle = float(kinematics.rear_axle_height_to_mount(h, p)) if np.isfinite(p) else float("nan")
         tip = float(kinematics.tipping_pitch_on_rear_tips(rear))
         print(f"{rear:>18.2f} {np.degrees(rear):>6.0f} {p:>18.3f} {axle:>20.3f} {tip:>19.3f}")
-    margin, rear, pitch = cog_ahead_of_edge(h)
+    margin, rear, pitch = (float(v) for v in kinematics.cog_lead_over_edge_on_rear_tips(h))
     print(f"on the rear flipper tips with the main crawler's bottom on the edge, short of turning over backwards: "
           f"the COG at best {margin:+.3f} m ahead of the edge (rear flippers {rear:+.2f} rad, pitch {pitch:.2f} rad)")
     profile = kinematics.CrawlerProfile()

@@ -509,6 +509,17 @@ def test_mount_pitch_solves_the_front_axle_height():
     check_grads(lambda a: kin.mount_pitch_on_rear_tips(h, a), (jnp.asarray(-0.5),), order=1)
 
 
+def _pose_on_rear_tips(model, data, pitch, rear):
+    """The Table 2 start pose (`home`), the chassis pitched nose-up by `pitch` [rad], the
+    rear flippers at `rear` [rad]; positions and the subtree COMs computed."""
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    data.qpos[3:7] = [np.cos(-pitch / 2), 0.0, np.sin(-pitch / 2), 0.0]  # nose up: about -y
+    for name in ("flipper_rl", "flipper_rr"):
+        data.qpos[model.joint(name).qposadr[0]] = rear
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+
+
 @pytest.mark.parametrize("rear", [0.0, -0.4, -0.6, -0.83])
 def test_tipping_pitch_puts_mujocos_com_over_the_rear_tips(mj, rear):
     """At the closed form's pitch the whole robot's centre of mass (MuJoCo, the Table 2
@@ -519,12 +530,7 @@ def test_tipping_pitch_puts_mujocos_com_over_the_rear_tips(mj, rear):
     tip = model.body(f"flipper_rl_w{params.FLIPPER_WHEELS}").id
 
     def com_ahead(pitch):
-        mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
-        data.qpos[3:7] = [np.cos(-pitch / 2), 0.0, np.sin(-pitch / 2), 0.0]
-        for name in ("flipper_rl", "flipper_rr"):
-            data.qpos[model.joint(name).qposadr[0]] = rear
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_comPos(model, data)
+        _pose_on_rear_tips(model, data, pitch, rear)
         return data.subtree_com[model.body("chassis").id][0] - data.xpos[tip][0]
 
     lo, hi = 0.0, 1.5
@@ -532,3 +538,43 @@ def test_tipping_pitch_puts_mujocos_com_over_the_rear_tips(mj, rear):
     for _ in range(40):
         lo, hi = ((lo + hi) / 2, hi) if com_ahead((lo + hi) / 2) > 0 else (lo, (lo + hi) / 2)
     assert float(kin.tipping_pitch_on_rear_tips(rear)) == pytest.approx(lo, abs=0.015)
+
+
+def test_cog_lead_over_the_edge_against_mujoco(mj):
+    """On its rear flipper tips and a 400 mm edge the COG stays 0.24 m behind the edge at
+    best. Checked at the returned pose against the MJCF: the floor under the rear tip
+    wheel, the edge where the main wheels' lower tangent is 400 mm up (between the end
+    axles) and MuJoCo's whole-robot COM (the Table 2 start pose; to 0.015 m, as the
+    tipping pitch: the flippers' own mass moves it)."""
+    h = 0.4
+    lead, rear, pitch = (float(v) for v in kin.cog_lead_over_edge_on_rear_tips(h))
+    assert -0.25 < lead < -0.23 and pitch <= float(kin.tipping_pitch_on_rear_tips(rear)) + 1e-12
+    model, data = mj
+    _pose_on_rear_tips(model, data, pitch, rear)
+    tip = f"flipper_rl_w{params.FLIPPER_WHEELS}"
+    floor = data.xpos[model.body(tip).id][2] - model.geom(tip).size[0]
+    first, last = (data.xpos[model.body(f"wheel_l{k}").id] for k in (1, params.MAIN_WHEELS))
+    axis = (last - first) / np.linalg.norm(last - first)
+    below = np.array([axis[2], 0.0, -axis[0]])  # the belly's normal, pointing down (x-z plane)
+    s = (floor + h - (first[2] + params.MAIN_WHEEL_RADIUS * below[2])) / axis[2]  # along the belly to height h
+    assert 0.0 <= s <= np.linalg.norm(last - first)
+    edge_x = first[0] + params.MAIN_WHEEL_RADIUS * below[0] + s * axis[0]
+    com_x = data.subtree_com[model.body("chassis").id][0]
+    assert com_x - edge_x == pytest.approx(lead, abs=0.015)
+
+
+def test_cog_lead_does_not_grow_with_a_longer_crawler_and_passes_with_the_cog_far_forward():
+    """The bound is set by the rear axle's height (the 250 mm flippers): longer main
+    crawlers leave it as it is; on a much shorter one the edge never gets under the belly
+    (-inf). The COG 0.5 m ahead of the rear axle (beyond the crawler's front end) would
+    pass the edge, 0.45 m would not."""
+    h, base = 0.4, kin.CrawlerProfile()
+    lead = float(kin.cog_lead_over_edge_on_rear_tips(h, base)[0])
+    for longer in (0.42, 0.52):
+        assert float(kin.cog_lead_over_edge_on_rear_tips(h, base._replace(axle_spacing=longer))[0]) == \
+            pytest.approx(lead, abs=1e-12)
+    assert float(kin.cog_lead_over_edge_on_rear_tips(h, base._replace(axle_spacing=0.15))[0]) == -np.inf
+    assert float(kin.cog_lead_over_edge_on_rear_tips(h, base._replace(cog_x=0.50))[0]) > 0.0
+    assert float(kin.cog_lead_over_edge_on_rear_tips(h, base._replace(cog_x=0.45))[0]) < 0.0
+    # a lower step is within reach: on 200 mm the COG passes the edge (the crawler-only limit is 250 mm)
+    assert float(kin.cog_lead_over_edge_on_rear_tips(0.2, base)[0]) > 0.0

@@ -377,3 +377,30 @@ def tipping_pitch_on_rear_tips(rear_flipper: Array, profile: CrawlerProfile = Cr
     phi = profile.dip - jnp.asarray(rear_flipper)
     return jnp.arctan2(profile.cog_x + profile.flipper_length * jnp.cos(phi),
                        profile.cog_z + profile.flipper_length * jnp.sin(phi))
+
+
+def cog_lead_over_edge_on_rear_tips(step_height: Array, profile: CrawlerProfile = CrawlerProfile(),
+                                    n_rear: int = 71, n_pitch: int = 300) -> tuple[Array, Array, Array]:
+    """How far [m] the COG can get ahead of a step's edge (negative: it stays behind) while
+    the robot rests on two supports only: its rear flipper tips on the floor and the edge
+    (`step_height` [m] high) under its main crawler's bottom, between the end axles, short
+    of turning over backwards (`tipping_pitch_on_rear_tips`). Side view, horizontal
+    distances. The largest over a grid of rear flipper angles (-FLIPPER_LIMIT to 0.3 rad,
+    `n_rear`) and pitches (0.02 rad to the tipping pitch, `n_pitch`, with the tip wheel the
+    lowest point: pitch >= rear flipper angle). Returns (lead [m], rear flipper angle
+    [rad], pitch [rad]) where it is reached; lead -inf where the edge is never under the
+    belly. Negative: on these supports the robot cannot tip forward onto the top, so a
+    climb needs something on the top to carry it (the front flippers or arms)."""
+    rear = jnp.linspace(-_params.FLIPPER_LIMIT, 0.3, n_rear)[:, None]
+    tipping = tipping_pitch_on_rear_tips(rear, profile)
+    pitch = 0.02 + (tipping - 0.02) * jnp.linspace(0.0, 1.0, n_pitch)[None, :]
+    axle = rear_axle_height_on_rear_tips(pitch, rear, profile)
+    r = profile.wheel_radius
+    # the edge touches the belly `along` [m] from the rear axle: along sin p + axle - r cos p = h
+    along = (jnp.asarray(step_height) - axle + r * jnp.cos(pitch)) / jnp.sin(pitch)
+    edge_x = along * jnp.cos(pitch) + r * jnp.sin(pitch)
+    cog_x = profile.cog_x * jnp.cos(pitch) - profile.cog_z * jnp.sin(pitch)
+    valid = (along >= 0.0) & (along <= profile.axle_spacing) & (pitch >= rear)
+    lead = jnp.where(valid, cog_x - edge_x, -jnp.inf)
+    i, j = jnp.unravel_index(jnp.argmax(lead), lead.shape)
+    return lead[i, j], rear[i, 0], pitch[i, j]
