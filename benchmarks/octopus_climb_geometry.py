@@ -2,8 +2,10 @@
 `jaxloco.robots.octopus.kinematics`; docs/octopus.md, "What the geometry asks"): for each
 rear flipper angle, the least nose-up pitch at which the robot, resting on its rear
 flipper tips, holds its front main wheel at the top of the step, the rear axle's height
-there, and the pitch at which it turns over backwards on those tips; and the height of
-the rear axle the paper's 0.60 rad would need. Optionally writes the figure
+there, and the pitch at which it turns over backwards on those tips; the height of
+the rear axle the paper's 0.60 rad would need; how far ahead of the edge the COG gets on
+the rear flipper tips and the edge alone, and where the COG would have to be for it to
+pass the edge. Optionally writes the figure
 (`plots.plot_climb_geometry`).
 
     python benchmarks/octopus_climb_geometry.py [--height H] [--out docs/gallery/octopus_climb_geometry.png]
@@ -32,9 +34,8 @@ def cog_needed_ahead(step_height: float, profile: kinematics.CrawlerProfile = ki
                      tol: float = 1e-3) -> float:
     """How far ahead of the rear main axle [m] (along the body, at the profile's COG
     height) the COG would have to be for `kinematics.cog_lead_over_edge_on_rear_tips` to
-    reach 0: for the robot to
-    tip forward onto the top on its rear flipper tips and the edge alone. Bisection over
-    0-1 m; inf if even 1 m is not enough."""
+    reach 0, i.e. for the robot to tip forward onto the top on its rear flipper tips and
+    the edge alone. Bisection over 0-1 m; inf if even 1 m is not enough."""
     def passes(cog_x: float) -> bool:
         return float(kinematics.cog_lead_over_edge_on_rear_tips(step_height, profile._replace(cog_x=cog_x))[0]) >= 0.0
 
@@ -67,7 +68,7 @@ def main() -> None:
         tip = float(kinematics.tipping_pitch_on_rear_tips(rear))
         print(f"{rear:>18.2f} {np.degrees(rear):>6.0f} {p:>18.3f} {axle:>20.3f} {tip:>19.3f}")
     margin, rear, pitch = (float(v) for v in kinematics.cog_lead_over_edge_on_rear_tips(h))
-    print(f"on the rear flipper tips with the main crawler's bottom on the edge, short of turning over backwards: "
+    print(f"on the rear flipper tips with the main crawler's bottom on the edge, up to turning over backwards: "
           f"the COG at best {margin:+.3f} m ahead of the edge (rear flippers {rear:+.2f} rad, pitch {pitch:.2f} rad)")
     profile = kinematics.CrawlerProfile()
     body = profile.axle_spacing + 2 * profile.wheel_radius

@@ -383,9 +383,9 @@ def cog_lead_over_edge_on_rear_tips(step_height: Array, profile: CrawlerProfile 
                                     n_rear: int = 71, n_pitch: int = 300) -> tuple[Array, Array, Array]:
     """How far [m] the COG can get ahead of a step's edge (negative: it stays behind) while
     the robot rests on two supports only: its rear flipper tips on the floor and the edge
-    (`step_height` [m] high) under its main crawler's bottom, between the end axles, short
-    of turning over backwards (`tipping_pitch_on_rear_tips`). Side view, horizontal
-    distances. The largest over a grid of rear flipper angles (-FLIPPER_LIMIT to 0.3 rad,
+    (`step_height` [m] high) under its main crawler's bottom, between the end axles, up
+    to the pitch at which it turns over backwards (`tipping_pitch_on_rear_tips`). Side
+    view, horizontal distances. The largest over a grid of rear flipper angles (-FLIPPER_LIMIT to 0.3 rad,
     `n_rear`) and pitches (0.02 rad to the tipping pitch, `n_pitch`, with the tip wheel the
     lowest point: pitch >= rear flipper angle). Returns (lead [m], rear flipper angle
     [rad], pitch [rad]) where it is reached; lead -inf where the edge is never under the
