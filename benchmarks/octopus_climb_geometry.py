@@ -5,10 +5,11 @@ flipper tips, holds its front main wheel at the top of the step, the rear axle's
 there, and the pitch at which it turns over backwards on those tips; the height of
 the rear axle the paper's 0.60 rad would need; how far ahead of the edge the COG gets on
 the rear flipper tips and the edge alone, and where the COG would have to be for it to
-pass the edge. Optionally writes the figure
-(`plots.plot_climb_geometry`).
+pass the edge. Optionally writes the figures (`plots.plot_climb_geometry`,
+`plots.plot_cog_lead`).
 
     python benchmarks/octopus_climb_geometry.py [--height H] [--out docs/gallery/octopus_climb_geometry.png]
+        [--out-lead docs/gallery/octopus_cog_lead.png]
 """
 
 from __future__ import annotations
@@ -52,6 +53,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--height", type=float, default=0.4, help="step height [m] (default 0.4)")
     ap.add_argument("--out", default=None, help="write the figure here (PNG)")
+    ap.add_argument("--out-lead", default=None,
+                    help="write the COG-over-the-edge figure here (PNG, `plots.plot_cog_lead`)")
     args = ap.parse_args()
     if not 0.0 < args.height < 1.0:
         ap.error(f"--height {args.height:g}: expected a step height in (0, 1) m")
@@ -77,13 +80,17 @@ def main() -> None:
         print(f"for that bound to reach 0 the COG ({label}, {cog_z:.3f} m above the axle) would have to be "
               f"{need:.3f} m ahead of the rear axle (ours {profile.cog_x:.3f}; the main crawler ends "
               f"{profile.axle_spacing + profile.wheel_radius:.3f} m ahead of it, the body is {body:.2f} m long)")
-    if args.out:
+    if args.out or args.out_lead:
         import matplotlib
 
         matplotlib.use("Agg")
+    if args.out:
         fig = plots.plot_climb_geometry(h, mu=MU, paper_pitch=PAPER_PITCH, stall=STALL)
         fig.savefig(args.out, dpi=110)
         print(f"wrote {args.out}")
+    if args.out_lead:
+        plots.plot_cog_lead(h).savefig(args.out_lead, dpi=110)
+        print(f"wrote {args.out_lead}")
 
 
 if __name__ == "__main__":

@@ -94,3 +94,21 @@ def test_climb_geometry_figure_marks_each_mount_pitch():
     assert a2.get_lines()[1].get_ydata() == pytest.approx(
         np.asarray(kinematics.tipping_pitch_on_rear_tips(a2.get_lines()[1].get_xdata())))
     assert len(a2.collections) == 1  # the window where the robot mounts without slipping or tipping
+
+
+def test_cog_lead_figure_draws_the_bound_per_cog_height():
+    from jaxloco.robots.octopus import kinematics
+
+    xs = (0.1, 0.3, 0.5)
+    fig = plots.plot_cog_lead(0.4, cog_heights=(0.183, 0.0), cog_x=xs)
+    (ax,) = fig.get_axes()
+    lines = ax.get_lines()[:2]
+    base = kinematics.CrawlerProfile()
+    for line, cz in zip(lines, (0.183, 0.0)):
+        assert list(line.get_xdata()) == pytest.approx(xs)
+        expected = [float(kinematics.cog_lead_over_edge_on_rear_tips(0.4, base._replace(cog_x=x, cog_z=cz))[0])
+                    for x in xs]
+        assert list(line.get_ydata()) == pytest.approx(expected)
+    # at our COG height the COG passes the edge only beyond 0.45 m; at the axles' height from about 0.31 m
+    assert lines[0].get_ydata()[1] < 0 < lines[0].get_ydata()[2]
+    assert lines[1].get_ydata()[0] < 0 < lines[1].get_ydata()[2]

@@ -257,3 +257,34 @@ def plot_climb_geometry(step_height: float = 0.4, rear_flippers: Sequence[float]
     a1.set_xlabel("nose-up pitch [rad]")
     fig.suptitle(f"Crawler side profile on a {step_height:g} m step, robot on its rear flipper tips", fontsize="medium")
     return fig
+
+
+def plot_cog_lead(step_height: float = 0.4, cog_heights: Sequence[float] = (0.183, 0.1, 0.0), *,
+                  cog_x: Sequence[float] | None = None, figsize=(6.0, 4.0)):
+    """Whether the robot can tip forward onto a `step_height` [m] top on its rear flipper
+    tips and the edge alone (`kinematics.cog_lead_over_edge_on_rear_tips`): the most the
+    COG gets ahead of the edge [m] against how far ahead of the rear main axle it sits
+    [m], one line per COG height above the axles [m]; above 0 it passes the edge. Marks
+    our COG (`CrawlerProfile`) and the main crawler's front end."""
+    import matplotlib.pyplot as plt
+
+    from jaxloco.robots.octopus import kinematics
+
+    base = kinematics.CrawlerProfile()
+    xs = np.linspace(0.0, 0.6, 61) if cog_x is None else np.asarray(cog_x, float)
+    fig, ax = plt.subplots(figsize=figsize, layout="constrained")
+    for k, cz in enumerate(cog_heights):
+        lead = [float(kinematics.cog_lead_over_edge_on_rear_tips(step_height, base._replace(cog_x=x, cog_z=cz))[0])
+                for x in xs]
+        ax.plot(xs, lead, color=f"C{k}", lw=1.3, label=f"COG {cz:.3f} m above the axles")
+    ax.axhline(0.0, color="k", lw=0.9, ls="--", label="COG over the edge")
+    ax.axvline(base.cog_x, color="0.4", lw=1.0, ls=":", label=f"our COG ({base.cog_x:.3f} m, {base.cog_z:.3f} m up)")
+    front = base.axle_spacing + base.wheel_radius
+    ax.axvline(front, color="C3", lw=1.0, ls="-.", label=f"main crawler's front end ({front:.2f} m)")
+    ax.set_xlabel("COG ahead of the rear main axle [m]")
+    ax.set_ylabel("COG ahead of the edge, at best [m]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="x-small")
+    ax.set_title(f"On the rear flipper tips and a {step_height:g} m edge alone (flippers "
+                 f"{base.flipper_length:g} m)", fontsize="medium")
+    return fig
