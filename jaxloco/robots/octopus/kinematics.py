@@ -1,8 +1,9 @@
 """OCTOPUS arm kinematics (Eqs. 1-6, Table 1), terrain exploration from the four arm
 endpoints (Cases 1-3, Eqs. 7-9), COG height (Eqs. 10-17), travelled distance (Eq. 18) and
 the crawlers' side profile on a step edge (`CrawlerProfile`: what pitch and tail height
-put the front main wheel on a step top, and at what pitch the robot on its rear flipper
-tips turns over backwards; ours, docs/octopus.md "What the geometry asks").
+put the front main wheel on a step top, at what pitch the robot on its rear flipper tips
+turns over backwards, and how far its COG gets ahead of the edge on those tips and the
+edge alone; ours, docs/octopus.md "What the geometry asks").
 
 Pure JAX: every function works on one robot with fixed shapes (jit, vmap, grad); SI units
 (m, rad). Frames ({R} robot, {J_i} arm joint frame, {C} level frame) and the arm numbering
@@ -385,9 +386,10 @@ def cog_lead_over_edge_on_rear_tips(step_height: Array, profile: CrawlerProfile 
     the robot rests on two supports only: its rear flipper tips on the floor and the edge
     (`step_height` [m] high) under its main crawler's bottom, between the end axles, up
     to the pitch at which it turns over backwards (`tipping_pitch_on_rear_tips`). Side
-    view, horizontal distances. The largest over a grid of rear flipper angles (-FLIPPER_LIMIT to 0.3 rad,
-    `n_rear`) and pitches (0.02 rad to the tipping pitch, `n_pitch`, with the tip wheel the
-    lowest point: pitch >= rear flipper angle). Returns (lead [m], rear flipper angle
+    view, horizontal distances. The largest over a grid of rear flipper angles
+    (-FLIPPER_LIMIT to 0.3 rad, `n_rear`) and pitches (0.02 rad to the tipping pitch,
+    `n_pitch`, with the tip wheel the lowest point: pitch >= rear flipper angle). The
+    profile's fields may be traced (vmap over a COG place, for instance). Returns (lead [m], rear flipper angle
     [rad], pitch [rad]) where it is reached; lead -inf where the edge is never under the
     belly. Negative: on these supports the robot cannot tip forward onto the top, so a
     climb needs something on the top to carry it (the front flippers or arms)."""

@@ -15,6 +15,9 @@ read any table (heatmap, plot_tuning, plot_validation) are in `jaxloco.plots`.
     plot_climb_geometry(step_height)             what pitch puts the front main wheel on a step top
                                                  with the robot on its rear flipper tips, and where
                                                  it turns over backwards (closed form, `kinematics`)
+    plot_cog_lead(step_height)                   how far ahead of a step edge the COG gets on the
+                                                 rear flipper tips and the edge alone, against the
+                                                 COG's place and height (`kinematics`)
 
 A table is a `pyarrow.Table` or a mapping of column name to array. Every plot function
 returns the matplotlib Figure; matplotlib is imported inside the functions. Nothing here
@@ -31,7 +34,7 @@ import numpy as np
 from jaxloco.plots import column, heatmap, spans
 
 __all__ = ["TERRAIN_NAMES", "climb_trace", "plot_accuracy_map", "plot_arm_joints", "plot_arm_on_obstacle",
-           "plot_attitude_traces", "plot_climb_geometry", "plot_climb_traces"]
+           "plot_attitude_traces", "plot_climb_geometry", "plot_climb_traces", "plot_cog_lead"]
 
 TERRAIN_NAMES = ("flat", "step up", "step down", "slope up", "slope down", "rough")  # analysis.TERRAINS order
 ARM_LABELS = ("LF", "RF", "LR", "RR")  # params.ARM_LABELS (arms 1..4)
@@ -259,24 +262,27 @@ def plot_climb_geometry(step_height: float = 0.4, rear_flippers: Sequence[float]
     return fig
 
 
-def plot_cog_lead(step_height: float = 0.4, cog_heights: Sequence[float] = (0.183, 0.1, 0.0), *,
+def plot_cog_lead(step_height: float = 0.4, cog_heights: Sequence[float] | None = None, *,
                   cog_x: Sequence[float] | None = None, figsize=(6.0, 4.0)):
     """Whether the robot can tip forward onto a `step_height` [m] top on its rear flipper
     tips and the edge alone (`kinematics.cog_lead_over_edge_on_rear_tips`): the most the
     COG gets ahead of the edge [m] against how far ahead of the rear main axle it sits
-    [m], one line per COG height above the axles [m]; above 0 it passes the edge. Marks
-    our COG (`CrawlerProfile`) and the main crawler's front end."""
+    (`cog_x` [m], default 0-0.6 m), one line per COG height above the axles
+    (`cog_heights` [m], default ours, 0.1 and 0); above 0 it passes the edge. Marks our
+    COG (`CrawlerProfile`) and the main crawler's front end."""
+    import jax
     import matplotlib.pyplot as plt
 
     from jaxloco.robots.octopus import kinematics
 
     base = kinematics.CrawlerProfile()
+    heights = (base.cog_z, 0.1, 0.0) if cog_heights is None else tuple(cog_heights)
     xs = np.linspace(0.0, 0.6, 61) if cog_x is None else np.asarray(cog_x, float)
     fig, ax = plt.subplots(figsize=figsize, layout="constrained")
-    for k, cz in enumerate(cog_heights):
-        lead = [float(kinematics.cog_lead_over_edge_on_rear_tips(step_height, base._replace(cog_x=x, cog_z=cz))[0])
-                for x in xs]
-        ax.plot(xs, lead, color=f"C{k}", lw=1.3, label=f"COG {cz:.3f} m above the axles")
+    for k, cz in enumerate(heights):
+        lead = jax.vmap(lambda x, cz=cz: kinematics.cog_lead_over_edge_on_rear_tips(
+            step_height, base._replace(cog_x=x, cog_z=cz))[0])(xs)
+        ax.plot(xs, np.asarray(lead), color=f"C{k}", lw=1.3, label=f"COG {cz:.3f} m above the axles")
     ax.axhline(0.0, color="k", lw=0.9, ls="--", label="COG over the edge")
     ax.axvline(base.cog_x, color="0.4", lw=1.0, ls=":", label=f"our COG ({base.cog_x:.3f} m, {base.cog_z:.3f} m up)")
     front = base.axle_spacing + base.wheel_radius
