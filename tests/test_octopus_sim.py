@@ -2,6 +2,7 @@
 terrain, driving speed on flat ground, and the crawler-only climbing limit (paper: CCM
 fails the 400 mm step)."""
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -33,6 +34,33 @@ def test_step_height_differs_per_simulation():
     assert r.records["contact"][:, -1].sum(-1).min() >= 6
     assert (r.metrics["min_margin"] > 0.03).all()
     assert not r.metrics["success"].any()
+
+
+@pytest.mark.parametrize("kind", scenarios.KINDS)
+def test_terrain_reaches_as_far_as_the_longest_run_can_drive(kind):
+    """Every terrain carries the robot as far as it can drive within the longest horizon
+    (600 s at 63 mm/s, `scenarios.REACH`), ahead and to the sides: MuJoCo's ray cast,
+    straight down onto the placed terrain, finds the top where `terrain_height` says.
+    (With 5 m step tops a CCM run of 150 s drove off the step it had climbed.)"""
+    horizon = params.PARAMETERS["horizon"]
+    assert scenarios.REACH > horizon.hi * params.CRAWLER_MAX_SPEED
+    m, terrain = scenarios.build_model(kind)
+    d = mujoco.MjData(m)
+    p = {**scenarios.PARAM_DEFAULTS, "height": 0.3, "distance": 3.0}
+    pos, quat = terrain.place(scenarios.terrain_values(kind, p))
+    rows = tr.mocap_ids(m, terrain)
+    d.mocap_pos[rows], d.mocap_quat[rows] = np.asarray(pos), np.asarray(quat)
+    mujoco.mj_forward(m, d)
+    far = scenarios.REACH - 0.5
+    # pit: the platform the robot starts on ends at `distance`; along it, sideways
+    ahead = 2.0 if kind == "pit" else far
+    points = [(ahead, 0.0), (ahead, 0.9 * far), (ahead, -0.9 * far), (0.0, 0.9 * far), (0.0, -0.9 * far)]
+    for x, y in points:
+        geom = np.zeros(1, np.int32)
+        dist = mujoco.mj_ray(m, d, np.array([x, y, 2.0]), np.array([0.0, 0.0, -1.0]), None, 1, -1, geom)
+        assert dist > 0.0, f"{kind}: no ground under ({x}, {y})"
+        want = float(scenarios.terrain_height(kind, p, np.array([x, y])))
+        assert 2.0 - dist == pytest.approx(want, abs=1e-6), (kind, x, y)
 
 
 def test_ccm_drives_at_commanded_speed_on_flat_ground():

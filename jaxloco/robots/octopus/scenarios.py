@@ -91,6 +91,13 @@ KINDS = ("step1", "step2_front", "step2_side", "block", "flat", "pit")
 TERRACE_DEPTH = 0.8  # [m] depth of the first terrace of the two-terrace steps
 MAX_HEIGHT = params.MAX_HEIGHT  # [m] highest step the terrain boxes allow
 PIT_PLATFORM = 5.0  # [m] length of the platform the robot starts on in "pit" (its far edge at `distance`)
+# How far the robot can drive within the longest horizon a sweep allows, at the crawlers'
+# top speed [m]: every terrain reaches this far beyond its start, ahead and to the sides,
+# so that a long run ends where the robot drove, not over the edge of the world. (Until
+# 7 Dec 2026 the step tops were 5 m long and the steps 2 m wide: the CCM, at 63 mm/s,
+# drove off the top of a step it had climbed after about 95 s, and every such run of a
+# 150 s sweep ended "diverged".)
+REACH = params.PARAMETERS["horizon"].hi * params.CRAWLER_MAX_SPEED + 2.0
 PIT_BOTTOM = -10.0  # [m] the "height" reported beyond the pit's edge (there is no ground there)
 # the block (the paper gives its height only): a 0.5 m concrete cube
 BLOCK_SIZE = 0.5  # [m] length (x) and width (y)
@@ -164,13 +171,15 @@ def build_model(kind: str) -> tuple[mujoco.MjModel, tr.Terrain]:
         raise ValueError(f"kind: expected one of {', '.join(KINDS)}, got {kind!r}")
     spec = model.load_spec()
     if kind == "flat":
-        terrain = tr.flat(half_extent=10.0, half_depth=0.5)
+        terrain = tr.flat(half_extent=REACH, half_depth=0.5)
     elif kind == "block":
-        terrain = tr.blocks(n=1, half_size=(0.5 * BLOCK_SIZE, 0.5 * BLOCK_SIZE, 0.5 * MAX_HEIGHT))
-    elif kind in ("step1", "pit"):
-        terrain = tr.steps(n_terraces=1, max_height=MAX_HEIGHT, last_length=PIT_PLATFORM)
-    else:
-        terrain = tr.steps(n_terraces=2, depth=TERRACE_DEPTH, max_height=MAX_HEIGHT)
+        terrain = tr.blocks(n=1, half_size=(0.5 * BLOCK_SIZE, 0.5 * BLOCK_SIZE, 0.5 * MAX_HEIGHT),
+                            floor_half_extent=REACH)
+    elif kind == "pit":
+        terrain = tr.steps(n_terraces=1, max_height=MAX_HEIGHT, last_length=PIT_PLATFORM, half_width=REACH)
+    else:  # the last terrace's top reaches REACH beyond the riser; the floor, behind, the start
+        terrain = tr.steps(n_terraces=1 if kind == "step1" else 2, depth=TERRACE_DEPTH, max_height=MAX_HEIGHT,
+                           last_length=REACH, half_width=REACH)
     terrain.add_to(spec, friction=(PARAM_DEFAULTS["mu"], 0.005, 0.0001))
     return spec.compile(), terrain
 
