@@ -7,6 +7,7 @@ ours; the bundled spec is the paper's 5 tasks x 20 runs on the paper's method.""
 from __future__ import annotations
 
 import numpy as np
+import pyarrow as pa
 import pytest
 from compile_count import run_counting
 
@@ -72,6 +73,30 @@ def test_summary_puts_the_papers_numbers_beside_ours(tiny):
     assert ccm["failures"] == f"2 stuck; {short.mean():.2f} ({short.min():.2f}) m short"
     assert (short > 0.5).all()  # 1 s of driving from 0.6-0.8 m before the riser, the line 0.3 m beyond it
     assert "Eqs. 28-29" in s.title
+
+
+def _table(tasks, success, climb_paper=1.0):
+    """A stand-in sweep table of `tasks` rows with the columns `summarize` reads."""
+    n = len(tasks)
+    return pa.table({"task": tasks, "status": ["ok" if s else "failed" for s in success], "success": success,
+                     "climb_time": [10.0 if s else np.nan for s in success], "max_pitch": [0.5] * n,
+                     "max_abs_roll": [0.1] * n, "min_margin": [0.05] * n,
+                     "shortfall": [0.0 if s else 0.6 for s in success],
+                     "climb_paper": [climb_paper] * n, "crawl_max_h": [0.0] * n})
+
+
+def test_summary_points_to_why_when_the_papers_climb_gets_over_nothing():
+    assert paper_analysis.CLIMB_TASKS == ("step1_clm", "step2_front", "step2_side")
+    tasks = ["step1_clm", "step2_front", "block", "step1_ccm"]
+
+    def pointed(success, climb_paper=1.0):
+        notes = paper_analysis.summarize(_table(tasks, success, climb_paper)).notes
+        return any("octopus_low_steps" in n and "It does not climb yet" in n for n in notes)
+
+    assert pointed([False, False, True, False])  # the block and the CCM do not count
+    assert not pointed([False, True, True, False])  # one climb got over
+    assert not pointed([False, False, True, False], climb_paper=0.0)  # our level lift: not the paper's climb
+    assert not paper_analysis.summarize(_table(["block"], [False])).notes[1:]  # no climbing task run
 
 
 def test_task_values_and_perturbations():
