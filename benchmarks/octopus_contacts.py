@@ -1,6 +1,6 @@
-"""What the OCTOPUS stands on: one CLM climb of the 400 mm step on native MuJoCo, and at
-chosen times every robot geom touching the terrain, with the contact's point, its
-normal's angle from the horizontal and the load.
+"""What the OCTOPUS stands on: one CLM climb of a step (400 mm unless `--set height=H`) on
+native MuJoCo, and at chosen times every robot geom touching the terrain, with the
+contact's point, its normal's angle from the horizontal and the load.
 
     python benchmarks/octopus_contacts.py [--time T ...] [--set name=value ...] [--horizon S] [--push F]
 
@@ -64,7 +64,8 @@ def report(times: list[float], overrides: dict[str, float], horizon: float, push
     edge = float(np.asarray(params["distance"])[0])
     touch_of = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b): k for k, b in enumerate(scenarios.SUPPORT_BODIES)}
     robot = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "chassis")
-    print(f"400 mm step, riser at x = {edge:.2f} m; {', '.join(f'{k} = {v:g}' for k, v in over.items())}; "
+    settings = ", ".join(f"{k} = {v:g}" for k, v in over.items())
+    print(f"{1000 * over['height']:.0f} mm step, riser at x = {edge:.2f} m; {settings}; "
           f"forward push {push:g} x weight; "
           f"status {res.status[0]}, success {bool(res.metrics['success'][0])}")
     for t in times:
