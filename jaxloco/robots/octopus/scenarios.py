@@ -91,6 +91,7 @@ KINDS = ("step1", "step2_front", "step2_side", "block", "flat", "pit")
 TERRACE_DEPTH = 0.8  # [m] depth of the first terrace of the two-terrace steps
 MAX_HEIGHT = params.MAX_HEIGHT  # [m] highest step the terrain boxes allow
 PIT_PLATFORM = 5.0  # [m] length of the platform the robot starts on in "pit" (its far edge at `distance`)
+PIT_BOTTOM = -10.0  # [m] the "height" reported beyond the pit's edge (there is no ground there)
 # How far the robot can drive within the longest horizon a sweep allows, at the crawlers'
 # top speed [m]: every terrain reaches this far beyond its start, ahead and to the sides,
 # so that a long run ends where the robot drove, not over the edge of the world. (Until
@@ -98,7 +99,6 @@ PIT_PLATFORM = 5.0  # [m] length of the platform the robot starts on in "pit" (i
 # drove off the top of a step it had climbed after about 95 s, and every such run of a
 # 150 s sweep ended "diverged".)
 REACH = params.PARAMETERS["horizon"].hi * params.CRAWLER_MAX_SPEED + 2.0
-PIT_BOTTOM = -10.0  # [m] the "height" reported beyond the pit's edge (there is no ground there)
 # the block (the paper gives its height only): a 0.5 m concrete cube
 BLOCK_SIZE = 0.5  # [m] length (x) and width (y)
 ROBOT_SIDE = params.CRAWLER_Y + params.MAIN_WHEEL_RADIUS  # [m] |y| of the crawlers' outer side
