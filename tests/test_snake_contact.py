@@ -77,6 +77,22 @@ def test_log_error_is_zero_on_the_papers_means_and_log_2_at_twice():
     assert contact.log_error({"i": np.array([1.0, 0.0, 1.0])}) == np.inf
 
 
+def test_height_exponents_recover_a_power_law_and_leave_out_incomplete_series():
+    """f = c z_h^n per column is recovered exactly; the paper's Table IV gives f_x, f_y about
+    z_h^-2 and f_z rising (two-point closed form on (i), (iii): log(f3 / f1) / log(0.30 / 0.40))."""
+    n = np.array([-2.0, 1.5, 0.7])
+    means = {k: np.array([3.0, 5.0, 7.0]) * contact.POSTURES[k][0] ** n for k in ("i", "ii", "iii", "iv", "v")}
+    out = contact.height_exponents(means)
+    assert set(out) == {"straight"}  # (vi) missing: no L series
+    np.testing.assert_allclose(out["straight"], n, atol=1e-12)
+    paper = {k: np.array([m for m, _ in f]) for k, f in contact.PAPER_FORCES.items()}
+    ex = contact.height_exponents(paper)
+    two_point = np.log(paper["iii"] / paper["i"]) / np.log(0.30 / 0.40)
+    np.testing.assert_allclose(ex["straight"], two_point, atol=0.15)
+    assert np.all(ex["straight"][:2] < -1.5) and np.all(ex["L"][:2] < -1.5) and ex["L"][2] > 1.0
+    assert contact.height_exponents({k: np.array([1.0, 0.0, 1.0]) for k in ("i", "ii", "iii")}) == {}
+
+
 @pytest.fixture(scope="module")
 def rows():
     """Posture (iii), two trials, short ramp and hold (one compile for the module)."""
@@ -134,14 +150,16 @@ def test_summary_has_the_papers_forces_and_checks_the_trends():
     assert [r[0] for r in s.rows] == [f"({k})" for k in names]
     assert s.rows[2][5] == "30.4 ± 0.0 / 30.4 ± 1.7" and all(r[-1] == "yes" for r in s.rows)
     # the paper's own means satisfy the paper's trends
-    assert all(t.endswith(": holds") for t in s.notes[1:5]) and len(s.notes) == 6
+    assert all(t.endswith(": holds") for t in s.notes[1:5]) and len(s.notes) == 7
+    # the paper's own height exponents beside themselves
+    assert s.notes[5].startswith("force ~ z_h^n") and "straight f_x -2.0 / -2.0, f_y -1.8 / -1.8" in s.notes[5]
     # which model made the table: the defaults where the table has no l_bend / wheel_creep columns
-    assert s.notes[5] == "model: the L bent at the middle (theta_6 = theta_7 = 45 deg), hard wheel friction"
+    assert s.notes[6] == "model: the L bent at the middle (theta_6 = theta_7 = 45 deg), hard wheel friction"
     flipped = pa.table({"posture": names, "status": ["ok"] * len(names), "fx": paper[::-1, 0], "fy": paper[:, 1],
                         "fz": paper[:, 2], "l_bend": ["tail"] * len(names), "wheel_creep": [0.2] * len(names)})
     s = contact.summarize(flipped)
     assert any(t.endswith("does not hold") for t in s.notes[1:5])
-    assert s.notes[5] == ("model: the L bent at the tail (theta_8 = theta_9 = 45 deg), wheels creeping sideways "
+    assert s.notes[6] == ("model: the L bent at the tail (theta_8 = theta_9 = 45 deg), wheels creeping sideways "
                           "(wheel_creep 0.2 s)")
 
 

@@ -441,6 +441,38 @@ def trends(means: Mapping[str, np.ndarray]) -> dict[str, bool]:
     return out
 
 
+HEIGHT_SERIES = {"straight": ("i", "ii", "iii"), "L": ("iv", "v", "vi")}  # Table IV: z_h 0.40, 0.35, 0.30 m
+
+
+def height_exponents(means: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """How the forces scale with the head's height: per base part ("straight": (i)-(iii),
+    "L": (iv)-(vi)) the exponents n (3,) of f_x, f_y, f_z ~ z_h^n [-], the least-squares
+    slope of log f against log z_h over that series, from mean forces per posture (f_x,
+    f_y, f_z) [N]; a base whose series is incomplete or has a force <= 0 is left out.
+    The paper's Table IV gives f_x and f_y about z_h^-2, the law of a rotational
+    compliance about an axis near the floor (lever z_h); f_z rises with z_h."""
+    out = {}
+    for base, names in HEIGHT_SERIES.items():
+        if not all(k in means for k in names):
+            continue
+        forces = np.array([np.asarray(means[k], float) for k in names])
+        if not np.all(forces > 0):
+            continue
+        log_z = np.log([POSTURES[k][0] for k in names])
+        out[base] = np.polyfit(log_z, np.log(forces), 1)[0]
+    return out
+
+
+def _exponent_note(means: Mapping[str, np.ndarray]) -> str | None:
+    paper = height_exponents({k: np.array([m for m, _ in f]) for k, f in PAPER_FORCES.items()})
+    ours = height_exponents(means)
+    if not ours:
+        return None
+    cells = [f"{base} f_x {o[0]:+.1f} / {paper[base][0]:+.1f}, f_y {o[1]:+.1f} / {paper[base][1]:+.1f}, "
+             f"f_z {o[2]:+.1f} / {paper[base][2]:+.1f}" for base, o in ours.items()]
+    return "force ~ z_h^n over (i)-(iii) and (iv)-(vi), n ours / paper: " + "; ".join(cells)
+
+
 def log_error(means: Mapping[str, np.ndarray]) -> float:
     """The RMS over the given postures and the three directions of log(ours / paper's
     mean) [-] (0: all equal, log 2 = 0.69: all twice or half the paper's), from mean
@@ -483,6 +515,7 @@ def summarize(table) -> Summary:
         rows.append((f"({k})", f"{z:.2f}", f"{y:.1f}", base, f"{int(sel.sum())}/{int((postures == k).sum())}",
                      *cells, "yes" if within else "no"))
     notes = [f"{name}: {'holds' if held else 'does not hold'}" for name, held in trends(means).items()]
+    exponents = _exponent_note(means)
     return Summary(
         title="T² Snake-3 contact forces of the head (Tables IV-V), force plate in MuJoCo, the paper's feedforward "
               "control",
@@ -490,7 +523,7 @@ def summarize(table) -> Summary:
                  "f_z [N] ours / paper", "all within 25 %"),
         rows=tuple(rows),
         notes=(("largest normal force on the plate over each push, mean ± SD over the trials; paper: Tanaka et al. "
-                "2019, Tables IV-V (5 trials)"), *notes, _model_note(cols)),
+                "2019, Tables IV-V (5 trials)"), *notes, *([exponents] if exponents else []), _model_note(cols)),
     )
 
 
