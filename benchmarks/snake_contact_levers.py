@@ -1,6 +1,6 @@
 """T² Snake-3: what sets the contact forces' trend with the head's height (Tables IV-V), in closed form.
 
-    python benchmarks/snake_contact_levers.py [OVERSHOOT_MM]
+    python benchmarks/snake_contact_levers.py [OVERSHOOT_MM] [--sim [POSTURE ...]]
 
 The paper's f_x and f_y both scale about as z_h^-2 over (i)-(iii) and (iv)-(vi), the law
 of a push resisted by a rotational spring whose axis lies at a height h0 below the
@@ -14,6 +14,14 @@ overshoots by OVERSHOOT_MM (default: `contact.OVERSHOOT`) against the head servo
 stiffness alone (`model.KP`): f = delta / sum_i(lever_i^2 / KP). That is an upper bound
 on the servo-limited force (the base, the wheels and the contact give too), and its
 trend is the head part's geometry.
+
+With --sim (about 1 min; default postures i ii iii iv vi) it runs the three pushes of
+each posture in MuJoCo (`contact.contact_scenario`, the defaults, one trial without
+jitter) and splits the give along the push at the force's peak, counted from the push's
+start: the head target (`kinsim.Target`'s smooth step) less the head, into the head-part
+joints' share (the head the commanded joints would put on the measured base less the
+measured head) and the rest, the base's (the base where it is, not where the
+feedforward controller put it), with link 7's motion over the push.
 """
 
 from __future__ import annotations
@@ -60,7 +68,57 @@ def levers(name: str) -> tuple[np.ndarray, float]:
     return out, float(head[2])
 
 
+def give_at_peak(postures: list[str]) -> None:
+    """Print where each push's give went at its force peak (module docstring, --sim)."""
+    from jaxloco.robots.snake import experiments
+    from jaxloco.sim.rollout import Simulator
+
+    ramp, hold, settle = 4.0, 3.0, float(sp.PARAMETERS.default("settle"))
+    n = len(postures)
+    sim = Simulator(nthread=2)
+    heads = contact.settled_heads(np.array(postures), ramp, hold, settle, sim)
+    params = contact.push_params(np.array(postures), np.full(n, contact.FLOOR_MU), np.zeros(n),
+                                 np.full(n, contact.OVERSHOOT), ramp, settle, heads)
+    params["key"] = np.zeros((3 * n, 2), np.uint32)
+    rec = {k: np.asarray(v) for k, v in sim.run(contact.contact_scenario(ramp, hold, settle), params).records.items()}
+    t = (np.arange(rec["head"].shape[1]) + 1) * contact.CONTROL_DT
+    t0 = settle + experiments.T_START
+    i0, i_end = np.searchsorted(t, t0), np.searchsorted(t, t0 + ramp + 0.5)
+    tau = np.clip((t - t0) / ramp, 0.0, 1.0)
+    step = tau - np.sin(2 * np.pi * tau) / (2 * np.pi)  # kinsim.Target's smooth step
+    travel = contact.PLATE_GAP + contact.OVERSHOOT
+    print(f"\ngive along the push at the force peak, from the push's start [mm] (MuJoCo, "
+          f"{contact.OVERSHOOT * 1e3:g} mm overshoot); link 7's motion over the push")
+    print(f"{'posture':8s} push  peak [N]  give  joints  base   link7 dx dy [mm]  droll dyaw [rad]")
+    for i, name in enumerate(postures):
+        w0 = contact.kinematic_head(*contact.head_posture(*contact.POSTURES[name]))[:3]
+        for d, push in enumerate(contact.PUSH):
+            j = 3 * i + d
+            force = np.convolve(rec["fixture"][j, :, 0], np.ones(contact.SMOOTH_RECORDS) / contact.SMOOTH_RECORDS,
+                                mode="same")
+            ip = int(np.argmax(force[:i_end]))
+            head, base = rec["head"][j, :, :3], rec["base"][j]
+
+            def commanded(k):  # the head the commanded joints put on the measured base
+                return contact.kinematic_head(rec["phi_cmd"][j, k], base[k, [0, 1, 5]])[:3]
+
+            def target(k):
+                return w0 + push * travel * step[k]
+
+            give = ((target(ip) - head[ip]) - (target(i0) - head[i0])) @ push
+            joints = ((commanded(ip) - head[ip]) - (commanded(i0) - head[i0])) @ push
+            moved = base[ip] - base[i0]
+            lead = f"({name})" if d == 0 else ""
+            print(f"{lead:8s} f_{contact.DIRECTIONS[d]}   {force[ip]:7.1f}  {give * 1e3:5.1f}  {joints * 1e3:5.1f}  "
+                  f"{(give - joints) * 1e3:5.1f}   {moved[0] * 1e3:6.1f} {moved[1] * 1e3:5.1f}      "
+                  f"{moved[3]:+.4f} {moved[5]:+.4f}")
+
+
 def main(argv: list[str]) -> None:
+    sim_postures = None
+    if "--sim" in argv:
+        at = argv.index("--sim")
+        sim_postures, argv = argv[at + 1:] or ["i", "ii", "iii", "iv", "vi"], argv[:at]
     delta = float(argv[0]) / 1e3 if argv else contact.OVERSHOOT
     paper = {k: np.array([m for m, _ in f]) for k, f in contact.PAPER_FORCES.items()}
     ours = {k: np.array(v) for k, v in OURS.items()}
@@ -82,6 +140,8 @@ def main(argv: list[str]) -> None:
             zc = f"{z:5.2f}" if d == 0 else " " * 5
             print(f"{lead:8s} {zc}  f_{push}   " + " ".join(f"{v:+7.3f}" for v in lv[d])
                   + f"   {force:6.1f}  {contact.PAPER_FORCES[name][d][0]:5.1f}")
+    if sim_postures:
+        give_at_peak(sim_postures)
 
 
 if __name__ == "__main__":
