@@ -240,3 +240,23 @@ def test_creeping_wheels_take_each_simulations_floor_friction():
         friction = batch.get_model(i).pair_friction
         np.testing.assert_allclose(friction[:, :2], mu)
         np.testing.assert_allclose(friction[:, 2:], [[0.005, 0.0001, 0.0001]] * sc.model.npair)
+
+
+def test_contact_height_law_plot_has_ours_and_the_papers_series_with_their_exponents():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from jaxloco.robots.snake import plots
+
+    names = ["i", "ii", "iii", "iv", "v", "vi", "vii"]
+    z = np.array([contact.POSTURES[k][0] for k in names])
+    table = pa.table({"posture": names + ["i"], "status": ["ok"] * len(names) + ["fell"],
+                      "fx": list(2.0 / z**2) + [1e3], "fy": list(z) + [1e3], "fz": list(3.0 * z**1.5) + [1e3]})
+    means = plots.contact_means(table)
+    assert means["i"] == pytest.approx([2.0 / 0.16, 0.4, 3.0 * 0.4**1.5])  # the fallen trial left out
+    fig = plots.plot_contact_height_law(table)
+    assert len(fig.axes) == 3
+    labels = [line.get_label() for line in fig.axes[0].get_lines()]
+    assert labels[0] == "ours, straight: n = -2.0" and labels[1].startswith("paper, straight: n = ")
+    assert fig.axes[1].get_lines()[0].get_label() == "ours, straight: n = +1.0"
+    np.testing.assert_allclose(fig.axes[2].get_lines()[2].get_ydata(), 3.0 * z[3:6] ** 1.5)  # ours, L
