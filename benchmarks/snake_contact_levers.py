@@ -1,13 +1,15 @@
 """T² Snake-3: what sets the contact forces' trend with the head's height (Tables IV-V), in closed form.
 
-    python benchmarks/snake_contact_levers.py [OVERSHOOT_MM] [--sim [POSTURE ...]]
+    python benchmarks/snake_contact_levers.py [OVERSHOOT_MM] [--table PATH] [--sim [POSTURE ...]]
 
 The paper's f_x and f_y both scale about as z_h^-2 over (i)-(iii) and (iv)-(vi), the law
 of a push resisted by a rotational spring whose axis lies at a height h0 below the
 contact: the lever is z_h - h0, so f = K delta / (z_h - h0)^2 and the exponent is
 n = -2 z_h / (z_h - h0), i.e. h0 = z_h (1 + 2 / n). This prints h0 for the paper's and
-our means (`jaxloco sweep snake_contact`'s defaults, typed in below as measured on 8
-Dec 2026), and then, for each posture of the contact experiment on the no-skid model
+our means: those of a `snake.contact` table (--table, default
+results/snake_contact/table.parquet, what `jaxloco sweep snake_contact` writes in the
+current directory), or where there is none the defaults' means typed in below (measured
+on 8 Dec 2026); and then, for each posture of the contact experiment on the no-skid model
 (`contact.head_posture`, rigid base), each head-part joint's lever along each push
 (|axis x (contact - joint)| . push [m]) and the static force of a position push that
 overshoots by OVERSHOOT_MM (default: `contact.OVERSHOOT`) against the head servos'
@@ -27,6 +29,7 @@ feedforward controller put it), with link 7's motion over the push.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -119,9 +122,20 @@ def main(argv: list[str]) -> None:
     if "--sim" in argv:
         at = argv.index("--sim")
         sim_postures, argv = argv[at + 1:] or ["i", "ii", "iii", "iv", "vi"], argv[:at]
+    table_path = Path("results/snake_contact/table.parquet")
+    if "--table" in argv:
+        at = argv.index("--table")
+        table_path, argv = Path(argv[at + 1]), argv[:at] + argv[at + 2:]
     delta = float(argv[0]) / 1e3 if argv else contact.OVERSHOOT
     paper = {k: np.array([m for m, _ in f]) for k, f in contact.PAPER_FORCES.items()}
-    ours = {k: np.array(v) for k, v in OURS.items()}
+    if table_path.is_file():
+        from jaxloco.robots.snake import plots
+        from jaxloco.sweep.summary import read_table
+
+        ours, source = plots.contact_means(read_table(table_path)[0]), str(table_path)
+    else:
+        ours, source = {k: np.array(v) for k, v in OURS.items()}, "the defaults' means of 8 Dec 2026 (no table)"
+    print(f"ours: {source}")
     print("force ~ z_h^n over (i)-(iii) / (iv)-(vi); h0: the axis height that exponent implies [m]")
     for label, means in (("paper", paper), ("ours", ours)):
         ex, h0 = contact.height_exponents(means), axis_heights(means)
