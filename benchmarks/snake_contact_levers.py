@@ -127,12 +127,11 @@ def main(argv: list[str]) -> None:
         at = argv.index("--table")
         table_path, argv = Path(argv[at + 1]), argv[:at] + argv[at + 2:]
     delta = float(argv[0]) / 1e3 if argv else contact.OVERSHOOT
-    paper = {k: np.array([m for m, _ in f]) for k, f in contact.PAPER_FORCES.items()}
+    paper = contact.PAPER_MEANS
     if table_path.is_file():
-        from jaxloco.robots.snake import plots
         from jaxloco.sweep.summary import read_table
 
-        ours, source = plots.contact_means(read_table(table_path)[0]), str(table_path)
+        ours, source = contact.posture_means(read_table(table_path)[0]), str(table_path)
     else:
         ours, source = {k: np.array(v) for k, v in OURS.items()}, "the defaults' means of 8 Dec 2026 (no table)"
     print(f"ours: {source}")

@@ -85,7 +85,7 @@ def test_height_exponents_recover_a_power_law_and_leave_out_incomplete_series():
     out = contact.height_exponents(means)
     assert set(out) == {"straight"}  # (vi) missing: no L series
     np.testing.assert_allclose(out["straight"], n, atol=1e-12)
-    paper = {k: np.array([m for m, _ in f]) for k, f in contact.PAPER_FORCES.items()}
+    paper = contact.PAPER_MEANS
     ex = contact.height_exponents(paper)
     two_point = np.log(paper["iii"] / paper["i"]) / np.log(0.30 / 0.40)
     np.testing.assert_allclose(ex["straight"], two_point, atol=0.15)
@@ -252,7 +252,7 @@ def test_contact_height_law_plot_has_ours_and_the_papers_series_with_their_expon
     z = np.array([contact.POSTURES[k][0] for k in names])
     table = pa.table({"posture": names + ["i"], "status": ["ok"] * len(names) + ["fell"],
                       "fx": list(2.0 / z**2) + [1e3], "fy": list(z) + [1e3], "fz": list(3.0 * z**1.5) + [1e3]})
-    means = plots.contact_means(table)
+    means = contact.posture_means(table)
     assert means["i"] == pytest.approx([2.0 / 0.16, 0.4, 3.0 * 0.4**1.5])  # the fallen trial left out
     fig = plots.plot_contact_height_law(table)
     assert len(fig.axes) == 3

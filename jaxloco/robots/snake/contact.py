@@ -74,6 +74,7 @@ import numpy as np
 from jaxloco import geometry as geo
 from jaxloco.analysis import Analysis, Metric, Summary
 from jaxloco.errors import SpecError
+from jaxloco.plots import column
 from jaxloco.robots.snake import control, experiments, kinematics, kinsim, scenarios, sim_control, trials
 from jaxloco.robots.snake import params as snake_params
 from jaxloco.sim import terrain as tr
@@ -104,6 +105,7 @@ PAPER_FORCES: dict[str, tuple[tuple[float, float], ...]] = {
     "ix": ((19.2, 1.1), (12.7, 0.6), (13.5, 0.4)),
     "x": ((13.5, 0.5), (14.9, 1.1), (16.1, 0.2)),
 }
+PAPER_MEANS = {k: np.array([mean for mean, _ in f]) for k, f in PAPER_FORCES.items()}  # (f_x, f_y, f_z) [N]
 DIRECTIONS = ("x", "y", "z")  # pushes along +x, +y, -z (the paper's "x, y, -z")
 PUSH = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]])  # in the base frame
 L_SHAPE = np.array([0.0, 0.0, math.pi / 4, math.pi / 4, 0.0, 0.0])  # theta_4..theta_9 [rad], ours
@@ -463,8 +465,18 @@ def height_exponents(means: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     return out
 
 
+def posture_means(table) -> dict[str, np.ndarray]:
+    """Mean (f_x, f_y, f_z) [N] per posture over the `ok` trials of a `snake.contact`
+    table (a pyarrow Table or a mapping of columns; postures without an ok trial are
+    left out)."""
+    postures = column(table, "posture").astype(str)
+    ok = column(table, "status").astype(str) == "ok"
+    forces = np.stack([column(table, f).astype(float) for f in ("fx", "fy", "fz")], -1)
+    return {k: forces[(postures == k) & ok].mean(0) for k in POSTURE_NAMES if np.any((postures == k) & ok)}
+
+
 def _exponent_note(means: Mapping[str, np.ndarray]) -> str | None:
-    paper = height_exponents({k: np.array([m for m, _ in f]) for k, f in PAPER_FORCES.items()})
+    paper = height_exponents(PAPER_MEANS)
     ours = height_exponents(means)
     if not ours:
         return None

@@ -182,15 +182,6 @@ def plot_contact_forces(table: Any, *, figsize=(10.0, 3.2)):
     return fig
 
 
-def contact_means(table: Any) -> dict[str, np.ndarray]:
-    """Mean (f_x, f_y, f_z) [N] per posture over the `ok` trials of a `snake.contact`
-    table (postures without an ok trial are left out)."""
-    postures = np.asarray(column(table, "posture")).astype(str)
-    ok = np.asarray(column(table, "status")).astype(str) == "ok"
-    forces = np.stack([np.asarray(column(table, f), float) for f in ("fx", "fy", "fz")], -1)
-    return {k: forces[(postures == k) & ok].mean(0) for k in np.unique(postures) if np.any((postures == k) & ok)}
-
-
 def plot_contact_height_law(table: Any, *, figsize=(10.0, 3.2)):
     """Table IV on log-log axes: f_x, f_y, f_z [N] against the head height z_h [m] for the
     straight base ((i)-(iii)) and the L ((iv)-(vi)), ours (the `ok` trials' means of a
@@ -201,9 +192,9 @@ def plot_contact_height_law(table: Any, *, figsize=(10.0, 3.2)):
 
     from jaxloco.robots.snake import contact
 
-    ours = contact_means(table)
-    paper = {k: np.array([m for m, _ in f]) for k, f in contact.PAPER_FORCES.items()}
+    ours, paper = contact.posture_means(table), contact.PAPER_MEANS
     fits = {"ours": contact.height_exponents(ours), "paper": contact.height_exponents(paper)}
+    heights = sorted({contact.POSTURES[k][0] for names in contact.HEIGHT_SERIES.values() for k in names})
     fig, axes = plt.subplots(1, 3, figsize=figsize, layout="constrained", sharey=True)
     for j, (ax, force) in enumerate(zip(axes, ("x", "y", "z"), strict=True)):
         for c, (base, names) in enumerate(contact.HEIGHT_SERIES.items()):
@@ -215,7 +206,6 @@ def plot_contact_height_law(table: Any, *, figsize=(10.0, 3.2)):
                         label=f"{who}, {base}: n = {fits[who][base][j]:+.1f}")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        heights = sorted({contact.POSTURES[k][0] for names in contact.HEIGHT_SERIES.values() for k in names})
         ax.set_xticks(heights, [f"{h:.2f}" for h in heights])
         ax.xaxis.set_minor_formatter(NullFormatter())
         ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
