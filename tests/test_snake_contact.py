@@ -154,13 +154,14 @@ def test_summary_has_the_papers_forces_and_checks_the_trends():
     # the paper's own height exponents beside themselves
     assert s.notes[5].startswith("force ~ z_h^n") and "straight f_x -2.0 / -2.0, f_y -1.8 / -1.8" in s.notes[5]
     # which model made the table: the defaults where the table has no l_bend / wheel_creep columns
-    assert s.notes[6] == "model: the L bent at the middle (theta_6 = theta_7 = 45 deg), hard wheel friction"
+    assert s.notes[6] == ("model: the L bent at the middle (theta_6 = theta_7 = 45 deg), hard wheel friction, "
+                          "a rigid base")
     flipped = pa.table({"posture": names, "status": ["ok"] * len(names), "fx": paper[::-1, 0], "fy": paper[:, 1],
                         "fz": paper[:, 2], "l_bend": ["tail"] * len(names), "wheel_creep": [0.2] * len(names)})
     s = contact.summarize(flipped)
     assert any(t.endswith("does not hold") for t in s.notes[1:5])
     assert s.notes[6] == ("model: the L bent at the tail (theta_8 = theta_9 = 45 deg), wheels creeping sideways "
-                          "(wheel_creep 0.2 s)")
+                          "(wheel_creep 0.2 s), a rigid base")
 
 
 def test_contact_force_plot_has_ours_and_the_papers_bars():
@@ -260,3 +261,42 @@ def test_contact_height_law_plot_has_ours_and_the_papers_series_with_their_expon
     assert labels[0] == "ours, straight: n = -2.0" and labels[1].startswith("paper, straight: n = ")
     assert fig.axes[1].get_lines()[0].get_label() == "ours, straight: n = +1.0"
     np.testing.assert_allclose(fig.axes[2].get_lines()[2].get_ydata(), 3.0 * z[3:6] ** 1.5)  # ours, L
+
+
+def _side_push(twist_compliance: float, side_force: float) -> tuple[float, float]:
+    """(link 7's roll, the twist hinge's angle) [rad] after 2 s of a steady side force
+    [N] (+y) at the head of the robot standing in the Sec. V-A posture (head 0.34 m up)."""
+    from jaxloco.robots.snake import model as snake_model
+    m = scenarios.build_model(twist_compliance=twist_compliance)[0]
+    d = mujoco.MjData(m)
+    d.qpos[:], d.ctrl[:] = snake_model.pose_qpos_ctrl(m, params.INITIAL_PHI)
+    mujoco.mj_step(m, d, nstep=500)  # settle on the servos (1 s)
+    head = m.body("link1").id
+    d.xfrc_applied[head, :3] = [0.0, side_force, 0.0]  # at the head frame's origin: the force and its moment
+    d.xfrc_applied[head, 3:] = np.cross(d.site("head").xpos - d.xipos[head], [0.0, side_force, 0.0])
+    mujoco.mj_step(m, d, nstep=1000)
+    R7 = d.xmat[m.body("link7").id].reshape(3, 3)
+    twist = d.qpos[m.joint(scenarios.TWIST_JOINT).qposadr[0]] if twist_compliance else 0.0
+    return float(np.arctan2(R7[2, 1], R7[2, 2])), float(twist)
+
+
+def test_a_twisting_base_lets_link_7_roll_over_where_the_rigid_base_holds():
+    """`twist_compliance` (`scenarios.twisting_base`): a passive hinge about link 8's long
+    axis behind theta_4. Pushed sideways at the raised head, link 7 and the head part then
+    roll on pair 3's wheels, the hinge turning with them (the base behind stays flat):
+    at 5 N several times the rigid base's roll, and 20 N, which the rigid base holds
+    (the whole robot's weight resists), turns them over; with the contact experiment's
+    default 0.05 rad/(N m) as with a softer 0.2 (the front's weight, not the spring,
+    sets where)."""
+    m = scenarios.build_model(twist_compliance=0.05)[0]
+    assert m.nq == scenarios.build_model()[0].nq + 1
+    assert m.jnt_stiffness[m.joint(scenarios.TWIST_JOINT).id] == pytest.approx(20.0)
+    rigid_5, _ = _side_push(0.0, 5.0)
+    rigid_20, _ = _side_push(0.0, 20.0)
+    assert abs(rigid_20) < 0.01
+    for compliance in (0.05, 0.2):
+        roll_5, twist_5 = _side_push(compliance, 5.0)
+        assert roll_5 < 3 * rigid_5 < 0.0 and twist_5 == pytest.approx(-roll_5, rel=0.1)
+        assert _side_push(compliance, 20.0)[0] < -1.0
+    with pytest.raises(analysis.SpecError, match="twist_compliance: -1 rad/.* needs a value >= 0"):
+        scenarios.build_model(twist_compliance=-1.0)

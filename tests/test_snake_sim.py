@@ -82,22 +82,32 @@ def test_actuator_command_follows_the_model_actuators():
     assert batched.shape == (snake_params.N_MODES, m.nu)
 
 
-def test_state_geometry_matches_mujoco_sites():
-    """Random state (pose, joints, velocities): head / tip poses, wheel clearances and
-    the pairs' lateral and rolling slip from `state_geometry` equal MuJoCo's site
-    positions, frames and `mj_objectVelocity` of the contact sites."""
+@pytest.mark.parametrize("twist", [0.0, 0.05])
+def test_state_geometry_matches_mujoco_sites(twist):
+    """Random state (pose, joints, velocities; on the twisting base the twist too):
+    head / tip poses, wheel clearances and the pairs' lateral and rolling slip from
+    `state_geometry` equal MuJoCo's site positions, frames and `mj_objectVelocity` of
+    the contact sites."""
     m = model.load_model()
+    if twist:
+        spec = model.load_spec()
+        scenarios.twisting_base(spec, twist)
+        m = spec.compile()
+        assert m.nq == model.load_model().nq + 1
+        assert m.jnt_stiffness[m.joint(scenarios.TWIST_JOINT).id] == pytest.approx(1 / twist)
+    layout = scenarios._layout(m)
+    assert ("twist_qpos" in layout) == bool(twist)
     d = mujoco.MjData(m)
     rng = np.random.default_rng(3)
     for _ in range(3):
         d.qpos[:] = m.qpos0
         d.qpos[:3] = rng.uniform(-1, 1, 3)
         d.qpos[3:7] = model.rpy_to_quat(rng.uniform(-0.4, 0.4, 3))
-        for name in snake_params.JOINT_NAMES:
+        for name in snake_params.JOINT_NAMES + ((scenarios.TWIST_JOINT,) if twist else ()):
             d.qpos[m.joint(name).qposadr[0]] = rng.uniform(-0.5, 0.5)
         d.qvel[:] = rng.normal(0, 1, m.nv)
         mujoco.mj_forward(m, d)
-        g = scenarios.state_geometry(jnp.asarray(d.qpos), jnp.asarray(d.qvel))
+        g = scenarios.state_geometry(jnp.asarray(d.qpos), jnp.asarray(d.qvel), layout=layout)
         np.testing.assert_allclose(g["head"][:3], d.site("head").xpos, atol=1e-9)
         np.testing.assert_allclose(g["tip"][:3], d.site("tip").xpos, atol=1e-9)
         R = d.site("head").xmat.reshape(3, 3)

@@ -86,6 +86,8 @@ M_SCP = 1
 SELECTION = np.eye(snake_params.N_PHI)[[snake_params.SCP_INDEX]]  # S (1, 12)
 _BASE_LINK = int(snake_params.PAIR_LINKS[snake_params.BASE_PAIRS[0]]) - 1  # link 7 (0-based 6)
 _PAIR_LINK_IDX = np.asarray(snake_params.PAIR_LINKS) - 1  # 0-based link of each of the 9 pairs
+# the first base link behind the base's twist (`scenarios.twisting_base`): link 8 (0-based 7), behind theta_4
+TWIST_LINK = _BASE_LINK + 1
 
 
 def _dtype(x: Array) -> jnp.dtype:
@@ -108,10 +110,11 @@ def pose_matrix(w: Array) -> tuple[Array, Array]:
 
 
 def link_frames(
-    w_h: Array, joints: Array, params: snake_params.SnakeParams | None = None
+    w_h: Array, joints: Array, params: snake_params.SnakeParams | None = None, twist: Array | None = None
 ) -> tuple[Array, Array]:
     """World frames of the 18 links: rotations (18, 3, 3) and origins (18, 3), from the
-    head pose w_h (6,) and the 17 joint angles [rad]."""
+    head pose w_h (6,) and the 17 joint angles [rad]; `twist` [rad]: the base's twist
+    behind theta_4 (`twisted`; None: a rigid base, the model's default)."""
     params = snake_params.default_params() if params is None else params
     w_h = jnp.asarray(w_h)
     joints = jnp.asarray(joints, w_h.dtype)
@@ -128,7 +131,20 @@ def link_frames(
         return (R_next, p_next), (R_next, p_next)
 
     _, (Rs, ps) = jax.lax.scan(step, (R0, p0), (joints, is_pitch))
-    return jnp.concatenate([R0[None], Rs]), jnp.concatenate([p0[None], ps])
+    Rs, ps = jnp.concatenate([R0[None], Rs]), jnp.concatenate([p0[None], ps])
+    return (Rs, ps) if twist is None else twisted(Rs, ps, twist)
+
+
+def twisted(Rs: Array, ps: Array, twist: Array) -> tuple[Array, Array]:
+    """The link frames (Rs (18, 3, 3), ps (18, 3), world) with link 8 and every link
+    behind it turned by `twist` [rad] about link 8's x axis through its origin (the
+    theta_4 axle): the base's twist at its first joint (`scenarios.twisting_base`, the
+    MuJoCo hinge after theta_4 in link 8's body)."""
+    R8, p8 = Rs[TWIST_LINK], ps[TWIST_LINK]
+    turn = R8 @ geo.rot_x(jnp.asarray(twist, Rs.dtype)) @ R8.T  # world frame
+    behind = np.arange(Rs.shape[0]) >= TWIST_LINK
+    return (jnp.where(behind[:, None, None], turn @ Rs, Rs),
+            jnp.where(behind[:, None], p8 + (ps - p8) @ turn.T, ps))
 
 
 def tip_from_head(w_h: Array, params: snake_params.SnakeParams | None = None) -> Array:
@@ -147,13 +163,13 @@ def head_from_tip(w: Array, params: snake_params.SnakeParams | None = None) -> A
 
 
 def wheel_pairs(
-    w_h: Array, joints: Array, params: snake_params.SnakeParams | None = None
+    w_h: Array, joints: Array, params: snake_params.SnakeParams | None = None, twist: Array | None = None
 ) -> tuple[Array, Array, Array]:
     """All 9 wheel pairs (psi_1..psi_8, tail): axle midpoints (9, 3), contact points
     (9, 3) (r below the axle along the carrying link's z) and the carrying links'
-    rotations (9, 3, 3) (columns: forward x, axle y, up z)."""
+    rotations (9, 3, 3) (columns: forward x, axle y, up z); `twist`: `link_frames`."""
     params = snake_params.default_params() if params is None else params
-    Rs, ps = link_frames(w_h, joints, params)
+    Rs, ps = link_frames(w_h, joints, params, twist)
     R = Rs[_PAIR_LINK_IDX]
     off = jnp.asarray(snake_params.PAIR_OFFSETS, ps.dtype)
     off = jnp.where(off < 0, -params.tail_axle, off)  # tail pair: -tail_axle

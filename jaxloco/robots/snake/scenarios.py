@@ -276,38 +276,51 @@ def placed_head_pose(
 
 # ------------------------------------------------------------------- state geometry
 @functools.cache
-def _layout() -> dict[str, np.ndarray]:
-    m = snake_model.load_model()
-    return {
+def _layout(m: mujoco.MjModel | None = None) -> dict[str, np.ndarray]:
+    """Where the robot's joints sit in qpos / qvel of `m` (default: the robot-only model);
+    "twist_qpos" and "twist_dof" (1,) only where the base twists (`twisting_base`)."""
+    m = snake_model.load_model() if m is None else m
+    lay = {
         "joint_qpos": np.array([m.joint(n).qposadr[0] for n in snake_params.JOINT_NAMES]),
         "joint_dof": np.array([m.joint(n).dofadr[0] for n in snake_params.JOINT_NAMES]),
         "wheel_dof": np.array([m.joint(f"{n}_active").dofadr[0] for n in snake_model.WHEEL_NAMES]),
     }
+    if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, TWIST_JOINT) >= 0:
+        lay["twist_qpos"], lay["twist_dof"] = m.joint(TWIST_JOINT).qposadr, m.joint(TWIST_JOINT).dofadr
+    return lay
 
 
-def state_geometry(qpos: Array, qvel: Array, params: snake_params.SnakeParams | None = None) -> dict[str, Array]:
+def state_geometry(qpos: Array, qvel: Array, params: snake_params.SnakeParams | None = None,
+                   layout: Mapping[str, np.ndarray] | None = None) -> dict[str, Array]:
     """What the scenario reads from one simulation's state (see the module docstring):
     head, tip, base (6,) poses, joints, joint_vel (17,), wheel_speed (9,), clearance
     (9,), slip (9,) lateral slip of each pair's contact point, roll_slip (9,) rolling slip
-    of each active wheel, tilt () of link 7 [rad]."""
+    of each active wheel, tilt () of link 7 [rad]. `layout`: `_layout` of the simulated
+    model (default: the robot-only model's); with a twisting base the pairs behind
+    theta_4 are turned by the twist (`kinematics.twisted`)."""
     params = snake_params.default_params() if params is None else params
-    lay = _layout()
+    lay = _layout() if layout is None else layout
     qpos, qvel = jnp.asarray(qpos), jnp.asarray(qvel)
     dtype = qpos.dtype
     p_h, quat = qpos[:3], qpos[3:7] / jnp.linalg.norm(qpos[3:7])
     R_h = tr.quat_to_matrix(quat)
     v_h, w_b = qvel[:3], qvel[3:6]  # free joint: world linear, body angular velocity
     joints, jvel = qpos[lay["joint_qpos"]], qvel[lay["joint_dof"]]
+    twists = "twist_qpos" in lay
+    # the base's twist as one more angle behind the joints (static: whether the model has the hinge)
+    angles = jnp.concatenate([joints, qpos[lay["twist_qpos"]]]) if twists else joints
+    rates = jnp.concatenate([jvel, qvel[lay["twist_dof"]]]) if twists else jvel
     spin = qvel[lay["wheel_dof"]]
     zero = jnp.zeros(6, dtype)
     wy = kinematics.pair_wheel_y(params, dtype)  # (9,)
     d = (snake_params.ACTIVE_SIDE * wy)[:, None]
 
     def rel(q):  # in the head frame: pair contact points, active wheels' contacts, axes
-        axle, contact, R = kinematics.wheel_pairs(zero, q, params)
+        axle, contact, R = kinematics.wheel_pairs(zero, q[:snake_params.N_JOINTS], params,
+                                                  q[-1] if twists else None)
         return contact, contact + d * R[:, :, 1], axle, R
 
-    (c_rel, a_rel, axle_rel, R_rel), (dc, da, _, _) = jax.jvp(rel, (joints,), (jvel,))
+    (c_rel, a_rel, axle_rel, R_rel), (dc, da, _, _) = jax.jvp(rel, (angles,), (rates,))
 
     def world_vel(point, dpoint):
         return v_h + (jnp.cross(w_b, point) + dpoint) @ R_h.T
@@ -479,16 +492,21 @@ WHEEL_FLOOR_FRICTION = (0.005, 0.0001)  # torsional [m], rolling [m]: the terrai
 
 
 def build_model(fixture: Fixture | None = None, backend: str = "native",
-                wheel_creep: float = 0.0) -> tuple[mujoco.MjModel, tr.Terrain]:
+                wheel_creep: float = 0.0, twist_compliance: float = 0.0) -> tuple[mujoco.MjModel, tr.Terrain]:
     """The robot (`models/t2snake3.xml`) on flat ground (top face z = 0), with the
     fixture's bodies if given; for `backend` "mjx" its MJX variant (`mjx_variant`, then
     the fixture's `mjx`), with the same indices. `wheel_creep` [s] > 0: the wheels'
-    friction on the ground creeps (`creeping_wheels`; native only)."""
+    friction on the ground creeps (`creeping_wheels`; native only); `twist_compliance`
+    [rad/(N m)] > 0: the base twists behind link 7 (`twisting_base`)."""
     if backend not in BACKENDS:
         raise ValueError(f"backend: expected one of {', '.join(BACKENDS)}, got {backend!r}")
     if wheel_creep < 0.0 or (wheel_creep > 0.0 and backend != "native"):
         raise SpecError(f"wheel_creep: {wheel_creep:g} s needs a value >= 0 and native MuJoCo (backend {backend!r})")
+    if not twist_compliance >= 0.0:
+        raise SpecError(f"twist_compliance: {twist_compliance:g} rad/(N m) needs a value >= 0")
     spec = snake_model.load_spec()
+    if twist_compliance > 0.0:
+        twisting_base(spec, twist_compliance)
     terrain = tr.flat(half_extent=10.0, half_depth=0.5)
     terrain.add_to(spec, friction=(PARAM_DEFAULTS["mu"], *WHEEL_FLOOR_FRICTION))
     if fixture is not None:
@@ -532,6 +550,25 @@ def creeping_wheels(spec: mujoco.MjSpec, floor: tuple[str, ...], creep: float) -
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
 
 
+TWIST_JOINT = "twist4"  # the base's twist behind theta_4 (`twisting_base`)
+TWIST_DAMPING = 0.5  # [N m s/rad] of the twist hinge, default (ours)
+TWIST_ARMATURE = 0.001  # [kg m^2] of the twist hinge, ours (the rotor inertia a joint servo would add)
+
+
+def twisting_base(spec: mujoco.MjSpec, compliance: float) -> None:
+    """Let the base twist at its first joint, in place: a passive hinge about link 8's
+    long axis (x), after theta_4 in link 8's body, with stiffness 1 / `compliance`
+    [N m/rad] and damping `TWIST_DAMPING`. Link 7 (the ψ_3 axle's pair) and the raised
+    head part then roll on pair 3's wheels against the spring and their own weight when
+    pushed across the base: the "mechanical stiffness" the paper finds insufficient
+    (Secs. V-B, V-D), as a twist of the base's structure. Measured on Tables III-V, the
+    joint-limit run and the operations in docs/snake.md; default (ours) 0: a rigid base.
+    The added joint moves the qpos / qvel addresses behind theta_4 (read them from the
+    model, `_layout(m)`)."""
+    spec.body("link8").add_joint(name=TWIST_JOINT, type=mujoco.mjtJoint.mjJNT_HINGE, axis=[1.0, 0.0, 0.0],
+                                 stiffness=1.0 / compliance, damping=TWIST_DAMPING, armature=TWIST_ARMATURE)
+
+
 def snake_scenario(
     horizon_s: float = 5.0,
     control_dt: float = CONTROL_DT,
@@ -541,6 +578,7 @@ def snake_scenario(
     fixture: Fixture | None = None,
     backend: str = "native",
     wheel_creep: float = 0.0,
+    twist_compliance: float = 0.0,
 ) -> Scenario:
     """T² Snake-3 on flat ground for `horizon_s` seconds at the control period
     `control_dt` [s] (a multiple of the 2 ms physics step), recording every
@@ -549,8 +587,9 @@ def snake_scenario(
     params.INITIAL_PHI, Sec. V-A; a params entry "phi0" (12,) per simulation replaces
     it) with the wheels of params["mode"] lifted; `fixture`: bodies beside the ground;
     `backend` "mjx": on the MJX variant of the model (`build_model`); `wheel_creep` [s]
-    > 0: the wheels' grip on the floor creeps (`creeping_wheels`)."""
-    m, terrain = build_model(fixture, backend, wheel_creep)
+    > 0: the wheels' grip on the floor creeps (`creeping_wheels`); `twist_compliance`
+    [rad/(N m)] > 0: the base twists behind link 7 (`twisting_base`)."""
+    m, terrain = build_model(fixture, backend, wheel_creep, twist_compliance)
     phi0 = np.asarray(snake_params.INITIAL_PHI if phi0 is None else phi0, float)
     controller = controller or constant_controller(phi0)
     if fixture is not None and fixture.actuators:
@@ -562,8 +601,8 @@ def snake_scenario(
     rows = tr.mocap_ids(m, terrain)
     ground = np.array([m.geom(n).id for n in terrain.body_names()])
     robot = np.array(sorted(m.geom(n).id for n in _robot_geoms()[0]))
-    lay = _layout()  # of the robot-only model: the ground (a mocap body) adds no joints
-    assert all(m.joint(n).qposadr[0] == a for n, a in zip(snake_params.JOINT_NAMES, lay["joint_qpos"], strict=True))
+    lay = _layout(m)  # the ground (a mocap body) and a fixture's joints come after the robot's
+    assert twist_compliance > 0.0 or all(np.array_equal(lay[k], v) for k, v in _layout().items())
     assert all(m.actuator(n).id == a for n, a in zip(snake_params.JOINT_NAMES, _actuator_ids()[0], strict=True))
     wheel_qpos = np.array([m.joint(f"wheel{i + 1}_{s}").qposadr[0] for i in range(snake_params.N_PAIRS)
                            for s in ("active", "passive")])
@@ -596,7 +635,7 @@ def snake_scenario(
                             mocap_quat=full_quat)
 
     def observe(data: SimData):
-        g = state_geometry(data.qpos, data.qvel, sp)
+        g = state_geometry(data.qpos, data.qvel, sp, lay)
         contact = g["clearance"][base_pairs] < CONTACT_TOL
         return {"time": data.time, "phi": g["joints"][snake_params.PHI_JOINTS], "contact": contact, **g}
 
