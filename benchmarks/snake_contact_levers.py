@@ -1,6 +1,6 @@
 """T² Snake-3: what sets the contact forces' trend with the head's height (Tables IV-V), in closed form.
 
-    python benchmarks/snake_contact_levers.py [OVERSHOOT_MM] [--table PATH] [--sim [POSTURE ...]]
+    python benchmarks/snake_contact_levers.py [OVERSHOOT_MM] [--table PATH] [--twist C] [--sim [POSTURE ...]]
 
 The paper's f_x and f_y both scale about as z_h^-2 over (i)-(iii) and (iv)-(vi), the law
 of a push resisted by a rotational spring whose axis lies at a height h0 below the
@@ -17,9 +17,10 @@ stiffness alone (`model.KP`): f = delta / sum_i(lever_i^2 / KP). That is an uppe
 on the servo-limited force (the base, the wheels and the contact give too), and its
 trend is the head part's geometry.
 
-With --sim (about 1 min; default postures i ii iii iv vi) it runs the three pushes of
+With --sim (about 15 s; default postures i ii iii iv vi) it runs the three pushes of
 each posture in MuJoCo (`contact.contact_scenario`, the defaults, one trial without
-jitter) and splits the give along the push at the force's peak, counted from the push's
+jitter; --twist C: the base's twist compliance [rad/(N m)], 0 a rigid base, default
+`contact.TWIST_COMPLIANCE`) and splits the give along the push at the force's peak, counted from the push's
 start: the head target (`kinsim.Target`'s smooth step) less the head, into the head-part
 joints' share (the head the commanded joints would put on the measured base less the
 measured head) and the rest, the base's (the base where it is, not where the
@@ -42,9 +43,9 @@ import jax.numpy as jnp  # noqa: E402
 from jaxloco.robots.snake import contact, kinematics, model  # noqa: E402
 from jaxloco.robots.snake import params as sp  # noqa: E402
 
-# `jaxloco sweep snake_contact` at the defaults, mean of 5 trials (docs/snake.md, 8 Dec 2026)
-OURS = {"i": (16.0, 15.4, 15.7), "ii": (24.8, 12.2, 11.2), "iii": (30.9, 10.7, 9.4),
-        "iv": (13.4, 15.8, 15.8), "v": (18.5, 9.0, 10.6), "vi": (22.4, 7.7, 8.7)}
+# `jaxloco sweep snake_contact` at the defaults (the twisting base), mean of 5 trials (docs/snake.md, 8 Dec 2026)
+OURS = {"i": (16.2, 10.1, 15.7), "ii": (23.8, 9.7, 11.1), "iii": (28.4, 9.2, 9.4),
+        "iv": (13.2, 10.2, 15.5), "v": (18.8, 8.0, 10.6), "vi": (23.0, 7.1, 8.9)}
 CONTACT_POINT = ("front", "mid", "mid")  # where the gripper meets the plate per push (`contact.plate_pose`)
 
 
@@ -71,27 +72,30 @@ def levers(name: str) -> tuple[np.ndarray, float]:
     return out, float(head[2])
 
 
-def give_at_peak(postures: list[str]) -> None:
-    """Print where each push's give went at its force peak (module docstring, --sim)."""
+def give_at_peak(postures: list[str], twist: float = contact.TWIST_COMPLIANCE) -> None:
+    """Print where each push's give went at its force peak (module docstring, --sim),
+    on a base of twist compliance `twist` [rad/(N m)]."""
     from jaxloco.robots.snake import experiments
     from jaxloco.sim.rollout import Simulator
 
     ramp, hold, settle = 4.0, 3.0, float(sp.PARAMETERS.default("settle"))
     n = len(postures)
     sim = Simulator(nthread=2)
-    heads = contact.settled_heads(np.array(postures), ramp, hold, settle, sim)
+    heads = contact.settled_heads(np.array(postures), ramp, hold, settle, sim, twist_compliance=twist)
     params = contact.push_params(np.array(postures), np.full(n, contact.FLOOR_MU), np.zeros(n),
                                  np.full(n, contact.OVERSHOOT), ramp, settle, heads)
     params["key"] = np.zeros((3 * n, 2), np.uint32)
-    rec = {k: np.asarray(v) for k, v in sim.run(contact.contact_scenario(ramp, hold, settle), params).records.items()}
+    scenario = contact.contact_scenario(ramp, hold, settle, twist_compliance=twist)
+    rec = {k: np.asarray(v) for k, v in sim.run(scenario, params).records.items()}
     t = (np.arange(rec["head"].shape[1]) + 1) * contact.CONTROL_DT
     t0 = settle + experiments.T_START
     i0, i_end = np.searchsorted(t, t0), np.searchsorted(t, t0 + ramp + 0.5)
     tau = np.clip((t - t0) / ramp, 0.0, 1.0)
     step = tau - np.sin(2 * np.pi * tau) / (2 * np.pi)  # kinsim.Target's smooth step
     travel = contact.PLATE_GAP + contact.OVERSHOOT
+    base = f"twist compliance {twist:g} rad/(N m)" if twist > 0 else "a rigid base"
     print(f"\ngive along the push at the force peak, from the push's start [mm] (MuJoCo, "
-          f"{contact.OVERSHOOT * 1e3:g} mm overshoot); link 7's motion over the push")
+          f"{contact.OVERSHOOT * 1e3:g} mm overshoot, {base}); link 7's motion over the push")
     print(f"{'posture':8s} push  peak [N]  give  joints  base   link7 dx dy [mm]  droll dyaw [rad]")
     for i, name in enumerate(postures):
         w0 = contact.kinematic_head(*contact.head_posture(*contact.POSTURES[name]))[:3]
@@ -118,7 +122,10 @@ def give_at_peak(postures: list[str]) -> None:
 
 
 def main(argv: list[str]) -> None:
-    sim_postures = None
+    sim_postures, twist = None, contact.TWIST_COMPLIANCE
+    if "--twist" in argv:
+        at = argv.index("--twist")
+        twist, argv = float(argv[at + 1]), argv[:at] + argv[at + 2:]
     if "--sim" in argv:
         at = argv.index("--sim")
         sim_postures, argv = argv[at + 1:] or ["i", "ii", "iii", "iv", "vi"], argv[:at]
@@ -154,7 +161,7 @@ def main(argv: list[str]) -> None:
             print(f"{lead:8s} {zc}  f_{push}   " + " ".join(f"{v:+7.3f}" for v in lv[d])
                   + f"   {force:6.1f}  {contact.PAPER_FORCES[name][d][0]:5.1f}")
     if sim_postures:
-        give_at_peak(sim_postures)
+        give_at_peak(sim_postures, twist)
 
 
 if __name__ == "__main__":
