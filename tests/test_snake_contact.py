@@ -25,7 +25,7 @@ def test_push_force_keeps_the_first_contact_and_ignores_impacts():
 
 def test_postures_put_the_head_where_the_paper_says():
     """The no-skid controller's postures: the head frame at (y_h, z_h), level, facing
-    +x; psi_3 at its SCP target; the base part straight or L_SHAPE exactly."""
+    +x; psi_3 at its SCP target; the base part straight or the default L exactly."""
     import jax.numpy as jnp
 
     from jaxloco.robots.snake import kinematics
@@ -37,7 +37,7 @@ def test_postures_put_the_head_where_the_paper_says():
         assert np.abs(w[3:]).max() < 0.02
         assert phi[params.SCP_INDEX] == pytest.approx(params.SCP_TARGET, abs=0.02)
         # the base part exactly straight or L-shaped, as the paper's
-        np.testing.assert_array_equal(phi[params.N_H:], contact.L_SHAPE if base == "L" else 0.0)
+        np.testing.assert_array_equal(phi[params.N_H:], contact.L_SHAPES[contact.L_BEND] if base == "L" else 0.0)
     with pytest.raises(analysis.SpecError, match="base"):
         contact.head_posture(0.35, 0.0, "U")
 

@@ -253,16 +253,18 @@ PARAMETERS = ParamTable("snake", (
     # under its feedforward control, so the largest force is the servos' stiffness (the head part's model.KP, from
     # Table III) times this command through the posture. The paper does not give it; `python
     # benchmarks/snake_contact_overshoot.py` runs Table IV's six postures (one trial each) for 10-17.5 mm: RMS log
-    # error over its 18 means 0.45 / 0.38 / 0.37 / 0.41 at 10 / 12.5 / 15 / 17.5 mm, so 15 mm. Table V is the
-    # out-of-sample check (docs/snake.md).
+    # error over its 18 means 0.45 / 0.38 / 0.37 / 0.41 at 10 / 12.5 / 15 / 17.5 mm on the rigid base, 0.37 / 0.25 /
+    # 0.22 / 0.25 on the twisting base with the L bent at the tail (the defaults since 8 Dec 2026), so 15 mm
+    # (docs/snake.md).
     Param("overshoot", 0.015, "how far past the plate's face the head target is driven (default (ours), fitted to "
           "Table IV: contact.OVERSHOOT)", "m", lo=0.0, hi=0.5),
     Param("hold", 3.0, "time the target is held in the plate after the ramp", "s", lo=0.0, hi=30.0,
           sweepable=False),
     # the L of Tables IV-V's L-shaped base: which two base yaw joints turn by 45 deg each (the paper's Fig. 12(b),
-    # missing from our copy, shows it). "middle": theta_6, theta_7 (default (ours)); "tail": theta_8, theta_9
-    Param("l_bend", "middle", "where the L-shaped base of Tables IV-V bends: middle (theta_6 = theta_7 = 45 deg, "
-          "default (ours)) or tail (theta_8 = theta_9 = 45 deg)", kind="str", choices=("middle", "tail"),
+    # missing from our copy, shows it). "middle": theta_6, theta_7; "tail": theta_8, theta_9 (default (ours) since
+    # 8 Dec 2026: `contact.L_BEND`)
+    Param("l_bend", "tail", "where the L-shaped base of Tables IV-V bends: middle (theta_6 = theta_7 = 45 deg) or "
+          "tail (theta_8 = theta_9 = 45 deg, default (ours))", kind="str", choices=("middle", "tail"),
           sweepable=False),
     # a tyre's sideways give (docs/snake.md, Table V): 0 is MuJoCo's hard friction, the model's default
     Param("wheel_creep", 0.0, "time constant of the wheel-floor friction (MuJoCo solreffriction on an elliptic "
