@@ -1,7 +1,7 @@
 """T² Snake-3: the paper's experiments (Tanaka et al. 2019, Sec. V-A, V-B) in the
 kinematic simulation and in MuJoCo, beside the paper's figures.
 
-    python benchmarks/snake_experiments.py [--tuned results/snake_kv_tune/tuned.csv]
+    python benchmarks/snake_experiments.py [--tuned results/snake_kv_tune/tuned.csv] [--twist C]
 
 Prints two tables:
   1. Table III (relative position accuracy): errors [%] of the paper, of the
@@ -16,6 +16,8 @@ Prints two tables:
      the paper's K_V with the wheels 10 x dearer in W and k_eta 0.7 (both ours: the paper
      gives neither) and, with --tuned, the values of a `jaxloco tune snake_kv_tune` run;
      then the MuJoCo rows over 5 perturbed trials each (mean and worst).
+With --twist C every MuJoCo run is on a base that twists behind link 7 with compliance C
+[rad/(N m)] (`scenarios.twisting_base`; the default 0 is the rigid base).
 """
 
 from __future__ import annotations
@@ -35,13 +37,13 @@ TRIALS = 5  # perturbed MuJoCo trials per setting
 KV_KEYS = ("kv_head_yaw", "kv_head_pitch", "kv_base", "kv_ratio", "k_eta", "w_wheel")
 
 
-def accuracy_table() -> None:
+def accuracy_table(twist: float = 0.0) -> None:
     t = time.perf_counter()
     kin = experiments.run_accuracy_kinematic()
     t_kin = time.perf_counter() - t
     t = time.perf_counter()
-    ff = sim_control.run_accuracy(feedback=False)
-    fb = sim_control.run_accuracy(feedback=True)
+    ff = sim_control.run_accuracy(feedback=False, twist_compliance=twist)
+    fb = sim_control.run_accuracy(feedback=True, twist_compliance=twist)
     t_mj = time.perf_counter() - t
     print(f"\nTable III, relative position accuracy: error [%] (kinematic {t_kin:.1f} s, MuJoCo 12 runs {t_mj:.1f} s)")
     print("| target | paper | kinematic | MuJoCo feedforward | MuJoCo feedback | MuJoCo max side slip [m/s] |")
@@ -92,7 +94,7 @@ def release_order(times: np.ndarray) -> str:
     return " ".join(f"{4 + j}" for j in left) or "-"
 
 
-def limit_table(tuned: dict[str, float] | None) -> None:
+def limit_table(tuned: dict[str, float] | None, twist: float = 0.0) -> None:
     rows = _rows(tuned)
     fixed = analysis.KV.defaults()
     fn = jax.jit(analysis.KV.batch_fn(fixed))
@@ -104,7 +106,7 @@ def limit_table(tuned: dict[str, float] | None) -> None:
     t_kin = time.perf_counter() - t
     over = {k: np.asarray([float(r[1].get(k, sim_control.PARAM_DEFAULTS[k])) for r in rows]) for k in KV_KEYS + ("a2",)}
     t = time.perf_counter()
-    res, recs = sim_control.run_joint_limit(over, n=n)
+    res, recs = sim_control.run_joint_limit(over, n=n, twist_compliance=twist)
     t_mj = time.perf_counter() - t
     runs = run_metrics(recs)
     print(f"\nJoint-limit avoidance from the zigzag posture, {experiments.LIMIT_HORIZON:g} s (kinematic {t_kin:.1f} s, "
@@ -129,10 +131,11 @@ def limit_table(tuned: dict[str, float] | None) -> None:
               f"| {' '.join(f'{x:.1f}' for x in order)} | {release_order(order)} | {m['order_score']:+.2f} |")
     print(f"MuJoCo: status {list(res.status)}, largest side slip {np.asarray(res.metrics['max_slip']).round(3)} m/s, "
           f"largest base tilt {np.asarray(res.metrics['max_tilt']).round(3)} rad")
-    perturbed_trials(rows, over)
+    perturbed_trials(rows, over, twist)
 
 
-def perturbed_trials(rows: list[tuple[str, dict[str, float]]], over: dict[str, np.ndarray]) -> None:
+def perturbed_trials(rows: list[tuple[str, dict[str, float]]], over: dict[str, np.ndarray], twist: float = 0.0
+                     ) -> None:
     """The MuJoCo rows again over TRIALS perturbed trials each (floor friction 1.0 +- 0.1
     and heading +- 0.05 rad from seeds 0..TRIALS-1, as `snake_table3`'s trials; the
     same trials for every setting): mean (worst) of the head errors and recovery, and
@@ -145,7 +148,7 @@ def perturbed_trials(rows: list[tuple[str, dict[str, float]]], over: dict[str, n
     batch = {k: np.repeat(v, TRIALS) for k, v in over.items()}
     batch |= {"mu": np.tile(mu, len(rows)), "heading0": np.tile(heading, len(rows))}
     t = time.perf_counter()
-    res, recs = sim_control.run_joint_limit(batch, n=n)
+    res, recs = sim_control.run_joint_limit(batch, n=n, twist_compliance=twist)
     wall = time.perf_counter() - t
     print(f"\nMuJoCo, {TRIALS} perturbed trials per setting (friction 1.0 +- 0.1, heading +- 0.05 rad; {n} runs "
           f"{wall:.0f} s): mean (worst)")
@@ -180,10 +183,12 @@ def read_tuned(path: str) -> dict[str, float]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tuned", help="tuned.csv of a `jaxloco tune snake_kv_tune` run")
+    ap.add_argument("--twist", type=float, default=0.0,
+                    help="the base's twist compliance [rad/(N m)] in the MuJoCo runs (0: rigid, the default)")
     args = ap.parse_args()
     runtime.configure(x64=True)
-    accuracy_table()
-    limit_table(read_tuned(args.tuned) if args.tuned else None)
+    accuracy_table(args.twist)
+    limit_table(read_tuned(args.tuned) if args.tuned else None, args.twist)
 
 
 if __name__ == "__main__":

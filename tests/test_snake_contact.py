@@ -300,3 +300,18 @@ def test_a_twisting_base_lets_link_7_roll_over_where_the_rigid_base_holds():
         assert _side_push(compliance, 20.0)[0] < -1.0
     with pytest.raises(analysis.SpecError, match="twist_compliance: -1 rad/.* needs a value >= 0"):
         scenarios.build_model(twist_compliance=-1.0)
+
+
+def test_table_3_the_operations_and_the_joint_limit_run_take_the_twist():
+    """The other MuJoCo experiments run on the twisting base when asked (their analyses'
+    `twist_compliance`, rigid by default): the scenario's model has the hinge."""
+    from jaxloco.robots.snake import operations, operations_analysis, table3
+    rigid = scenarios.build_model()[0].nq
+    for analysis_params in (table3.PARAMS, operations_analysis.PARAMS):
+        assert {p.name: p.default for p in analysis_params}["twist_compliance"] == 0.0
+    assert table3.table3_scenario(0.5, 0.1, False).model.nq == rigid
+    assert table3.table3_scenario(0.5, 0.1, False, "native", 0.05).model.nq == rigid + 1
+    door = operations.OPERATIONS["door"]
+    twisting = operations.operation_scenario(door.fixture, 0.1, twist_compliance=0.05).model
+    assert twisting.nq == operations.operation_scenario(door.fixture, 0.1).model.nq + 1
+    assert twisting.jnt_stiffness[twisting.joint(scenarios.TWIST_JOINT).id] == pytest.approx(20.0)

@@ -315,15 +315,16 @@ VALVE = scenarios.Fixture(
 @functools.lru_cache(maxsize=8)
 def operation_scenario(
     fixture: scenarios.Fixture, horizon: float, prediction: predictive.Prediction | None = None,
-    backend: str = "native",
+    backend: str = "native", twist_compliance: float = 0.0,
 ) -> Scenario:
     """The flat-ground snake scenario with an operation's objects and the gripper, the
     tip under the paper's feedforward task-space control (`prediction`: the switching
     state's modes chosen by look-ahead, `predictive`, instead of the fixed order); for
-    `backend` "mjx" on the MJX variant (module docstring)."""
+    `backend` "mjx" on the MJX variant (module docstring); `twist_compliance`
+    [rad/(N m)] > 0: the base twists behind link 7 (`scenarios.twisting_base`)."""
     return scenarios.snake_scenario(
         horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "tip", False, prediction), fixture=fixture,
-        backend=backend,
+        backend=backend, twist_compliance=twist_compliance,
     )
 
 

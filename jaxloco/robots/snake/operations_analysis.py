@@ -48,7 +48,7 @@ DOOR_OPEN_MIN = 1.0  # [rad] success: of the 1.2 rad the operator pulls for, our
 
 PARAMS = snake_params.PARAMETERS.select(
     "operation", "operator_gain", "operator_enter", "operator_exit", "operator_min_switch", "k_eta", "w_wheel", "mu",
-    "mu_jitter", "place_jitter", "nthread", "backend",
+    "mu_jitter", "place_jitter", "twist_compliance", "nthread", "backend",
     operation={"choices": NAMES},
     # the operations' controller values (`operations.OPERATION_GAINS`, default (ours), chosen for the door)
     k_eta={"default": operations.OPERATION_GAINS["k_eta"]},
@@ -118,7 +118,9 @@ def simulate(values: Mapping[str, Any], keys: np.ndarray, simulator: Simulator) 
             continue
         op = operations.OPERATIONS[name]
         params = trial_params(name, {k: a[rows] for k, a in v.items()}, keys[rows])
-        res = simulator.run(operations.operation_scenario(op.fixture, op.horizon, backend=simulator.backend), params)
+        scenario = operations.operation_scenario(op.fixture, op.horizon, backend=simulator.backend,
+                                                 twist_compliance=float(values["twist_compliance"]))
+        res = simulator.run(scenario, params)
         m = operations.measure(op, res)
         switching = operations.switching_record(res)
         for key in (*MEASURES, "max_tip_error", "final_tip_error"):

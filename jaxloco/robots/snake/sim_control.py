@@ -184,14 +184,16 @@ SETTLE = snake_params.PARAMETERS.default("settle")
 
 
 def run_accuracy(feedback: bool = False, mu: float = 1.0, control_dt: float = 0.02, settle: float = SETTLE,
-                 progress: bool = False) -> dict[str, Any]:
+                 progress: bool = False, twist_compliance: float = 0.0) -> dict[str, Any]:
     """Sec. V-A in MuJoCo: six simulations (one per Table III row), head controlled,
     fixing state sigma = 1: displacements (6, 6), errors (6,) [%], the largest wheel
     side slip [m/s] per row and the rollout. The simulation starts with the servos at
     their targets and no load; the robot settles for `settle` s (the head part sags by
-    several cm) before the paper's clock starts (its t = 0, the change at t = 1)."""
+    several cm) before the paper's clock starts (its t = 0, the change at t = 1);
+    `twist_compliance` [rad/(N m)] > 0: the base twists (`scenarios.twisting_base`)."""
     horizon = settle + experiments.ACCURACY_HORIZON + 0.1
-    sc = scenarios.snake_scenario(horizon, control_dt, task_space_controller(control_dt, "head", feedback))
+    sc = scenarios.snake_scenario(horizon, control_dt, task_space_controller(control_dt, "head", feedback),
+                                  twist_compliance=twist_compliance)
     deltas = {k: np.zeros(6) for k in DELTA_KEYS}
     for i, k in enumerate(DELTA_KEYS[:6]):
         deltas[k][i] = experiments.ACCURACY_DELTAS[i]
@@ -209,16 +211,17 @@ def run_accuracy(feedback: bool = False, mu: float = 1.0, control_dt: float = 0.
 # ------------------------------------------------------------ Figs. 8-10 in MuJoCo
 def run_joint_limit(overrides: Mapping[str, Any] | None = None, n: int = 1, horizon: float = experiments.LIMIT_HORIZON,
                     feedback: bool = False, control_dt: float = 0.02, mu: float = 1.0, settle: float = SETTLE,
-                    progress: bool = False, point: str = "head", prediction: predictive.Prediction | None = None
-                    ) -> tuple[RolloutResult, dict[str, np.ndarray]]:
+                    progress: bool = False, point: str = "head", prediction: predictive.Prediction | None = None,
+                    twist_compliance: float = 0.0) -> tuple[RolloutResult, dict[str, np.ndarray]]:
     """Sec. V-B in MuJoCo: the zigzag posture, the controlled point (`point`: "head", as
     in the paper's Fig. 9, which plots w_h; "tip" for the gripper tip) held, fixing state
     until 2 s then switching every Delta T (params overrides, batch of n), after `settle` s
     of settling with the null-space term off (the paper's clock starts then: switch_at is
-    counted from it). Returns the rollout and `limit_records` from the paper's t = 0."""
+    counted from it); `twist_compliance` [rad/(N m)] > 0: the base twists behind link 7
+    (`scenarios.twisting_base`). Returns the rollout and `limit_records` from the paper's t = 0."""
     phi0 = experiments.zigzag_phi()
     ctrl = task_space_controller(control_dt, point, feedback, prediction)
-    sc = scenarios.snake_scenario(settle + horizon, control_dt, ctrl, phi0=phi0)
+    sc = scenarios.snake_scenario(settle + horizon, control_dt, ctrl, phi0=phi0, twist_compliance=twist_compliance)
     over = {"switch_at": experiments.SWITCH_AT, "psi3_target": snake_params.SCP_TARGET, "mu": mu, **(overrides or {})}
     over["switch_at"] = np.asarray(over["switch_at"], float) + settle
     over["hold_until"] = settle

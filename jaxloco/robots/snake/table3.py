@@ -48,8 +48,8 @@ UNITS = ("m", "m", "m", "rad", "rad", "rad")
 CONTROL_DT = 0.02  # [s]
 
 PARAMS = snake_params.PARAMETERS.select(
-    "target", "mu", "mu_jitter", "heading_jitter", "head_kp", "head_kv", "ramp", "feedback", "settle", "nthread",
-    "backend",
+    "target", "mu", "mu_jitter", "heading_jitter", "head_kp", "head_kv", "ramp", "feedback", "settle",
+    "twist_compliance", "nthread", "backend",
     target={"choices": TARGETS},
     # here an int of the host analysis (0/1), not snake.kv's traced bool
     feedback={"default": 0, "doc": "0: the paper's feedforward control (Sec. IV-C2); 1: the simulated head pose "
@@ -68,13 +68,16 @@ STATUSES = trials.STATUSES
 
 
 @functools.lru_cache(maxsize=4)
-def table3_scenario(ramp: float, settle: float, feedback: bool, backend: str = "native") -> Scenario:
+def table3_scenario(ramp: float, settle: float, feedback: bool, backend: str = "native",
+                    twist_compliance: float = 0.0) -> Scenario:
     """The flat-ground snake scenario driven by the task-space controller on the head
     (`sim_control.task_space_controller`), long enough for t_e + 5 after `settle`; for
-    `backend` "mjx" on the model's MJX variant."""
+    `backend` "mjx" on the model's MJX variant; `twist_compliance` [rad/(N m)] > 0: the
+    base twists behind link 7 (`scenarios.twisting_base`)."""
     horizon = settle + experiments.T_START + ramp + 5.0 + 0.1
     return scenarios.snake_scenario(
-        horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "head", feedback), backend=backend
+        horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "head", feedback), backend=backend,
+        twist_compliance=twist_compliance,
     )
 
 
@@ -89,7 +92,7 @@ def target_deltas(targets: np.ndarray) -> dict[str, np.ndarray]:
 
 def _scenario(plain: Mapping[str, Any]) -> Scenario:
     return table3_scenario(float(plain["ramp"]), float(plain["settle"]), bool(plain["feedback"]),
-                          resolve(str(plain["backend"])))
+                           resolve(str(plain["backend"])), float(plain["twist_compliance"]))
 
 
 def params(values: Mapping[str, Any], keys: np.ndarray) -> dict[str, Any]:
