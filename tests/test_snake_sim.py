@@ -95,7 +95,7 @@ def test_state_geometry_matches_mujoco_sites(twist):
         m = spec.compile()
         assert m.nq == model.load_model().nq + 1
         assert m.jnt_stiffness[m.joint(scenarios.TWIST_JOINT).id] == pytest.approx(1 / twist)
-    layout = scenarios._layout(m)
+    layout = scenarios.layout_of(m)
     assert ("twist_qpos" in layout) == bool(twist)
     d = mujoco.MjData(m)
     rng = np.random.default_rng(3)

@@ -275,11 +275,10 @@ def placed_head_pose(
 
 
 # ------------------------------------------------------------------- state geometry
-@functools.cache
-def _layout(m: mujoco.MjModel | None = None) -> dict[str, np.ndarray]:
-    """Where the robot's joints sit in qpos / qvel of `m` (default: the robot-only model);
-    "twist_qpos" and "twist_dof" (1,) only where the base twists (`twisting_base`)."""
-    m = snake_model.load_model() if m is None else m
+def layout_of(m: mujoco.MjModel) -> dict[str, np.ndarray]:
+    """Where the robot's joints sit in qpos / qvel of the model `m`: "joint_qpos",
+    "joint_dof" (17,), "wheel_dof" (9,), and "twist_qpos", "twist_dof" (1,) only where
+    the base twists (`twisting_base`)."""
     lay = {
         "joint_qpos": np.array([m.joint(n).qposadr[0] for n in snake_params.JOINT_NAMES]),
         "joint_dof": np.array([m.joint(n).dofadr[0] for n in snake_params.JOINT_NAMES]),
@@ -290,12 +289,18 @@ def _layout(m: mujoco.MjModel | None = None) -> dict[str, np.ndarray]:
     return lay
 
 
+@functools.cache
+def _layout() -> dict[str, np.ndarray]:
+    """`layout_of` the robot-only model (`models/t2snake3.xml`, a rigid base)."""
+    return layout_of(snake_model.load_model())
+
+
 def state_geometry(qpos: Array, qvel: Array, params: snake_params.SnakeParams | None = None,
                    layout: Mapping[str, np.ndarray] | None = None) -> dict[str, Array]:
     """What the scenario reads from one simulation's state (see the module docstring):
     head, tip, base (6,) poses, joints, joint_vel (17,), wheel_speed (9,), clearance
     (9,), slip (9,) lateral slip of each pair's contact point, roll_slip (9,) rolling slip
-    of each active wheel, tilt () of link 7 [rad]. `layout`: `_layout` of the simulated
+    of each active wheel, tilt () of link 7 [rad]. `layout`: `layout_of` the simulated
     model (default: the robot-only model's); with a twisting base the pairs behind
     theta_4 are turned by the twist (`kinematics.twisted`)."""
     params = snake_params.default_params() if params is None else params
@@ -564,7 +569,7 @@ def twisting_base(spec: mujoco.MjSpec, compliance: float) -> None:
     (Secs. V-B, V-D), as a twist of the base's structure. Measured on Tables III-V, the
     joint-limit run and the operations in docs/snake.md; default (ours) 0: a rigid base.
     The added joint moves the qpos / qvel addresses behind theta_4 (read them from the
-    model, `_layout(m)`)."""
+    model, `layout_of(m)`)."""
     spec.body("link8").add_joint(name=TWIST_JOINT, type=mujoco.mjtJoint.mjJNT_HINGE, axis=[1.0, 0.0, 0.0],
                                  stiffness=1.0 / compliance, damping=TWIST_DAMPING, armature=TWIST_ARMATURE)
 
@@ -601,7 +606,7 @@ def snake_scenario(
     rows = tr.mocap_ids(m, terrain)
     ground = np.array([m.geom(n).id for n in terrain.body_names()])
     robot = np.array(sorted(m.geom(n).id for n in _robot_geoms()[0]))
-    lay = _layout(m)  # the ground (a mocap body) and a fixture's joints come after the robot's
+    lay = layout_of(m)  # the ground (a mocap body) and a fixture's joints come after the robot's
     assert twist_compliance > 0.0 or all(np.array_equal(lay[k], v) for k, v in _layout().items())
     assert all(m.actuator(n).id == a for n, a in zip(snake_params.JOINT_NAMES, _actuator_ids()[0], strict=True))
     wheel_qpos = np.array([m.joint(f"wheel{i + 1}_{s}").qposadr[0] for i in range(snake_params.N_PAIRS)
