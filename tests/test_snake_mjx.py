@@ -42,7 +42,7 @@ def _pairs(m) -> set[tuple[str, str]]:
 def _variants():
     """(analysis, native model, MJX model) of every simulated snake analysis' scenario,
     built by the analyses' own functions (tiny horizons: only the models are used)."""
-    plain = {"ramp": 0.5, "settle": 0.1, "feedback": 0}
+    plain = {"ramp": 0.5, "settle": 0.1, "feedback": 0, "twist_compliance": 0.0}
     reach = {"ground": "box", "horizon": 0.1, "settle": 0.1}
     out = [("snake.reach", sim_analysis.REACH.simulate.scenario({**reach, "backend": "native"}).model,
             sim_analysis.REACH.simulate.scenario({**reach, "backend": "mjx"}).model),
