@@ -44,8 +44,8 @@ from jaxloco.robots.snake import contact, kinematics, model  # noqa: E402
 from jaxloco.robots.snake import params as sp  # noqa: E402
 
 # `jaxloco sweep snake_contact` at the defaults (the twisting base), mean of 5 trials (docs/snake.md, 8 Dec 2026)
-OURS = {"i": (16.2, 10.1, 15.7), "ii": (23.8, 9.7, 11.1), "iii": (28.4, 9.2, 9.4),
-        "iv": (13.2, 10.2, 15.5), "v": (18.8, 8.0, 10.6), "vi": (23.0, 7.1, 8.9)}
+OURS = {"i": (15.6, 9.8, 15.7), "ii": (23.7, 9.4, 11.1), "iii": (29.9, 9.1, 9.3),
+        "iv": (15.2, 9.9, 15.8), "v": (23.2, 9.4, 11.1), "vi": (29.4, 9.1, 9.3)}
 CONTACT_POINT = ("front", "mid", "mid")  # where the gripper meets the plate per push (`contact.plate_pose`)
 
 

@@ -16,7 +16,7 @@ Prints two tables:
      the paper's K_V with the wheels 10 x dearer in W and k_eta 0.7 (both ours: the paper
      gives neither) and, with --tuned, the values of a `jaxloco tune snake_kv_tune` run;
      then the MuJoCo rows over 5 perturbed trials each (mean and worst).
-With --twist C every MuJoCo run is on a base that twists behind link 7 with compliance C
+With --twist C every MuJoCo run is on a base that twists at its joints with compliance C
 [rad/(N m)] (`scenarios.twisting_base`; the default 0 is the rigid base).
 """
 

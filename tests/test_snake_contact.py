@@ -264,7 +264,7 @@ def test_contact_height_law_plot_has_ours_and_the_papers_series_with_their_expon
 
 
 def _side_push(twist_compliance: float, side_force: float) -> tuple[float, float]:
-    """(link 7's roll, the twist hinge's angle) [rad] after 2 s of a steady side force
+    """(link 7's roll, the first twist hinge's angle) [rad] after 2 s of a steady side force
     [N] (+y) at the head of the robot standing in the Sec. V-A posture (head 0.34 m up)."""
     from jaxloco.robots.snake import model as snake_model
     m = scenarios.build_model(twist_compliance=twist_compliance)[0]
@@ -276,27 +276,27 @@ def _side_push(twist_compliance: float, side_force: float) -> tuple[float, float
     d.xfrc_applied[head, 3:] = np.cross(d.site("head").xpos - d.xipos[head], [0.0, side_force, 0.0])
     mujoco.mj_step(m, d, nstep=1000)
     R7 = d.xmat[m.body("link7").id].reshape(3, 3)
-    twist = d.qpos[m.joint(scenarios.TWIST_JOINT).qposadr[0]] if twist_compliance else 0.0
+    twist = d.qpos[m.joint(scenarios.TWIST_JOINTS[0]).qposadr[0]] if twist_compliance else 0.0
     return float(np.arctan2(R7[2, 1], R7[2, 2])), float(twist)
 
 
 def test_a_twisting_base_lets_link_7_roll_over_where_the_rigid_base_holds():
-    """`twist_compliance` (`scenarios.twisting_base`): a passive hinge about link 8's long
-    axis behind theta_4. Pushed sideways at the raised head, link 7 and the head part then
-    roll on pair 3's wheels, the hinge turning with them (the base behind stays flat):
+    """`twist_compliance` (`scenarios.twisting_base`): a passive hinge behind each base yaw
+    joint. Pushed sideways at the raised head, link 7 and the head part then roll on pair
+    3's wheels, mostly about the first hinge (behind theta_4; the base behind stays down):
     at 5 N several times the rigid base's roll, and 20 N, which the rigid base holds
     (the whole robot's weight resists), turns them over; with the contact experiment's
     default 0.05 rad/(N m) as with a softer 0.2 (the front's weight, not the spring,
     sets where)."""
     m = scenarios.build_model(twist_compliance=0.05)[0]
-    assert m.nq == scenarios.build_model()[0].nq + 1
-    assert m.jnt_stiffness[m.joint(scenarios.TWIST_JOINT).id] == pytest.approx(20.0)
+    assert m.nq == scenarios.build_model()[0].nq + params.N_B
+    assert [m.jnt_stiffness[m.joint(n).id] for n in scenarios.TWIST_JOINTS] == pytest.approx([20.0] * params.N_B)
     rigid_5, _ = _side_push(0.0, 5.0)
     rigid_20, _ = _side_push(0.0, 20.0)
     assert abs(rigid_20) < 0.01
     for compliance in (0.05, 0.2):
         roll_5, twist_5 = _side_push(compliance, 5.0)
-        assert roll_5 < 3 * rigid_5 < 0.0 and twist_5 == pytest.approx(-roll_5, rel=0.1)
+        assert roll_5 < 3 * rigid_5 < 0.0 and 0.7 * -roll_5 < twist_5 < 1.1 * -roll_5  # mostly the first hinge
         assert _side_push(compliance, 20.0)[0] < -1.0
     with pytest.raises(analysis.SpecError, match="twist_compliance: -1 rad/.* needs a value >= 0"):
         scenarios.build_model(twist_compliance=-1.0)
@@ -310,8 +310,8 @@ def test_table_3_the_operations_and_the_joint_limit_run_take_the_twist():
     for analysis_params in (table3.PARAMS, operations_analysis.PARAMS):
         assert {p.name: p.default for p in analysis_params}["twist_compliance"] == 0.0
     assert table3.table3_scenario(0.5, 0.1, False).model.nq == rigid
-    assert table3.table3_scenario(0.5, 0.1, False, "native", 0.05).model.nq == rigid + 1
+    assert table3.table3_scenario(0.5, 0.1, False, "native", 0.05).model.nq == rigid + params.N_B
     door = operations.OPERATIONS["door"]
     twisting = operations.operation_scenario(door.fixture, 0.1, twist_compliance=0.05).model
-    assert twisting.nq == operations.operation_scenario(door.fixture, 0.1).model.nq + 1
-    assert twisting.jnt_stiffness[twisting.joint(scenarios.TWIST_JOINT).id] == pytest.approx(20.0)
+    assert twisting.nq == operations.operation_scenario(door.fixture, 0.1).model.nq + params.N_B
+    assert twisting.jnt_stiffness[twisting.joint(scenarios.TWIST_JOINTS[-1]).id] == pytest.approx(20.0)

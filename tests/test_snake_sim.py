@@ -82,6 +82,10 @@ def test_actuator_command_follows_the_model_actuators():
     assert batched.shape == (snake_params.N_MODES, m.nu)
 
 
+def params_n_twists() -> int:
+    return snake_params.N_B  # one twist hinge behind each base yaw joint
+
+
 @pytest.mark.parametrize("twist", [0.0, 0.05])
 def test_state_geometry_matches_mujoco_sites(twist):
     """Random state (pose, joints, velocities; on the twisting base the twist too):
@@ -93,8 +97,9 @@ def test_state_geometry_matches_mujoco_sites(twist):
         spec = model.load_spec()
         scenarios.twisting_base(spec, twist)
         m = spec.compile()
-        assert m.nq == model.load_model().nq + 1
-        assert m.jnt_stiffness[m.joint(scenarios.TWIST_JOINT).id] == pytest.approx(1 / twist)
+        assert m.nq == model.load_model().nq + params_n_twists()
+        for name in scenarios.TWIST_JOINTS:
+            assert m.jnt_stiffness[m.joint(name).id] == pytest.approx(1 / twist)
     layout = scenarios.layout_of(m)
     assert ("twist_qpos" in layout) == bool(twist)
     d = mujoco.MjData(m)
@@ -103,7 +108,7 @@ def test_state_geometry_matches_mujoco_sites(twist):
         d.qpos[:] = m.qpos0
         d.qpos[:3] = rng.uniform(-1, 1, 3)
         d.qpos[3:7] = model.rpy_to_quat(rng.uniform(-0.4, 0.4, 3))
-        for name in snake_params.JOINT_NAMES + ((scenarios.TWIST_JOINT,) if twist else ()):
+        for name in snake_params.JOINT_NAMES + (scenarios.TWIST_JOINTS if twist else ()):
             d.qpos[m.joint(name).qposadr[0]] = rng.uniform(-0.5, 0.5)
         d.qvel[:] = rng.normal(0, 1, m.nv)
         mujoco.mj_forward(m, d)

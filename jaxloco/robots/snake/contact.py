@@ -44,7 +44,7 @@ Ours:
     `ramp` (4 s) is ours, and OVERSHOOT is fitted with it;
   * trials: floor friction mu + U(-1, 1) mu_jitter and heading U(-1, 1)
     heading_jitter from the row's seed (the plate and the push turn with the robot);
-  * the base twists behind link 7 (`twist_compliance` [rad/(N m)], default
+  * the base twists at its joints (`twist_compliance` [rad/(N m)], default
     TWIST_COMPLIANCE, ours; `scenarios.twisting_base`): a push across link 7 rolls it
     and the raised head part on pair 3's wheels, against their weight, the paper's
     reason why f_x falls as y_h grows ("the direction of the contact force does not
@@ -131,13 +131,13 @@ FLOOR_MU = 1.0
 # reason beside the parameter in `params.PARAMETERS`)
 OVERSHOOT = snake_params.PARAMETERS.default("overshoot")
 SMOOTH_RECORDS = 5  # control periods (0.1 s) the plate force is averaged over (`push_force`)
-# [rad/(N m)] the base's twist behind link 7 in the contact experiment (`scenarios.twisting_base`), default (ours):
-# the paper finds the robot's "mechanical stiffness" insufficient but gives no value. With a twisting base the side
-# and across-the-base pushes roll link 7 and the raised head part on pair 3's wheels, and Tables IV-V's means come
-# within 25 % in 24-25 of 30 (rigid base: 20) at any compliance from 0.02 to 1.0 (50 to 1 N m/rad: the front's
-# weight more than the spring sets the force; RMS log error 0.23-0.19, rigid 0.38, the L bent at the tail); stiffer
-# than about 150 N m/rad the rigid base's rows come back (docs/snake.md, 8 Dec 2026). 0.05 (20 N m/rad) is in that
-# range; the other snake experiments keep the rigid base (measured with the twist in docs/snake.md)
+# [rad/(N m)] the base's twist at each of its joints in the contact experiment (`scenarios.twisting_base`), default
+# (ours): the paper finds the robot's "mechanical stiffness" insufficient but gives no value. With a twisting base the
+# side and across-the-base pushes roll link 7 and the raised head part on pair 3's wheels, and Tables IV-V's means
+# come within 25 % in 24-26 of 30 (rigid base: 20) at any compliance from 0.02 to 1.0 (50 to 1 N m/rad: the front's
+# weight more than the springs sets the force; RMS log error 0.21-0.18, rigid 0.38, the L bent at the tail); at 0.05
+# (20 N m/rad) 25 of 30 and all four of the paper's trends (docs/snake.md, 8 Dec 2026). The other snake experiments
+# keep the rigid base (measured with the twist in docs/snake.md)
 TWIST_COMPLIANCE = 0.05
 GRIPPER_MID = (
     snake_params.GRIPPER_TIP - 0.5 * snake_params.GRIPPER_LENGTH
@@ -533,7 +533,7 @@ def _model_note(cols: Mapping[str, np.ndarray]) -> str:
     twist = float(cols["twist_compliance"][0]) if "twist_compliance" in cols else 0.0
     joints = "theta_8 = theta_9" if bend == "tail" else "theta_6 = theta_7"
     grip = f"wheels creeping sideways (wheel_creep {creep:g} s)" if creep > 0 else "hard wheel friction"
-    base = (f"the base twisting behind link 7 (twist_compliance {twist:g} rad/(N m), {1 / twist:.3g} N m/rad)"
+    base = (f"the base twisting at its joints (twist_compliance {twist:g} rad/(N m), {1 / twist:.3g} N m/rad each)"
             if twist > 0 else "a rigid base")
     return f"model: the L bent at the {bend} ({joints} = 45 deg), {grip}, {base}"
 

@@ -86,8 +86,9 @@ M_SCP = 1
 SELECTION = np.eye(snake_params.N_PHI)[[snake_params.SCP_INDEX]]  # S (1, 12)
 _BASE_LINK = int(snake_params.PAIR_LINKS[snake_params.BASE_PAIRS[0]]) - 1  # link 7 (0-based 6)
 _PAIR_LINK_IDX = np.asarray(snake_params.PAIR_LINKS) - 1  # 0-based link of each of the 9 pairs
-# the first base link behind the base's twist (`scenarios.twisting_base`): link 8 (0-based 7), behind theta_4
-TWIST_LINK = _BASE_LINK + 1
+# the links behind the base's twist hinges (`scenarios.twisting_base`), one behind each base yaw joint theta_4 ..
+# theta_9: links 8, 10, ..., 18 (0-based 7, 9, ..., 17)
+TWIST_LINKS = tuple(_BASE_LINK + 1 + 2 * k for k in range(snake_params.N_B))
 
 
 def _dtype(x: Array) -> jnp.dtype:
@@ -113,8 +114,8 @@ def link_frames(
     w_h: Array, joints: Array, params: snake_params.SnakeParams | None = None, twist: Array | None = None
 ) -> tuple[Array, Array]:
     """World frames of the 18 links: rotations (18, 3, 3) and origins (18, 3), from the
-    head pose w_h (6,) and the 17 joint angles [rad]; `twist` [rad]: the base's twist
-    behind theta_4 (`twisted`; None: a rigid base, the model's default)."""
+    head pose w_h (6,) and the 17 joint angles [rad]; `twist` (6,) [rad]: the base's
+    twists behind theta_4 .. theta_9 (`twisted`; None: a rigid base, the model's default)."""
     params = snake_params.default_params() if params is None else params
     w_h = jnp.asarray(w_h)
     joints = jnp.asarray(joints, w_h.dtype)
@@ -136,15 +137,19 @@ def link_frames(
 
 
 def twisted(Rs: Array, ps: Array, twist: Array) -> tuple[Array, Array]:
-    """The link frames (Rs (18, 3, 3), ps (18, 3), world) with link 8 and every link
-    behind it turned by `twist` [rad] about link 8's x axis through its origin (the
-    theta_4 axle): the base's twist at its first joint (`scenarios.twisting_base`, the
-    MuJoCo hinge after theta_4 in link 8's body)."""
-    R8, p8 = Rs[TWIST_LINK], ps[TWIST_LINK]
-    turn = R8 @ geo.rot_x(jnp.asarray(twist, Rs.dtype)) @ R8.T  # world frame
-    behind = np.arange(Rs.shape[0]) >= TWIST_LINK
-    return (jnp.where(behind[:, None, None], turn @ Rs, Rs),
-            jnp.where(behind[:, None], p8 + (ps - p8) @ turn.T, ps))
+    """The link frames (Rs (18, 3, 3), ps (18, 3), world) with the base's twists applied:
+    twist (6,) [rad], twist[k] turns link 8 + 2k and every link behind it about that
+    link's x axis through its origin (the axle of theta_{4+k}; `scenarios.twisting_base`,
+    the MuJoCo hinge after theta_{4+k} in that link's body)."""
+    twist = jnp.asarray(twist, Rs.dtype)
+    for k in range(len(TWIST_LINKS) - 1, -1, -1):  # the tail's first: each turn carries the twists behind it
+        link = TWIST_LINKS[k]
+        R, p = Rs[link], ps[link]
+        turn = R @ geo.rot_x(twist[k]) @ R.T  # world frame
+        behind = np.arange(Rs.shape[0]) >= link
+        Rs = jnp.where(behind[:, None, None], turn @ Rs, Rs)
+        ps = jnp.where(behind[:, None], p + (ps - p) @ turn.T, ps)
+    return Rs, ps
 
 
 def tip_from_head(w_h: Array, params: snake_params.SnakeParams | None = None) -> Array:

@@ -321,7 +321,7 @@ def operation_scenario(
     tip under the paper's feedforward task-space control (`prediction`: the switching
     state's modes chosen by look-ahead, `predictive`, instead of the fixed order); for
     `backend` "mjx" on the MJX variant (module docstring); `twist_compliance`
-    [rad/(N m)] > 0: the base twists behind link 7 (`scenarios.twisting_base`)."""
+    [rad/(N m)] > 0: the base twists at its joints (`scenarios.twisting_base`)."""
     return scenarios.snake_scenario(
         horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "tip", False, prediction), fixture=fixture,
         backend=backend, twist_compliance=twist_compliance,

@@ -271,9 +271,10 @@ PARAMETERS = ParamTable("snake", (
           "cone: the wheels creep under a side load, a tyre's give); 0: hard friction, default (ours); native "
           "MuJoCo only", "s", lo=0.0, hi=2.0, sweepable=False),
     # the base's twist at its first joint (docs/snake.md, Tables IV-V): 0 is the model's rigid base
-    Param("twist_compliance", 0.0, "compliance of a passive hinge about link 8's long axis behind theta_4 (the "
-          "base twists: link 7 and the raised head part roll on pair 3's wheels when pushed across the base); 0: a "
-          "rigid base, default (ours)", "rad/(N m)", lo=0.0, hi=10.0, sweepable=False),
+    Param("twist_compliance", 0.0, "compliance of each of the passive hinges about the base links' long axes behind "
+          "theta_4 .. theta_9 (the base twists at its joints: link 7 and the raised head part roll on pair 3's wheels "
+          "when pushed across the base); 0: a rigid base, default (ours)", "rad/(N m)", lo=0.0, hi=10.0,
+          sweepable=False),
     Param("operation", "pick", "the operation (Sec. V-D): pick (a T-joint pipe), valve (a gate valve), door (a "
           "door with a knob)", kind="str"),
     # the teleoperator (`operator`; off in a simulation's params dict unless set)

@@ -277,15 +277,16 @@ def placed_head_pose(
 # ------------------------------------------------------------------- state geometry
 def layout_of(m: mujoco.MjModel) -> dict[str, np.ndarray]:
     """Where the robot's joints sit in qpos / qvel of the model `m`: "joint_qpos",
-    "joint_dof" (17,), "wheel_dof" (9,), and "twist_qpos", "twist_dof" (1,) only where
+    "joint_dof" (17,), "wheel_dof" (9,), and "twist_qpos", "twist_dof" (6,) only where
     the base twists (`twisting_base`)."""
     lay = {
         "joint_qpos": np.array([m.joint(n).qposadr[0] for n in snake_params.JOINT_NAMES]),
         "joint_dof": np.array([m.joint(n).dofadr[0] for n in snake_params.JOINT_NAMES]),
         "wheel_dof": np.array([m.joint(f"{n}_active").dofadr[0] for n in snake_model.WHEEL_NAMES]),
     }
-    if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, TWIST_JOINT) >= 0:
-        lay["twist_qpos"], lay["twist_dof"] = m.joint(TWIST_JOINT).qposadr, m.joint(TWIST_JOINT).dofadr
+    if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, TWIST_JOINTS[0]) >= 0:
+        lay["twist_qpos"] = np.array([m.joint(n).qposadr[0] for n in TWIST_JOINTS])
+        lay["twist_dof"] = np.array([m.joint(n).dofadr[0] for n in TWIST_JOINTS])
     return lay
 
 
@@ -301,8 +302,8 @@ def state_geometry(qpos: Array, qvel: Array, params: snake_params.SnakeParams | 
     head, tip, base (6,) poses, joints, joint_vel (17,), wheel_speed (9,), clearance
     (9,), slip (9,) lateral slip of each pair's contact point, roll_slip (9,) rolling slip
     of each active wheel, tilt () of link 7 [rad]. `layout`: `layout_of` the simulated
-    model (default: the robot-only model's); with a twisting base the pairs behind
-    theta_4 are turned by the twist (`kinematics.twisted`)."""
+    model (default: the robot-only model's); with a twisting base the pairs are turned
+    by the twists (`kinematics.twisted`)."""
     params = snake_params.default_params() if params is None else params
     lay = _layout() if layout is None else layout
     qpos, qvel = jnp.asarray(qpos), jnp.asarray(qvel)
@@ -322,7 +323,7 @@ def state_geometry(qpos: Array, qvel: Array, params: snake_params.SnakeParams | 
 
     def rel(q):  # in the head frame: pair contact points, active wheels' contacts, axes
         axle, contact, R = kinematics.wheel_pairs(zero, q[:snake_params.N_JOINTS], params,
-                                                  q[-1] if twists else None)
+                                                  q[snake_params.N_JOINTS:] if twists else None)
         return contact, contact + d * R[:, :, 1], axle, R
 
     (c_rel, a_rel, axle_rel, R_rel), (dc, da, _, _) = jax.jvp(rel, (angles,), (rates,))
@@ -502,7 +503,7 @@ def build_model(fixture: Fixture | None = None, backend: str = "native",
     fixture's bodies if given; for `backend` "mjx" its MJX variant (`mjx_variant`, then
     the fixture's `mjx`), with the same indices. `wheel_creep` [s] > 0: the wheels'
     friction on the ground creeps (`creeping_wheels`; native only); `twist_compliance`
-    [rad/(N m)] > 0: the base twists behind link 7 (`twisting_base`)."""
+    [rad/(N m)] > 0: the base twists at its joints (`twisting_base`)."""
     if backend not in BACKENDS:
         raise ValueError(f"backend: expected one of {', '.join(BACKENDS)}, got {backend!r}")
     if wheel_creep < 0.0 or (wheel_creep > 0.0 and backend != "native"):
@@ -555,23 +556,27 @@ def creeping_wheels(spec: mujoco.MjSpec, floor: tuple[str, ...], creep: float) -
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
 
 
-TWIST_JOINT = "twist4"  # the base's twist behind theta_4 (`twisting_base`)
+# the base's twist hinges (`twisting_base`), behind theta_4 .. theta_9
+TWIST_JOINTS = tuple(f"twist{k}" for k in range(4, 4 + snake_params.N_B))
 TWIST_DAMPING = 0.5  # [N m s/rad] of the twist hinge, default (ours)
 TWIST_ARMATURE = 0.001  # [kg m^2] of the twist hinge, ours (the rotor inertia a joint servo would add)
 
 
 def twisting_base(spec: mujoco.MjSpec, compliance: float) -> None:
-    """Let the base twist at its first joint, in place: a passive hinge about link 8's
-    long axis (x), after theta_4 in link 8's body, with stiffness 1 / `compliance`
-    [N m/rad] and damping `TWIST_DAMPING`. Link 7 (the ψ_3 axle's pair) and the raised
-    head part then roll on pair 3's wheels against the spring and their own weight when
-    pushed across the base: the "mechanical stiffness" the paper finds insufficient
-    (Secs. V-B, V-D), as a twist of the base's structure. Measured on Tables III-V, the
-    joint-limit run and the operations in docs/snake.md; default (ours) 0: a rigid base.
-    The added joint moves the qpos / qvel addresses behind theta_4 (read them from the
-    model, `layout_of(m)`)."""
-    spec.body("link8").add_joint(name=TWIST_JOINT, type=mujoco.mjtJoint.mjJNT_HINGE, axis=[1.0, 0.0, 0.0],
-                                 stiffness=1.0 / compliance, damping=TWIST_DAMPING, armature=TWIST_ARMATURE)
+    """Let the base twist at each of its joints, in place: behind every base yaw joint
+    theta_4 .. theta_9 a passive hinge about the next link's long axis (x), in that
+    link's body (links 8, 10, ..., 18), with stiffness 1 / `compliance` [N m/rad] each
+    and damping `TWIST_DAMPING`. Link 7 (the psi_3 axle's pair) and the raised head part
+    then roll on pair 3's wheels against the springs and their own weight when pushed
+    across the base, and each unit of the base keeps its wheels on the ground: the
+    "mechanical stiffness" the paper finds insufficient (Secs. V-B, V-D), as the twist
+    of the base's joints. Measured on Tables III-V, the joint-limit run and the
+    operations in docs/snake.md; default (ours) 0: a rigid base. The added joints move
+    the qpos / qvel addresses behind theta_4 (read them from the model, `layout_of(m)`)."""
+    for k, name in enumerate(TWIST_JOINTS):
+        spec.body(f"link{kinematics.TWIST_LINKS[k] + 1}").add_joint(
+            name=name, type=mujoco.mjtJoint.mjJNT_HINGE, axis=[1.0, 0.0, 0.0], stiffness=1.0 / compliance,
+            damping=TWIST_DAMPING, armature=TWIST_ARMATURE)
 
 
 def snake_scenario(
@@ -593,7 +598,7 @@ def snake_scenario(
     it) with the wheels of params["mode"] lifted; `fixture`: bodies beside the ground;
     `backend` "mjx": on the MJX variant of the model (`build_model`); `wheel_creep` [s]
     > 0: the wheels' grip on the floor creeps (`creeping_wheels`); `twist_compliance`
-    [rad/(N m)] > 0: the base twists behind link 7 (`twisting_base`)."""
+    [rad/(N m)] > 0: the base twists at its joints (`twisting_base`)."""
     m, terrain = build_model(fixture, backend, wheel_creep, twist_compliance)
     phi0 = np.asarray(snake_params.INITIAL_PHI if phi0 is None else phi0, float)
     controller = controller or constant_controller(phi0)

@@ -217,7 +217,7 @@ def run_joint_limit(overrides: Mapping[str, Any] | None = None, n: int = 1, hori
     in the paper's Fig. 9, which plots w_h; "tip" for the gripper tip) held, fixing state
     until 2 s then switching every Delta T (params overrides, batch of n), after `settle` s
     of settling with the null-space term off (the paper's clock starts then: switch_at is
-    counted from it); `twist_compliance` [rad/(N m)] > 0: the base twists behind link 7
+    counted from it); `twist_compliance` [rad/(N m)] > 0: the base twists at its joints
     (`scenarios.twisting_base`). Returns the rollout and `limit_records` from the paper's t = 0."""
     phi0 = experiments.zigzag_phi()
     ctrl = task_space_controller(control_dt, point, feedback, prediction)

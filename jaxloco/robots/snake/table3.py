@@ -73,7 +73,7 @@ def table3_scenario(ramp: float, settle: float, feedback: bool, backend: str = "
     """The flat-ground snake scenario driven by the task-space controller on the head
     (`sim_control.task_space_controller`), long enough for t_e + 5 after `settle`; for
     `backend` "mjx" on the model's MJX variant; `twist_compliance` [rad/(N m)] > 0: the
-    base twists behind link 7 (`scenarios.twisting_base`)."""
+    base twists at its joints (`scenarios.twisting_base`)."""
     horizon = settle + experiments.T_START + ramp + 5.0 + 0.1
     return scenarios.snake_scenario(
         horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "head", feedback), backend=backend,
