@@ -78,7 +78,8 @@ def give_at_peak(postures: list[str], twist: float = contact.TWIST_COMPLIANCE) -
     from jaxloco.robots.snake import experiments
     from jaxloco.sim.rollout import Simulator
 
-    ramp, hold, settle = 4.0, 3.0, float(sp.PARAMETERS.default("settle"))
+    defaults = {p.name: p.default for p in contact.PARAMS}  # the contact experiment's
+    ramp, hold, settle = (float(defaults[k]) for k in ("ramp", "hold", "settle"))
     n = len(postures)
     sim = Simulator(nthread=2)
     heads = contact.settled_heads(np.array(postures), ramp, hold, settle, sim, twist_compliance=twist)

@@ -82,10 +82,6 @@ def test_actuator_command_follows_the_model_actuators():
     assert batched.shape == (snake_params.N_MODES, m.nu)
 
 
-def params_n_twists() -> int:
-    return snake_params.N_B  # one twist hinge behind each base yaw joint
-
-
 @pytest.mark.parametrize("twist", [0.0, 0.05])
 def test_state_geometry_matches_mujoco_sites(twist):
     """Random state (pose, joints, velocities; on the twisting base the twist too):
@@ -97,7 +93,7 @@ def test_state_geometry_matches_mujoco_sites(twist):
         spec = model.load_spec()
         scenarios.twisting_base(spec, twist)
         m = spec.compile()
-        assert m.nq == model.load_model().nq + params_n_twists()
+        assert m.nq == model.load_model().nq + snake_params.N_B  # a twist hinge behind each base yaw joint
         for name in scenarios.TWIST_JOINTS:
             assert m.jnt_stiffness[m.joint(name).id] == pytest.approx(1 / twist)
     layout = scenarios.layout_of(m)

@@ -116,9 +116,9 @@ PUSH = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]])  # in the 
 L_SHAPE = np.array([0.0, 0.0, math.pi / 4, math.pi / 4, 0.0, 0.0])  # theta_4..theta_9 [rad], the middle bend, ours
 # where the L bends (`l_bend`): theta_4..theta_9 [rad] of each reading of Fig. 12(b) (missing from our copy)
 L_SHAPES = {"middle": L_SHAPE, "tail": np.array([0.0, 0.0, 0.0, 0.0, math.pi / 4, math.pi / 4])}
-# where the L bends by default, ours: "tail" since 8 Dec 2026 ("middle" before). On the twisting base (TWIST_COMPLIANCE)
-# it fits Tables IV-V better (RMS log error 0.205 against 0.272, three of the paper's four trends against two, 24 of
-# 30 within 25 % both; docs/snake.md), so Table V, on which it was chosen, is no longer out of sample
+# where the L bends by default, ours: "tail" since 8 Dec 2026 ("middle" before). On the twisting base (measured with
+# its first form, one hinge behind theta_4) it fits Tables IV-V better: RMS log error 0.205 against 0.272, 24 of 30
+# within 25 % both (docs/snake.md); so Table V, on which it was chosen, is no longer out of sample
 L_BEND = "tail"
 PLATE_HALF = (0.004, 0.03, 0.05)  # [m] thickness, width, height (half sizes), ours
 POSTURE_RAMP = 4.0  # [s] the head's move from the Sec. V-A posture to a contact posture, ours
@@ -281,7 +281,7 @@ def contact_scenario(ramp: float, hold: float, settle: float, backend: str = "na
     paper's feedforward task-space control (`sim_control.task_space_controller`); for
     `backend` "mjx" on the model's MJX variant; `wheel_creep` [s] > 0: the wheels' grip
     creeps (`scenarios.creeping_wheels`); `twist_compliance` [rad/(N m)] > 0: the base
-    twists behind link 7 (`scenarios.twisting_base`)."""
+    twists at its joints (`scenarios.twisting_base`)."""
     horizon = settle + experiments.T_START + ramp + hold
     return scenarios.snake_scenario(horizon, CONTROL_DT, sim_control.task_space_controller(CONTROL_DT, "head", False),
                                     fixture=PLATE, backend=backend, wheel_creep=wheel_creep,
